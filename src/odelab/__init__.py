@@ -1,0 +1,63 @@
+"""odelab: MATLAB-faithful ode23/ode45, state-space systems, linearisation and lab reports.
+
+The public API is imported lazily (PEP 562), so ``import odelab`` and ``odelab --help`` stay
+fast and import neither numpy nor scipy until a solver is used.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
+
+__version__ = "0.1.0"
+
+# public name -> module that defines it
+_LAZY = {
+    "ode23": "odelab.solvers.api",
+    "ode45": "odelab.solvers.api",
+    "solve": "odelab.solvers.api",
+    "METHODS": "odelab.solvers.registry",
+    "Solution": "odelab.solution",
+    "Stats": "odelab.solution",
+    "OdelabError": "odelab.exceptions",
+    "InputError": "odelab.exceptions",
+    "ExpressionError": "odelab.exceptions",
+    "ExperimentError": "odelab.exceptions",
+    "StateSpace": "odelab.systems.statespace",
+    "NonlinearSystem": "odelab.systems.nonlinear",
+    "simulate": "odelab.systems.simulate",
+    "Response": "odelab.systems.simulate",
+    "linearize": "odelab.analysis.linearize",
+    "operating_point": "odelab.analysis.linearize",
+    "load_experiment": "odelab.experiment.loader",
+    "run_experiment": "odelab.experiment.runner",
+}
+
+__all__ = ["__version__", *_LAZY]
+
+
+def __getattr__(name: str):
+    try:
+        module = _LAZY[name]
+    except KeyError:
+        raise AttributeError(f"module 'odelab' has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(__all__)
+
+
+if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
+    from odelab.analysis.linearize import linearize, operating_point
+    from odelab.exceptions import ExperimentError, ExpressionError, InputError, OdelabError
+    from odelab.experiment.loader import load_experiment
+    from odelab.experiment.runner import run_experiment
+    from odelab.solution import Solution, Stats
+    from odelab.solvers.api import ode23, ode45, solve
+    from odelab.solvers.registry import METHODS
+    from odelab.systems.nonlinear import NonlinearSystem
+    from odelab.systems.simulate import Response, simulate
+    from odelab.systems.statespace import StateSpace

@@ -1,0 +1,93 @@
+"""Exceptions raised by odelab.
+
+Every error odelab raises on purpose derives from :class:`OdelabError`, and also from the
+matching builtin (``ValueError`` for bad input, ``RuntimeError`` for internal faults), so
+callers can catch either. The core never prints or exits: the CLI turns these into one
+message and an exit code (2 for :class:`InputError`).
+
+A failed integration is *not* an exception: the solvers return a
+:class:`~odelab.solution.Solution` with ``status == "failed"`` and a message.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "OdelabError",
+    "InputError",
+    "ExpressionError",
+    "ExperimentError",
+]
+
+
+class OdelabError(Exception):
+    """Base class of the errors odelab raises on purpose."""
+
+
+class InputError(OdelabError, ValueError):
+    """Bad input: a function argument or a value in an experiment file.
+
+    Parameters
+    ----------
+    message
+        What is wrong and how to fix it, e.g. "`rtol` must be positive; got -0.001."
+    source
+        The file the value came from, if any.
+    key
+        The TOML key path (``solver.rtol``) or argument name, if any.
+    """
+
+    def __init__(self, message: str, *, source: str | None = None, key: str | None = None):
+        super().__init__(message)
+        self.message = message
+        self.source = source
+        self.key = key
+
+    def located(self, *, source: str | None = None, key: str | None = None) -> "InputError":
+        """Fill in where the error happened, keeping what is already known; returns self."""
+        if self.source is None and source is not None:
+            self.source = source
+        if self.key is None and key is not None:
+            self.key = key
+        return self
+
+    def __str__(self) -> str:
+        prefix = f"{self.source}: " if self.source else ""
+        return prefix + self.message
+
+
+class ExperimentError(InputError):
+    """An experiment file is unreadable or invalid (TOML syntax, schema, values)."""
+
+
+class ExpressionError(InputError):
+    """An expression of the safe expression language is invalid.
+
+    Besides the message it carries the expression text and the 0-based column of the
+    offending part, and renders a caret under it.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        expression: str,
+        column: int | None = None,
+        source: str | None = None,
+        key: str | None = None,
+    ):
+        super().__init__(message, source=source, key=key)
+        self.expression = expression
+        self.column = column
+
+    def caret(self) -> str:
+        """The expression and a caret under the offending column (two lines), or ''."""
+        if self.column is None or len(self.expression) > 200:
+            return ""
+        return f"    {self.expression}\n    {' ' * self.column}^"
+
+    def __str__(self) -> str:
+        head = super().__str__()
+        if self.key and self.key not in head:
+            head = head.replace(self.message, f"`{self.key}`: {self.message}", 1)
+        tail = self.caret()
+        return f"{head}\n{tail}" if tail else head

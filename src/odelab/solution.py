@@ -1,0 +1,78 @@
+"""The result type every solver returns."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["Solution", "Stats"]
+
+
+@dataclass(frozen=True)
+class Stats:
+    """Step statistics, counted the way MATLAB's ``odeget(sol, 'stats')`` counts them.
+
+    Attributes
+    ----------
+    nsteps
+        Successful (accepted) steps.
+    nfailed
+        Failed attempts (rejected trial steps). ``None`` where the method does not let us
+        count them (SciPy's implicit methods keep them internal).
+    nfevals
+        Calls of the right-hand side.
+    """
+
+    nsteps: int
+    nfailed: int | None
+    nfevals: int
+
+    def as_dict(self) -> dict:
+        return {"nsteps": self.nsteps, "nfailed": self.nfailed, "nfevals": self.nfevals}
+
+
+@dataclass(frozen=True)
+class Solution:
+    """The solution of an initial value problem, as MATLAB's ``[t, y] = ode45(...)``.
+
+    Attributes
+    ----------
+    t
+        Output times, shape (N,).
+    y
+        States at the output times, shape (N, n): row i is the state at ``t[i]``.
+    stats
+        Step statistics.
+    status
+        ``"success"``, or ``"failed"`` when integration stopped early; ``t`` and ``y`` then
+        hold the solution up to where it stopped.
+    message
+        Why it stopped, where and what to do about it.
+    method
+        The method's registry name (``"ode45"``, ``"rk4"``, ``"Radau"``...).
+    """
+
+    t: np.ndarray
+    y: np.ndarray
+    stats: Stats
+    status: str = "success"
+    message: str = "The solver reached the end of the time span."
+    method: str = ""
+    warnings: tuple[str, ...] = field(default_factory=tuple)
+
+    @property
+    def success(self) -> bool:
+        return self.status == "success"
+
+    def __iter__(self):
+        """Unpack as MATLAB does: ``t, y = odelab.ode45(...)``."""
+        yield self.t
+        yield self.y
+
+    def __repr__(self) -> str:
+        return (
+            f"Solution(method={self.method!r}, status={self.status!r}, points={self.t.size}, "
+            f"states={self.y.shape[1] if self.y.ndim == 2 else 0}, nsteps={self.stats.nsteps}, "
+            f"nfailed={self.stats.nfailed}, nfevals={self.stats.nfevals})"
+        )
