@@ -1,0 +1,264 @@
+"""Public solver functions: :func:`ode23`, :func:`ode45` and :func:`solve`."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from odelab.exceptions import InputError
+from odelab.solution import Solution, Stats
+from odelab.solvers import engine
+from odelab.solvers.options import SolverOptions, as_tspan, as_y0, normalize_options, resolve_options
+from odelab.solvers.registry import Method, get_method
+
+__all__ = ["ode23", "ode45", "solve"]
+
+
+def ode23(fun, tspan, y0, *, rtol=1e-3, atol=1e-6, max_step=None, initial_step=None, refine=None,
+          norm_control=False, **matlab_options) -> Solution:
+    """Solve a non-stiff ODE with MATLAB's ``ode23`` (Bogacki-Shampine 3(2)).
+
+    Reproduces MATLAB's ``[t, y] = ode23(fun, tspan, y0, odeset(...))`` step for step: the same
+    initial step, step-size control, error norm and output points.
+
+    Parameters
+    ----------
+    fun : callable
+        ``fun(t, y)`` with ``y`` a 1-D float array; returns dy/dt (array-like, or a scalar for
+        one state).
+    tspan : sequence of float
+        ``[t0, tf]`` (output at every step, ``refine`` points per step) or a longer strictly
+        increasing or decreasing sequence of output times.
+    y0 : float or sequence of float
+        Initial state.
+    rtol, atol : float, float or sequence of float
+        Relative tolerance and absolute tolerance (scalar or one per state); MATLAB's defaults.
+    max_step : float, optional
+        Largest step; default ``0.1 * |tf - t0|``.
+    initial_step : float, optional
+        First step to try; default chosen from ``fun(t0, y0)`` as MATLAB does.
+    refine : int, optional
+        Output points per step with a two-element ``tspan`` (default 1).
+    norm_control : bool
+        Control the Euclidean norm of the error (MATLAB's ``NormControl``).
+    **matlab_options
+        MATLAB's option names (``RelTol``, ``AbsTol``, ``MaxStep``, ``InitialStep``,
+        ``Refine``, ``NormControl``) and ``max_steps`` (stop after that many steps).
+
+    Returns
+    -------
+    Solution
+        ``t`` (N,), ``y`` (N, n), ``stats``, ``status`` and ``message``. A failed integration
+        returns the solution up to where it stopped with ``status == "failed"``.
+
+    Raises
+    ------
+    InputError
+        A ``ValueError`` naming the bad argument, its value and the fix.
+
+    Examples
+    --------
+    >>> import numpy as np, odelab
+    >>> sol = odelab.ode23(lambda t, y: np.cos(t), [0, np.pi], 2.0)
+    >>> sol.t.size, sol.stats.nsteps
+    (12, 11)
+    """
+    return _matlab_solver("ode23", fun, tspan, y0, rtol, atol, max_step, initial_step, refine, norm_control,
+                          matlab_options)
+
+
+def ode45(fun, tspan, y0, *, rtol=1e-3, atol=1e-6, max_step=None, initial_step=None, refine=None,
+          norm_control=False, **matlab_options) -> Solution:
+    """Solve a non-stiff ODE with MATLAB's ``ode45`` (Dormand-Prince 5(4)).
+
+    Same arguments and result as :func:`ode23`; ``refine`` defaults to 4, as in MATLAB.
+
+    Examples
+    --------
+    >>> import odelab
+    >>> rigid = lambda t, y: [y[1] * y[2], -y[0] * y[2], -0.51 * y[0] * y[1]]
+    >>> sol = odelab.ode45(rigid, [0, 12], [0, 1, 1], RelTol=1e-4, AbsTol=[1e-4, 1e-4, 1e-5])
+    >>> sol.stats
+    Stats(nsteps=21, nfailed=0, nfevals=127)
+    """
+    return _matlab_solver("ode45", fun, tspan, y0, rtol, atol, max_step, initial_step, refine, norm_control,
+                          matlab_options)
+
+
+def _matlab_solver(name, fun, tspan, y0, rtol, atol, max_step, initial_step, refine, norm_control, extra):
+    options = dict(extra)
+    # Explicit keywords count only when they differ from the defaults, so MATLAB's names in
+    # **extra can be used alone without a clash.
+    for key, value, default in (
+        ("rtol", rtol, 1e-3),
+        ("atol", atol, 1e-6),
+        ("max_step", max_step, None),
+        ("initial_step", initial_step, None),
+        ("refine", refine, None),
+        ("norm_control", norm_control, False),
+    ):
+        if value is not None and not (np.isscalar(value) and np.isscalar(default) and value == default
+                                      and type(value) is type(default)):
+            options[key] = value
+    return solve(fun, tspan, y0, method=name, **options)
+
+
+def solve(fun, tspan, y0, method: str = "ode45", **options) -> Solution:
+    """Solve an initial value problem with any method odelab knows, by name.
+
+    Parameters
+    ----------
+    fun, tspan, y0
+        As for :func:`ode45`.
+    method : str
+        ``"ode23"``, ``"ode45"`` (MATLAB's solvers); ``"euler"``, ``"heun"``, ``"midpoint"``,
+        ``"ralston"``, ``"rk3"``, ``"rk4"`` (fixed step ``h``); ``"RK23"``, ``"RK45"``,
+        ``"DOP853"``, ``"Radau"``, ``"BDF"``, ``"LSODA"`` (SciPy). See ``odelab.METHODS``.
+    **options
+        ``rtol``, ``atol``, ``max_step``, ``initial_step``, ``refine``, ``norm_control``,
+        ``max_steps`` (adaptive methods), ``h`` (fixed-step methods); MATLAB's names too.
+
+    Returns
+    -------
+    Solution
+    """
+    m = get_method(method)
+    if not callable(fun):
+        raise InputError(f"`fun` must be a callable fun(t, y); got {fun!r}.", key="fun")
+    tspan_arr = as_tspan(tspan)
+    y0_arr = as_y0(y0)
+    opts = resolve_options(m, normalize_options(options, m), tspan_arr, y0_arr.size)
+    if m.kind == "scipy":
+        from odelab.solvers.scipy_adapter import solve_scipy
+
+        return solve_scipy(fun, tspan_arr, y0_arr, m, opts)
+
+    t0 = float(tspan_arr[0])
+    try:
+        f0_raw = fun(t0, y0_arr.copy())
+    except Exception as exc:
+        return _failed_at_start(m, tspan_arr, y0_arr, opts, f"the right-hand side raised {_describe(exc)} "
+                                f"at t = {t0:g} (the first call)")
+    rhs, f0 = _checked_rhs(fun, f0_raw, y0_arr.size)
+    if not np.all(np.isfinite(f0)):
+        return _failed_at_start(m, tspan_arr, y0_arr, opts, f"the derivative at t = {t0:g} is not finite "
+                                f"({_fmt_vec(f0)}): check the right-hand side at the initial state")
+    if m.kind == "adaptive":
+        return _solve_adaptive(rhs, tspan_arr, y0_arr, f0, m, opts)
+    return _solve_fixed(rhs, tspan_arr, y0_arr, m, opts)
+
+
+def _checked_rhs(fun, raw, n: int):
+    """Check the first derivative's shape; wrap ``fun`` only if its results need reshaping."""
+    if np.iscomplexobj(raw):
+        raise InputError(f"`fun` returned complex values {raw!r}; odelab integrates real ODEs.", key="fun")
+    try:
+        f0 = np.asarray(raw, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"`fun` must return numbers (one per state); it returned {raw!r}.", key="fun") from None
+    if f0.shape in ((n,),) or (n == 1 and f0.ndim == 0):
+        return fun, f0.reshape(n)
+    if f0.size == n and f0.ndim == 2 and 1 in f0.shape:  # a MATLAB-style column or row vector
+        def rhs(t, y):
+            return np.asarray(fun(t, y), dtype=float).reshape(n)
+
+        return rhs, f0.reshape(n)
+    raise InputError(
+        f"`fun` returned {f0.size} value{'s' if f0.size != 1 else ''} (shape {f0.shape}) but the state has "
+        f"{n}: return one derivative per entry of y0.",
+        key="fun",
+    )
+
+
+def _solve_adaptive(fun, tspan, y0, f0, m: Method, opts: SolverOptions) -> Solution:
+    tab = m.tableau
+    threshold = opts.atol / opts.rtol
+    (t, y, nsteps, nfailed, nfevals, status, t_stop, h_stop, exc) = engine.integrate_adaptive(
+        fun, tspan, y0, f0, tab.A, tab.c, tab.error_weights, tab.dense, m.power, m.shrink_min,
+        opts.rtol, threshold, opts.max_step, opts.initial_step, opts.refine, opts.norm_control, opts.max_steps,
+    )
+    stats = Stats(nsteps=nsteps, nfailed=nfailed, nfevals=nfevals + 1)
+    message = _status_message(status, m, t_stop, h_stop, y, y0, opts, exc, tspan)
+    return Solution(t=t, y=y, stats=stats, status="success" if status == 0 else "failed", message=message,
+                    method=m.name, warnings=opts.warnings)
+
+
+def fixed_grid(tspan: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Step points for a fixed step ``h`` and which of them are output.
+
+    Each interval between consecutive ``tspan`` entries is covered by steps of exactly ``h``
+    from its start (``a + k*h``, no accumulated round-off), the last one shortened to land on
+    the interval's end; a remainder below 1e-9 h is absorbed rather than taken as a tiny step.
+    With a two-element ``tspan`` every step point is output, otherwise only ``tspan``.
+    """
+    pieces = []
+    keep = []
+    every = tspan.size == 2
+    for a, b in zip(tspan[:-1], tspan[1:]):
+        span = abs(b - a)
+        nsteps = max(1, math.ceil(span / h - 1e-9))
+        pts = a + np.sign(b - a) * h * np.arange(nsteps + 1, dtype=float)
+        pts[-1] = b
+        pieces.append(pts[:-1])
+        mask = np.full(nsteps, every)
+        mask[0] = True
+        keep.append(mask)
+    grid = np.concatenate([*pieces, tspan[-1:]])
+    return grid, np.concatenate([*keep, [True]])
+
+
+def _solve_fixed(fun, tspan, y0, m: Method, opts: SolverOptions) -> Solution:
+    grid, keep = fixed_grid(tspan, opts.h)
+    tab = m.tableau
+    t, y, nsteps, nfevals, status, t_stop, exc = engine.integrate_fixed(fun, grid, keep, y0, tab.A, tab.b, tab.c)
+    message = _status_message(status, m, t_stop, opts.h, y, y0, opts, exc, tspan)
+    return Solution(t=t, y=y, stats=Stats(nsteps=nsteps, nfailed=0, nfevals=nfevals),
+                    status="success" if status == 0 else "failed", message=message, method=m.name)
+
+
+def _failed_at_start(m: Method, tspan, y0, opts: SolverOptions, why: str) -> Solution:
+    return Solution(t=tspan[:1].copy(), y=y0.reshape(1, -1), stats=Stats(0, 0, 1), status="failed",
+                    message=f"{m.name} could not start: {why}.", method=m.name, warnings=opts.warnings)
+
+
+def _describe(exc: BaseException) -> str:
+    text = str(exc)
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+def _fmt_vec(v: np.ndarray) -> str:
+    return "[" + ", ".join(f"{x:g}" for x in v[:6]) + (", ..." if v.size > 6 else "") + "]"
+
+
+def _status_message(status, m: Method, t_stop, h_stop, y, y0, opts: SolverOptions, exc, tspan) -> str:
+    tf = float(tspan[-1])
+    if status == engine.STATUS_SUCCESS:
+        return f"{m.name} reached t = {tf:g}."
+    where = f"at t = {t_stop:.10g}"
+    if status == engine.STATUS_STEP_UNDERFLOW:
+        hmin = engine._hmin(t_stop)
+        grown = float(np.max(np.abs(y[-1]))) > 1e6 * max(1.0, float(np.max(np.abs(y0))))
+        cause = (
+            "the solution may be unbounded near there (it grew from "
+            f"{float(np.max(np.abs(y0))):g} to {float(np.max(np.abs(y[-1]))):.3g}): a finite-time blow-up"
+            if grown
+            else "the solution may have a singularity there, or the problem is stiff (try method 'Radau' "
+            "or 'BDF'), or the tolerances are tighter than double precision allows (loosen rtol/atol)"
+        )
+        return (
+            f"{m.name} failed {where}: the step size fell below {hmin:.2g}, the smallest allowed, "
+            f"without meeting the tolerances (MATLAB: 'Unable to meet integration tolerances'); {cause}."
+        )
+    if status == engine.STATUS_NONFINITE:
+        return (
+            f"{m.name} failed {where}: the derivative became NaN or infinite in the next step "
+            f"(step size {h_stop:.3g}). Check the right-hand side for a division by zero, a log or sqrt "
+            "of a negative number, or a blow-up near there; the solution up to that point is kept."
+        )
+    if status == engine.STATUS_MAX_STEPS:
+        return (
+            f"{m.name} stopped {where} of {tf:g} after max_steps = {opts.max_steps} steps: the problem "
+            "may be stiff (try method 'Radau' or 'BDF') or need a larger max_steps."
+        )
+    return f"{m.name} failed {where}: the right-hand side raised {_describe(exc)}."

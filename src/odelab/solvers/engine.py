@@ -1,0 +1,317 @@
+"""The explicit Runge-Kutta stepping engine.
+
+Two drivers share one step formula (stages ``k_i = f(t + c_i h, y + h sum_j A_ij k_j)``,
+solution ``y + h sum_j b_j k_j``) read from a :class:`~odelab.solvers.tableau.ButcherTableau`:
+
+* :func:`integrate_adaptive` — an embedded FSAL pair with MATLAB's step-size controller,
+  error norm, initial step and output rules (Shampine & Reichelt, *The MATLAB ODE Suite*,
+  SIAM J. Sci. Comput. 18(1), 1997). ``ode23`` is this driver with the Bogacki-Shampine
+  tableau, ``ode45`` with Dormand-Prince; nothing else differs.
+* :func:`integrate_fixed` — the same stages on a prescribed grid of steps.
+
+The drivers are written for a later compiled backend: scalars and float arrays in, a tuple of
+arrays and integer codes out, no objects, no strings, no closures. Every operation follows the
+order of MATLAB's ``ode23.m``/``ode45.m`` so that results agree to round-off (for example the
+step multiplies ``h`` into the tableau first, ``hA = h*A``, then sums the stages, as MATLAB's
+``f*hB`` does).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = [
+    "STATUS_SUCCESS",
+    "STATUS_STEP_UNDERFLOW",
+    "STATUS_NONFINITE",
+    "STATUS_MAX_STEPS",
+    "STATUS_FUN_RAISED",
+    "integrate_adaptive",
+    "integrate_fixed",
+]
+
+STATUS_SUCCESS = 0
+STATUS_STEP_UNDERFLOW = 1  # the step size fell to hmin and the error test still failed
+STATUS_NONFINITE = 2  # a derivative (or the solution) became NaN or infinite
+STATUS_MAX_STEPS = 3  # the max_steps guard stopped the integration
+STATUS_FUN_RAISED = 4  # the right-hand side raised an exception
+
+
+def _hmin(t: float) -> float:
+    """MATLAB's ``16*eps(t)``: 16 spacings of doubles at |t| (the smallest subnormal at 0)."""
+    return 16.0 * math.ulp(t)
+
+
+def integrate_adaptive(
+    fun,
+    tspan: np.ndarray,
+    y0: np.ndarray,
+    f0: np.ndarray,
+    A: np.ndarray,
+    c: np.ndarray,
+    E: np.ndarray,
+    dense: np.ndarray,
+    power: float,
+    shrink_min: float,
+    rtol: float,
+    threshold: np.ndarray,
+    hmax: float,
+    htry: float,
+    refine: int,
+    norm_control: bool,
+    max_steps: int,
+):
+    """Integrate with an embedded FSAL Runge-Kutta pair and MATLAB's controller.
+
+    Parameters
+    ----------
+    fun
+        ``fun(t, y)`` returning the derivative (anything assignable to a float row of length n).
+    tspan
+        Output specification, MATLAB semantics: 2 entries ``[t0, tf]`` give ``refine`` points
+        per step; more entries give output exactly at those times.
+    y0, f0
+        Initial state and ``fun(t0, y0)`` (counted by the caller).
+    A, c, E, dense
+        Tableau arrays (the last stage must be FSAL: ``A[-1]`` are the solution weights).
+    power
+        Controller exponent ``1/(q+1)`` with q the embedded order (1/3 ode23, 1/5 ode45).
+    shrink_min
+        Smallest factor of the first step-size reduction after a failure (0.5 ode23, 0.1 ode45).
+    rtol, threshold
+        Relative tolerance and ``atol/rtol`` (per component, or a scalar with norm_control).
+    hmax
+        Largest step.
+    htry
+        Initial step, or NaN to choose it from ``f0`` as MATLAB does.
+    refine
+        Output points per step for a two-element ``tspan``.
+    norm_control
+        Control the Euclidean norm of the error relative to the norm of the solution.
+    max_steps
+        Stop after this many successful steps (0: no limit).
+
+    Returns
+    -------
+    tuple
+        ``(t_out, y_out, nsteps, nfailed, nfevals, status, t_stop, h_stop, exception)`` where
+        ``t_stop`` is the time where integration stopped, ``h_stop`` the last step size tried,
+        and ``exception`` the exception ``fun`` raised (or None).
+    """
+    s = c.size
+    n = y0.size
+    t0 = float(tspan[0])
+    tfinal = float(tspan[-1])
+    ntspan = tspan.size
+    tdir = 1.0 if tfinal > t0 else -1.0
+    last = s - 1
+    nodes = [float(ci) for ci in c]
+    # Preallocated work arrays and fixed views into them: per attempt the engine fills
+    # hA = h*A in place, and stage i reads row i of hA against the first i stages.
+    K = np.empty((s, n))
+    K[0] = f0
+    hA = np.empty_like(A)
+    hA_rows = [hA[i, :i] for i in range(s)]
+    K_heads = [K[:i] for i in range(s)]
+    scale = np.empty(n)
+    absy = np.abs(y0)
+
+    t = t0
+    y = y0
+    normy = float(np.linalg.norm(y0)) if norm_control else 0.0
+    normynew = normy
+
+    hmin = _hmin(t)
+    if htry != htry:  # NaN: MATLAB's initial step from the derivative at t0
+        absh = min(hmax, abs(float(tspan[1]) - t0))
+        if norm_control:
+            rh = (float(np.linalg.norm(f0)) / max(normy, float(threshold))) / (0.8 * rtol**power)
+        else:
+            rh = float((np.abs(f0) / np.maximum(absy, threshold)).max()) / (0.8 * rtol**power)
+        if absh * rh > 1.0:
+            absh = 1.0 / rh
+        absh = max(absh, hmin)
+    else:
+        absh = min(hmax, max(hmin, htry))
+
+    t_out = [t0]
+    y_out = [y0]
+    refine_output = ntspan == 2
+    if refine_output and refine > 1:
+        # Interior output at s = j/refine: the extension's weights sum_m dense[:, m] s^(m+1)
+        # do not depend on the step, so they are formed once.
+        fractions = np.arange(1, refine) / refine
+        weights_T = (dense @ np.cumprod(np.broadcast_to(fractions, (dense.shape[1], refine - 1)), axis=0)).T
+    nxt = 1  # next tspan entry to output (vector tspan)
+
+    nsteps = 0
+    nfailed = 0
+    nfevals = 0
+    status = STATUS_SUCCESS
+    exception = None
+    h = tdir * absh
+    try:
+        while True:
+            hmin = _hmin(t)
+            absh = min(hmax, max(hmin, absh))
+            h = tdir * absh
+            done = False
+            # Stretch (or shrink) the step to land on tfinal if within 10% of it.
+            if 1.1 * absh >= abs(tfinal - t):
+                h = tfinal - t
+                absh = abs(h)
+                done = True
+
+            nofailed = True
+            while True:
+                np.multiply(A, h, out=hA)
+                for i in range(1, last):
+                    K[i] = fun(t + nodes[i] * h, y + hA_rows[i].dot(K_heads[i]))
+                tnew = t + h
+                if done:
+                    tnew = tfinal  # hit the end point exactly
+                h = tnew - t  # purify h
+                ynew = y + hA_rows[last].dot(K_heads[last])
+                K[last] = fun(tnew, ynew)
+                nfevals += last
+
+                fE = E.dot(K)
+                if norm_control:
+                    normynew = float(np.linalg.norm(ynew))
+                    err = absh * (float(np.linalg.norm(fE)) / max(normy, normynew, float(threshold)))
+                else:
+                    absynew = np.abs(ynew)
+                    np.maximum(absy, absynew, out=scale)
+                    np.maximum(scale, threshold, out=scale)
+                    np.abs(fE, out=fE)
+                    fE /= scale
+                    err = absh * float(fE.max())
+
+                if err > rtol:  # failed attempt
+                    nfailed += 1
+                    if absh <= hmin:
+                        status = STATUS_STEP_UNDERFLOW
+                        break
+                    if nofailed:
+                        nofailed = False
+                        absh = max(hmin, absh * max(shrink_min, 0.8 * (rtol / err) ** power))
+                    else:
+                        absh = max(hmin, 0.5 * absh)
+                    h = tdir * absh
+                    done = False
+                elif err <= rtol:
+                    break
+                else:  # err is NaN: a derivative or the solution is not finite
+                    status = STATUS_NONFINITE
+                    break
+            if status != STATUS_SUCCESS:
+                break
+            nsteps += 1
+
+            if refine_output:
+                if refine > 1:
+                    t_out.extend((t + h * fractions).tolist())
+                    y_out.append(h * weights_T.dot(K) + y)
+                t_out.append(tnew)
+                y_out.append(ynew)
+            else:
+                while nxt < ntspan:
+                    tn = float(tspan[nxt])
+                    if tdir * (tnew - tn) < 0:
+                        break
+                    t_out.append(tn)
+                    if tn == tnew:
+                        y_out.append(ynew)
+                    else:
+                        powers = np.cumprod(np.full(dense.shape[1], (tn - t) / h))
+                        y_out.append(y + (K.T @ (h * dense)) @ powers)
+                    nxt += 1
+
+            if done:
+                break
+            if max_steps and nsteps >= max_steps:
+                status = STATUS_MAX_STEPS
+                t = tnew
+                break
+
+            # No failures in this step: choose the next step from the error estimate.
+            if nofailed:
+                temp = 1.25 * (err / rtol) ** power
+                if temp > 0.2:
+                    absh = absh / temp
+                else:
+                    absh = 5.0 * absh
+
+            t = tnew
+            y = ynew
+            if norm_control:
+                normy = normynew
+            else:
+                absy = absynew
+            K[0] = K[last]
+    except Exception as exc:  # the user's right-hand side failed: keep what was computed
+        status = STATUS_FUN_RAISED
+        exception = exc
+
+    y_arr = np.vstack(y_out) if len(y_out) > 1 else y0.reshape(1, n).copy()
+    return (np.array(t_out), y_arr, nsteps, nfailed, nfevals, status, t, abs(h), exception)
+
+
+def integrate_fixed(fun, grid: np.ndarray, keep: np.ndarray, y0: np.ndarray, A: np.ndarray, b: np.ndarray, c: np.ndarray):
+    """Integrate with a fixed-step explicit Runge-Kutta method on a prescribed grid.
+
+    Parameters
+    ----------
+    fun
+        ``fun(t, y)`` returning the derivative.
+    grid
+        Step points ``t_0, t_1, ..., t_N`` (monotonic); step k goes from ``grid[k]`` to ``grid[k+1]``.
+    keep
+        Boolean mask over ``grid``: which points are output.
+    y0
+        Initial state.
+    A, b, c
+        The tableau.
+
+    Returns
+    -------
+    tuple
+        ``(t_out, y_out, nsteps, nfevals, status, t_stop, exception)``.
+    """
+    s = c.size
+    n = y0.size
+    K = np.empty((s, n))
+    ys = np.empty((grid.size, n))
+    ys[0] = y0
+    y = y0
+    nsteps = 0
+    nfevals = 0
+    status = STATUS_SUCCESS
+    exception = None
+    t = float(grid[0])
+    try:
+        for k in range(grid.size - 1):
+            t = float(grid[k])
+            h = float(grid[k + 1]) - t
+            hA = h * A
+            K[0] = fun(t, y)
+            for i in range(1, s):
+                K[i] = fun(t + c[i] * h, y + hA[i, :i] @ K[:i])
+            nfevals += s
+            ynew = y + (h * b) @ K
+            if not math.isfinite(float(ynew.sum())):
+                status = STATUS_NONFINITE
+                break
+            y = ynew
+            ys[k + 1] = y
+            nsteps += 1
+            t = float(grid[k + 1])
+    except Exception as exc:
+        status = STATUS_FUN_RAISED
+        exception = exc
+    done = nsteps + 1
+    mask = keep[:done].copy()
+    mask[done - 1] = True  # always return the last point reached
+    return grid[:done][mask], ys[:done][mask], nsteps, nfevals, status, t, exception

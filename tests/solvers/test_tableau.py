@@ -1,0 +1,63 @@
+"""Tableau invariants: every method's coefficients satisfy the conditions its order claims."""
+
+import numpy as np
+import pytest
+
+from odelab.solvers import tableau as tb
+from odelab.solvers.tableau import ButcherTableau, _order_conditions
+
+ALL = [tb.BS23, tb.DP54, tb.EULER, tb.HEUN, tb.MIDPOINT, tb.RALSTON, tb.KUTTA3, tb.RK4]
+
+
+@pytest.mark.parametrize("tab", ALL, ids=lambda t: t.name)
+def test_order_conditions_hold_up_to_the_order_and_fail_above(tab):
+    conditions = _order_conditions(tab.A, tab.b, tab.c)
+    for p, value, required in conditions:
+        if p <= tab.order:
+            assert value == pytest.approx(required, abs=1e-15)
+    # The claimed order is the exact order: some condition of order p+1 fails.
+    above = [abs(v - r) for p, v, r in conditions if p == tab.order + 1]
+    if above:
+        assert max(above) > 1e-3
+
+
+@pytest.mark.parametrize("tab", ALL, ids=lambda t: t.name)
+def test_row_sums_and_explicitness(tab):
+    np.testing.assert_allclose(tab.A.sum(axis=1), tab.c, atol=1e-15)
+    assert np.all(np.triu(tab.A) == 0)
+    assert not tab.A.flags.writeable and not tab.b.flags.writeable
+
+
+@pytest.mark.parametrize("tab", [tb.BS23, tb.DP54], ids=lambda t: t.name)
+def test_embedded_pair(tab):
+    assert tab.fsal and tab.c[-1] == 1 and np.array_equal(tab.A[-1], tab.b)
+    # The embedded solution b - E has exactly the lower order error_order.
+    b_hat = tab.b - tab.error_weights
+    conditions = _order_conditions(tab.A, b_hat, tab.c)
+    for p, value, required in conditions:
+        if p <= tab.error_order:
+            assert value == pytest.approx(required, abs=1e-15)
+    assert max(abs(v - r) for p, v, r in conditions if p == tab.error_order + 1) > 1e-4
+    # The continuous extension reproduces the step's solution at s = 1 and y at s = 0.
+    np.testing.assert_allclose(tab.dense.sum(axis=1), tab.b, atol=1e-15)
+
+
+def test_matlab_error_weights_are_the_published_ones():
+    assert tb.BS23.error_weights.tolist() == [-5 / 72, 1 / 12, 1 / 9, -1 / 8]
+    assert tb.DP54.error_weights[0] == 71 / 57600 and tb.DP54.error_weights[-1] == -1 / 40
+
+
+def test_a_broken_tableau_is_rejected_at_construction():
+    with pytest.raises(ValueError, match="order-2 condition"):
+        ButcherTableau(
+            name="bad heun",
+            c=np.array([0.0, 1.0]),
+            A=np.array([[0.0, 0.0], [1.0, 0.0]]),
+            b=np.array([0.4, 0.6]),
+            order=2,
+        )
+    with pytest.raises(ValueError, match="row sums"):
+        ButcherTableau(name="bad c", c=np.array([0.0, 0.5]), A=np.array([[0.0, 0.0], [1.0, 0.0]]),
+                       b=np.array([0.5, 0.5]), order=2)
+    with pytest.raises(ValueError, match="implicit"):
+        ButcherTableau(name="implicit", c=np.array([0.5]), A=np.array([[0.5]]), b=np.array([1.0]), order=1)
