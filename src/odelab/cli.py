@@ -1,0 +1,233 @@
+"""The ``odelab`` command line: a thin layer over the library.
+
+Commands turn the package's exceptions into one clear message and an exit code:
+0 everything ran, 1 some case failed in integration, 2 bad input or usage. Nothing heavy is
+imported at module level, so ``odelab --help`` starts fast (no numpy, scipy or matplotlib).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from odelab import __version__
+
+app = typer.Typer(
+    name="odelab",
+    help="Model and simulate engineering systems from TOML experiment files, with MATLAB-faithful ode23/ode45.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    rich_markup_mode=None,
+)
+
+EXIT_OK, EXIT_FAILED, EXIT_INPUT = 0, 1, 2
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"odelab {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    version: Annotated[Optional[bool], typer.Option("--version", callback=_version, is_eager=True,
+                                                    help="Show the version and exit.")] = None,
+) -> None:
+    """odelab: MATLAB-faithful ODE experiments, error tables and lab reports."""
+
+
+def _consoles():
+    from rich.console import Console
+
+    out = Console(highlight=False)
+    if not out.is_terminal:  # piped or redirected: never truncate a table to 80 columns
+        out = Console(highlight=False, width=200)
+    return out, Console(stderr=True, highlight=False, soft_wrap=True)
+
+
+def _error_text(exc) -> str:
+    """One or two lines: file, key, what is wrong, how to fix it."""
+    text = str(exc)
+    if getattr(exc, "key", None) and f"`{exc.key}`" not in text and exc.key not in text:
+        prefix = f"{exc.source}: " if getattr(exc, "source", None) else ""
+        text = prefix + f"`{exc.key}`: " + text[len(prefix):]
+    return text
+
+
+def expand_paths(paths: list[Path]) -> tuple[list[Path], list[tuple[Path, str]]]:
+    """Files to run: files as given, folders' *.toml files; missing paths are reported."""
+    files: list[Path] = []
+    problems: list[tuple[Path, str]] = []
+    for path in paths:
+        if path.is_dir():
+            found = sorted(p for p in path.glob("*.toml") if p.is_file())
+            if not found:
+                problems.append((path, "is a folder with no *.toml experiment files in it."))
+            files.extend(found)
+        elif path.exists():
+            files.append(path)
+        else:
+            problems.append((path, "no such file or folder; check the path."))
+    return files, problems
+
+
+@app.command()
+def run(
+    paths: Annotated[list[Path], typer.Argument(help="Experiment files or folders of them.", show_default=False)],
+    runs: Annotated[Path, typer.Option("--runs", help="Results folder.")] = Path("runs"),
+    json_out: Annotated[bool, typer.Option("--json", help="Print one JSON document instead of tables.")] = False,
+    table: Annotated[bool, typer.Option("--table", help="Print the per-point error table of every case.")] = False,
+    mat: Annotated[bool, typer.Option("--mat", help="Also store result.mat for MATLAB.")] = False,
+    max_steps: Annotated[int, typer.Option("--max-steps", min=0,
+                                           help="Stop an adaptive solve after this many steps (0: no limit).")]
+    = 200_000,
+    store: Annotated[bool, typer.Option("--store/--no-store", help="Write results to the results folder.")] = True,
+) -> None:
+    """Run experiments: solve every case, print the error tables and store the results."""
+    from odelab.exceptions import InputError
+    from odelab.experiment.loader import load_experiment
+    from odelab.experiment.runner import run_case
+
+    out, err = _consoles()
+    files, problems = expand_paths(paths)
+    bad = [f"{p}: {why}" for p, why in problems]
+    loaded = []
+    for file in files:
+        try:
+            loaded.append(load_experiment(file))
+        except InputError as exc:
+            bad.append(_error_text(exc))
+    for line in bad:
+        err.print(f"[bold red]error:[/] {_escape(line)}")
+
+    total = sum(len(e.cases) for e in loaded)
+    report_json = {"experiments": []}
+    any_failed = False
+    from rich.progress import Progress
+
+    with Progress(console=err, transient=True, disable=total < 2 or not err.is_terminal) as progress:
+        task = progress.add_task("running", total=total)
+        for exp in loaded:
+            results = []
+            for case in exp.cases:
+                progress.update(task, description=f"{exp.name}/{case.name}")
+                result = run_case(case, max_steps=max_steps or None)
+                results.append(result)
+                any_failed |= result.status != "success"
+                if store:
+                    from odelab.experiment.store import write_case
+
+                    try:
+                        write_case(result, runs, mat=mat)
+                    except OSError as exc:
+                        err.print(f"[bold red]error:[/] cannot write results to {_escape(str(runs))}: {exc}")
+                        raise typer.Exit(EXIT_INPUT) from None
+                progress.advance(task)
+            if json_out:
+                from odelab.experiment.store import summary
+
+                report_json["experiments"].append({
+                    "name": exp.name, "title": exp.title, "file": str(exp.source),
+                    "cases": [summary(r) for r in results]})
+            else:
+                from odelab.experiment.display import print_experiment
+
+                print_experiment(out, exp, results, table=table)
+    if json_out:
+        import json
+
+        if bad:
+            report_json["errors"] = bad
+        sys.stdout.write(json.dumps(report_json, indent=2, allow_nan=False) + "\n")
+    elif store and loaded:
+        out.print(f"results stored in {_escape(str(runs))}/")
+    raise typer.Exit(EXIT_INPUT if bad else EXIT_FAILED if any_failed else EXIT_OK)
+
+
+def _escape(text: str) -> str:
+    from rich.markup import escape
+
+    return escape(text)
+
+
+@app.command()
+def validate(
+    paths: Annotated[list[Path], typer.Argument(help="Experiment files or folders of them.", show_default=False)],
+) -> None:
+    """Check experiment files without running them."""
+    from odelab.exceptions import InputError
+    from odelab.experiment.loader import load_experiment
+
+    out, err = _consoles()
+    files, problems = expand_paths(paths)
+    bad = len(problems)
+    for path, why in problems:
+        err.print(f"[bold red]error:[/] {_escape(str(path))}: {_escape(why)}")
+    for file in files:
+        try:
+            exp = load_experiment(file)
+        except InputError as exc:
+            bad += 1
+            err.print(f"[bold red]error:[/] {_escape(_error_text(exc))}")
+            continue
+        names = ", ".join(c.name for c in exp.cases)
+        out.print(f"ok: {_escape(str(file))} ({len(exp.cases)} case{'s' if len(exp.cases) != 1 else ''}: "
+                  f"{_escape(names)})")
+    raise typer.Exit(EXIT_INPUT if bad else EXIT_OK)
+
+
+@app.command()
+def new(
+    file: Annotated[Path, typer.Argument(help="The experiment file to write.", show_default=False)],
+    kind: Annotated[str, typer.Option("--kind", help="ode, state-space or python.")] = "ode",
+    force: Annotated[bool, typer.Option("--force", help="Overwrite an existing file.")] = False,
+) -> None:
+    """Write a commented starter experiment file."""
+    from odelab.experiment.templates import write_template
+
+    _, err = _consoles()
+    try:
+        written = write_template(file, kind, force=force)
+    except ValueError as exc:
+        err.print(f"[bold red]error:[/] {_escape(str(exc))}")
+        raise typer.Exit(EXIT_INPUT) from None
+    for path in written:
+        typer.echo(f"wrote {path}")
+    typer.echo(f"run it with: odelab run {file}")
+
+
+@app.command()
+def solvers() -> None:
+    """List the integration methods with their order, kind and defaults."""
+    from rich.table import Table
+
+    from odelab.solvers.registry import METHODS
+
+    out, _ = _consoles()
+    table = Table(title="odelab methods", title_justify="left")
+    for col in ("method", "kind", "order", "defaults", "description"):
+        table.add_column(col)
+    for m in METHODS.values():
+        if m.kind == "adaptive":
+            defaults = f"rtol 1e-3, atol 1e-6, refine {m.refine}, max_step 0.1*span"
+        elif m.kind == "fixed":
+            defaults = "h required"
+        else:
+            defaults = "rtol 1e-3, atol 1e-6"
+        kind = "adaptive (MATLAB)" if m.kind == "adaptive" else "fixed step" if m.kind == "fixed" else (
+            "SciPy, stiff" if m.stiff else "SciPy")
+        table.add_row(m.name, kind, str(m.order), defaults, m.description)
+    out.print(table)
+
+
+def main() -> None:  # pragma: no cover - the console-script entry point
+    app()
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

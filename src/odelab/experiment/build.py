@@ -1,0 +1,241 @@
+"""Build runtime systems and input signals from a validated experiment section."""
+
+from __future__ import annotations
+
+import difflib
+from pathlib import Path
+
+import numpy as np
+
+from odelab.exceptions import ExperimentError, InputError
+from odelab.experiment import schema
+from odelab.experiment.loader import Built, _check_keys, _constant, _expr, _names
+
+__all__ = ["build_ode", "build_state_space", "build_inputs", "SIGNAL_KEYS"]
+
+
+def build_ode(model: schema.Experiment, params: dict[str, float]) -> Built:
+    """An ODE system from [system.equations] (and [system.outputs]) expressions."""
+    ex = _expr()
+    system = model.system
+    if not system.states:
+        raise ExperimentError("`system.states` is required: list the state names, e.g. states = [\"x\", \"v\"].",
+                              key="system.states")
+    states = _names(system.states, "system.states", "state")
+    inputs = _names(system.inputs, "system.inputs", "input") if system.inputs else ()
+    clash = sorted((set(states) | set(inputs)) & set(params))
+    if clash:
+        raise ExperimentError(f"{clash[0]!r} is both a parameter and a state or input; rename one.",
+                              key=f"parameters.{clash[0]}")
+    both = sorted(set(states) & set(inputs))
+    if both:
+        raise ExperimentError(f"{both[0]!r} is both a state and an input; rename one.", key="system.inputs")
+    if system.equations is None:
+        raise ExperimentError("[system.equations] is required: one right-hand side d(state)/dt per state, e.g. "
+                              f"{states[0]} = \"-{states[0]}\" (or give `function = \"file.py:name\"`).",
+                              key="system.equations")
+    if isinstance(system.outputs, list):
+        raise ExperimentError("`system.outputs` of an equations system is a table of expressions, e.g. "
+                              "[system.outputs] y = \"10*x\".", key="system.outputs")
+    _check_keys(system.equations, states, "system.equations", "states", require_all=True)
+    args = ["t", *states, *inputs]
+    F = ex.compile_vector([system.equations[s] for s in states], args=args, constants=params,
+                          keys=[f"system.equations.{s}" for s in states])
+    outputs: tuple[str, ...] = ()
+    output_fn = None
+    resolved = {"states": list(states), "equations": dict(system.equations)}
+    if inputs:
+        resolved["inputs"] = list(inputs)
+    if system.outputs:
+        outputs = tuple(ex.check_identifier(n, key=f"system.outputs.{n}", what="output") for n in system.outputs)
+        dup = sorted(set(outputs) & (set(states) | set(inputs) | set(params)))
+        if dup:
+            raise ExperimentError(f"output {dup[0]!r} has the name of a state, input or parameter; rename it.",
+                                  key=f"system.outputs.{dup[0]}")
+        G = ex.compile_vector(list(system.outputs.values()), args=args, constants=params,
+                              keys=[f"system.outputs.{n}" for n in outputs])
+
+        def output_fn(t, x, u=None, _G=G):
+            cols = [t, *x.T] + ([] if u is None else [*u.T])
+            return np.asarray(_G(*cols), dtype=float).reshape(len(outputs), -1).T
+
+        resolved["outputs"] = dict(system.outputs)
+
+    sys_obj = None
+    fun = None  # with inputs, the runner integrates through odelab.simulate, which applies them
+    if inputs or model.linearize is not None:
+        from odelab.systems.nonlinear import NonlinearSystem
+
+        # The system object keeps a complex-step-safe compilation for exact Jacobians.
+        sys_obj = NonlinearSystem.from_expressions(
+            {s: system.equations[s] for s in states}, inputs=inputs,
+            outputs=dict(system.outputs) if system.outputs else None, parameters=params)
+    if not inputs:
+        def fun(t, x, _F=F):
+            return _F(t, *x)
+
+    return Built(states=states, inputs=inputs, outputs=outputs, fun=fun, output_fn=output_fn, resolved=resolved,
+                 linear=False, system=sys_obj)
+
+
+def _matrix(value, key: str, params: dict[str, float]) -> np.ndarray | None:
+    if value is None:
+        return None
+    if not isinstance(value, list):
+        return np.array([[_constant(value, key, params)]])
+    if all(not isinstance(v, list) for v in value):
+        return np.array([_constant(v, f"{key}[{j}]", params) for j, v in enumerate(value)])
+    if not all(isinstance(v, list) for v in value):
+        raise ExperimentError(f"`{key}` mixes rows and numbers; write a matrix as [[a, b], [c, d]].", key=key)
+    widths = {len(row) for row in value}
+    if len(widths) != 1:
+        raise ExperimentError(f"`{key}` has rows of different lengths ({', '.join(str(len(r)) for r in value)}); "
+                              "every row needs the same number of entries.", key=key)
+    return np.array([[_constant(v, f"{key}[{i}][{j}]", params) for j, v in enumerate(row)]
+                     for i, row in enumerate(value)])
+
+
+def build_state_space(model: schema.Experiment, params: dict[str, float]) -> Built:
+    """A linear state-space system x' = Ax + Bu, y = Cx + Du (a Simulink State-Space block)."""
+    from odelab.systems.statespace import StateSpace
+
+    system = model.system
+    if system.equations is not None or system.function is not None:
+        raise ExperimentError("a state-space system is given by matrices A, B, C, D, not by `equations` or "
+                              "`function`; remove those or set kind = \"ode\".", key="system.kind")
+    if system.A is None:
+        raise ExperimentError("`system.A` is required for kind = \"state-space\", e.g. A = [[0, 1], [-3, -4]].",
+                              key="system.A")
+    if system.outputs is not None and not isinstance(system.outputs, list):
+        raise ExperimentError("`system.outputs` of a state-space system is a list of output names (the rows "
+                              "of C), e.g. outputs = [\"y\"].", key="system.outputs")
+    mats = {name: _matrix(getattr(system, name), f"system.{name}", params) for name in "ABCD"}
+    states = _names(system.states, "system.states", "state") if system.states else None
+    inputs = _names(system.inputs, "system.inputs", "input") if system.inputs else None
+    outputs = _names(system.outputs, "system.outputs", "output") if system.outputs else None
+    try:
+        ss = StateSpace(mats["A"], mats["B"], mats["C"], mats["D"], states=states, inputs=inputs, outputs=outputs)
+    except InputError as exc:
+        text = exc.message
+        for name in ("A", "B", "C", "D"):
+            text = text.replace(f"`{name}`", f"`system.{name}`")
+        for name in ("states", "inputs", "outputs"):
+            text = text.replace(f"`{name}`", f"`system.{name}`")
+        key = exc.key if exc.key is None or exc.key.startswith("system.") else f"system.{exc.key}"
+        raise ExperimentError(text, key=key) from None
+    resolved = {
+        "kind": "state-space",
+        "states": list(ss.states),
+        "inputs": list(ss.inputs),
+        "outputs": list(ss.outputs),
+        "A": ss.A.tolist(),
+        "B": ss.B.tolist(),
+        "C": ss.C.tolist(),
+        "D": ss.D.tolist(),
+    }
+    A, C, D = ss.A, ss.C, ss.D
+
+    def output_fn(t, x, u=None):
+        y = x @ C.T
+        if u is not None and D.size:
+            y = y + u @ D.T
+        return y
+
+    fun = None
+    if ss.nu == 0:
+        def fun(t, x):
+            return A @ x
+
+    return Built(states=ss.states, inputs=ss.inputs, outputs=ss.outputs, fun=fun, output_fn=output_fn,
+                 resolved=resolved, linear=True, system=ss)
+
+
+# Keys each signal type takes, with their defaults (the rest are errors, not silently ignored).
+SIGNAL_KEYS = {
+    "step": {"time": 0.0, "initial": 0.0, "final": 1.0},
+    "ramp": {"slope": 1.0, "start": 0.0, "initial": 0.0},
+    "sine": {"amplitude": 1.0, "frequency": 1.0, "phase": 0.0, "bias": 0.0},
+    "pulse": {"amplitude": 1.0, "period": 1.0, "width": 0.5, "delay": 0.0},
+    "table": {"file": None},
+    "expression": {"expression": None},
+    "constant": {"value": None},
+}
+
+
+def build_inputs(model: schema.Experiment, inputs: tuple[str, ...], path: Path, tspan: np.ndarray):
+    """One signal per declared input, from [inputs.<name>] tables."""
+    from odelab import signals as sg
+
+    specs = model.inputs or {}
+    for name in specs:
+        if name not in inputs:
+            close = difflib.get_close_matches(name, inputs, n=1)
+            hint = f" Did you mean `{close[0]}`?" if close else ""
+            raise ExperimentError(f"`inputs.{name}`: {name!r} is not an input of the system "
+                                  f"({', '.join(inputs)}).{hint}", key=f"inputs.{name}")
+    out = []
+    resolved = {}
+    for name in inputs:
+        spec = specs.get(name)
+        if spec is None:
+            raise ExperimentError(f"input {name!r} has no signal: add [inputs.{name}] with a `type` (step, ramp, "
+                                  "sine, pulse, table, expression, constant).", key=f"inputs.{name}")
+        allowed = SIGNAL_KEYS[spec.type]
+        given = {k: v for k, v in spec.model_dump().items() if v is not None and k != "type"}
+        for key in given:
+            if key not in allowed:
+                raise ExperimentError(
+                    f"`inputs.{name}.{key}` does not apply to a {spec.type} input; a {spec.type} takes "
+                    f"{', '.join(allowed)}.", key=f"inputs.{name}.{key}")
+        values = {**allowed, **given}
+        for key, default in allowed.items():
+            if values[key] is None and key in ("file", "expression", "value"):
+                raise ExperimentError(f"`inputs.{name}.{key}` is required for a {spec.type} input.",
+                                      key=f"inputs.{name}.{key}")
+        for key, value in values.items():
+            if isinstance(value, float) and not np.isfinite(value):
+                raise ExperimentError(f"`inputs.{name}.{key}` must be finite; got {value!r}.",
+                                      key=f"inputs.{name}.{key}")
+        key = f"inputs.{name}"
+        try:
+            if spec.type == "step":
+                signal = sg.Step(time=float(values["time"]), initial=float(values["initial"]),
+                                 final=float(values["final"]))
+            elif spec.type == "ramp":
+                signal = sg.Ramp(slope=float(values["slope"]), start=float(values["start"]),
+                                 initial=float(values["initial"]))
+            elif spec.type == "sine":
+                signal = sg.Sine(amplitude=float(values["amplitude"]), frequency=float(values["frequency"]),
+                                 phase=float(values["phase"]), bias=float(values["bias"]))
+            elif spec.type == "pulse":
+                signal = sg.Pulse(amplitude=float(values["amplitude"]), period=float(values["period"]),
+                                  width=float(values["width"]), delay=float(values["delay"]))
+            elif spec.type == "table":
+                csv = (path.parent / values["file"]).resolve()
+                if not csv.is_file():
+                    raise ExperimentError(f"`{key}.file`: {values['file']!r} does not exist (looked for {csv}).",
+                                          key=f"{key}.file")
+                signal = sg.Table.from_csv(csv)
+            elif spec.type == "constant":
+                signal = sg.Constant(float(values["value"]))
+            else:
+                expr = _expr().compile_expression(values["expression"], names=["t", *model_params(model)],
+                                                  key=f"{key}.expression")
+                params = model_params(model)
+                signal = sg.Function(lambda t, _e=expr, _p=params: _e(t=t, **_p), label=str(values["expression"]))
+        except InputError as exc:
+            raise exc.located(key=key) from None
+        out.append(signal)
+        resolved[name] = {"type": spec.type, **{k: v for k, v in values.items() if v is not None}}
+
+    signals = tuple(out)
+
+    def input_fn(t):
+        t = np.asarray(t, dtype=float)
+        return np.column_stack([np.broadcast_to(np.asarray(s(t), dtype=float), t.shape) for s in signals])
+
+    return signals, input_fn, resolved
+
+
+def model_params(model: schema.Experiment) -> dict[str, float]:
+    return _expr().evaluate_parameters(model.parameters) if model.parameters else {}

@@ -1,0 +1,69 @@
+"""Terminal tables for ``odelab run`` (Rich). Only the CLI imports this module."""
+
+from __future__ import annotations
+
+import numpy as np
+from rich.console import Console
+from rich.markup import escape
+from rich.table import Table
+
+__all__ = ["print_experiment", "fmt"]
+
+
+def fmt(value, digits: int = 4) -> str:
+    """An error as the lab quotes it: 4 significant digits (1.068e-04), 'undefined' if missing."""
+    if value is None or (isinstance(value, float) and value != value):
+        return "undefined"
+    return f"{value:.{digits - 1}e}"
+
+
+def print_experiment(console: Console, exp, results, *, table: bool = False) -> None:
+    console.print(f"\n[bold]{escape(exp.title)}[/]  [dim]({escape(str(exp.source))})[/]")
+    summary = Table(show_edge=False, pad_edge=False, header_style="bold", box=None)
+    for col, justify in (("case", "left"), ("method", "left"), ("points", "right"), ("steps", "right"),
+                         ("failed", "right"), ("fevals", "right"), ("quantity", "left"), ("max abs error", "right"),
+                         ("max rel error", "right"), ("status", "left")):
+        summary.add_column(col, justify=justify, no_wrap=True)
+    for r in results:
+        s = r.stats
+        status = "[green]ok[/]" if r.status == "success" else "[bold red]FAILED[/]"
+        head = [escape(r.case.name), r.method, str(r.t.size), str(s.nsteps),
+                "-" if s.nfailed is None else str(s.nfailed), str(s.nfevals)]
+        if not r.errors:
+            summary.add_row(*head, "-", "-", "-", status)
+        for i, (name, e) in enumerate(r.errors.items()):
+            cells = head if i == 0 else [""] * len(head)
+            summary.add_row(*cells, escape(name), fmt(e.max_abs), fmt(e.max_rel), status if i == 0 else "")
+    console.print(summary)
+    kinds = {r.reference_kind for r in results if r.errors}
+    if kinds:
+        names = {"exact": "the exact solution in \\[exact]", "lti": "the exact LTI response (matrix exponential)",
+                 "high-accuracy": "a high-accuracy solve"}
+        console.print("[dim]errors against " + "; ".join(names.get(k, k) for k in sorted(kinds))
+                      + ". relative error = |f - y| / |f|.[/]")
+    for r in results:
+        if r.status != "success":
+            console.print(f"[red]{escape(r.case.name)}: {escape(r.message)}[/]")
+        for w in r.warnings:
+            console.print(f"[yellow]{escape(r.case.name)}: note: {escape(w)}[/]")
+        for line in r.extra.get("lines", []):
+            console.print(escape(line))
+        if table and r.errors:
+            print_point_table(console, r)
+
+
+def print_point_table(console: Console, r) -> None:
+    """The lab's 'relative error at each step': t, value, reference, absolute and relative error."""
+    from odelab.analysis.errors import error_columns
+
+    series = r.series()
+    for name, ref in r.reference.items():
+        t = Table(title=f"{r.case.name}: {name} at each output point", title_justify="left", show_edge=False,
+                  header_style="bold")
+        for col in ("t", name, "reference", "|f - y|", "|f - y| / |f|"):
+            t.add_column(escape(col), justify="right")
+        abs_err, rel_err = error_columns(series[name], ref)
+        for row in zip(r.t, series[name], ref, abs_err, rel_err):
+            t.add_row(f"{row[0]:.6g}", f"{row[1]:.10g}", f"{row[2]:.10g}", fmt(float(row[3])),
+                      fmt(None if np.isnan(row[4]) else float(row[4])))
+        console.print(t)

@@ -1,0 +1,614 @@
+"""Loading experiment files: TOML -> validated, merged, compiled cases.
+
+Every problem with a file is raised as one :class:`~odelab.exceptions.ExperimentError`
+naming the file, the TOML key, the value, and the fix. Nothing here runs a solver.
+"""
+
+from __future__ import annotations
+
+import copy
+import difflib
+import hashlib
+import importlib.util
+import math
+import re
+import sys
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, get_args, get_origin
+
+import numpy as np
+from pydantic import BaseModel, ValidationError
+
+from odelab.exceptions import ExperimentError, InputError
+from odelab.experiment import schema
+
+__all__ = ["Case", "LoadedExperiment", "Problem", "load_experiment", "merge", "slug"]
+
+MAX_FILE_BYTES = 1_000_000
+
+
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """A case compiled for running: everything the runner needs, nothing it must parse."""
+
+    states: tuple[str, ...]
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    fun: Callable  # fun(t, x) -> dx/dt, with the inputs applied
+    tspan: np.ndarray  # MATLAB tspan given to the solver
+    x0: np.ndarray
+    method: str
+    options: dict[str, Any]
+    output_fn: Callable | None = None  # (t (N,), x (N, n)) -> (N, ny)
+    input_fn: Callable | None = None  # t (N,) -> (N, nu)
+    exact_fn: Callable | None = None  # t (N,) -> {name: (N,)} for states and outputs
+    reference: str = "none"  # "exact", "lti", "high-accuracy" or "none"
+    reference_solver: tuple[str, float, float] = ("DOP853", 1e-12, 1e-14)
+    system: Any = None  # a StateSpace or NonlinearSystem where one was built
+    signals: tuple = ()  # one odelab.signals signal per input
+    linearize: Any = None  # the [linearize] section, if any
+    parameters: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, eq=False)
+class Case:
+    """One case of an experiment, merged over the base and resolved."""
+
+    experiment: str
+    name: str
+    title: str
+    source: Path
+    file_hash: str
+    config: dict[str, Any]  # the merged configuration, defaults filled in (resolved.toml)
+    problem: Problem
+
+
+@dataclass(frozen=True, eq=False)
+class LoadedExperiment:
+    name: str
+    title: str
+    source: Path
+    file_hash: str
+    cases: tuple[Case, ...]
+
+
+# --- reading ------------------------------------------------------------------------------
+
+
+def read_toml(path: Path) -> tuple[dict, bytes]:
+    """Read and parse a TOML file, turning every failure into an ExperimentError."""
+    src = str(path)
+    if not path.exists():
+        raise ExperimentError("no such file; check the path.", source=src)
+    if path.is_dir():
+        raise ExperimentError("is a folder, not an experiment file; `odelab run` takes folders and runs the "
+                              "*.toml files in them.", source=src)
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise ExperimentError(f"cannot be read: {exc.strerror}.", source=src) from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise ExperimentError(f"is {len(raw)} bytes; experiment files are limited to {MAX_FILE_BYTES}.", source=src)
+    if not raw.strip():
+        raise ExperimentError("is empty; an experiment needs at least [system], [initial] and [time] "
+                              "(`odelab new FILE` writes a starter).", source=src)
+    if b"\x00" in raw:
+        raise ExperimentError("is a binary file, not a TOML text file.", source=src)
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ExperimentError(f"is not UTF-8 text (byte {exc.start}); save it as UTF-8.", source=src) from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ExperimentError(f"TOML syntax error: {exc}.", source=src) from None
+    return data, raw
+
+
+def merge(base: dict, override: dict) -> dict:
+    """Deep-merge ``override`` over ``base``: tables merge key by key, other values replace."""
+    out = copy.deepcopy(base)
+    for key, value in override.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = merge(out[key], value)
+        else:
+            out[key] = copy.deepcopy(value)
+    return out
+
+
+_SLUG = re.compile(r"[^A-Za-z0-9._-]+")
+
+
+def slug(name: str) -> str:
+    """A folder name for an experiment or case name that cannot leave the results folder."""
+    s = _SLUG.sub("-", name.replace("\x00", "")).strip("-.")
+    return s[:80] or "unnamed"
+
+
+# --- schema errors ----------------------------------------------------------------------------
+
+_TOML_TYPE = {bool: "a boolean", int: "a number", float: "a number", str: "a string", list: "an array",
+              dict: "a table"}
+_EXPECTED = {
+    "int_type": "a whole number",
+    "float_type": "a number",
+    "string_type": "a string",
+    "bool_type": "true or false",
+    "list_type": "an array",
+    "dict_type": "a table",
+    "model_type": "a table",
+    "model_attributes_type": "a table",
+}
+
+
+def _is_union_tag(seg) -> bool:
+    return isinstance(seg, str) and (
+        "[" in seg or seg in {"int", "float", "str", "bool", "none"} or seg.startswith("function-")
+    )
+
+
+def _key(loc) -> str:
+    parts: list[str] = []
+    for seg in loc:
+        if _is_union_tag(seg):
+            continue
+        if isinstance(seg, int):
+            parts[-1 if parts else 0:] = [f"{parts[-1] if parts else ''}[{seg}]"]
+        else:
+            parts.append(str(seg))
+    return ".".join(parts)
+
+
+def _model_fields_at(loc) -> list[str]:
+    """Field names of the schema model that holds the key at ``loc`` (for did-you-mean)."""
+    model: Any = schema.Experiment
+    for seg in loc[:-1]:
+        if _is_union_tag(seg) or isinstance(seg, int):
+            continue
+        if isinstance(model, type) and issubclass(model, BaseModel):
+            info = model.model_fields.get(seg)
+            if info is None:
+                return []
+            model = _first_model(info.annotation)
+        else:
+            model = _first_model(model)
+        if model is None:
+            return []
+    if isinstance(model, type) and issubclass(model, BaseModel):
+        return list(model.model_fields)
+    return []
+
+
+def _first_model(annotation):
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    for arg in get_args(annotation):
+        found = _first_model(arg)
+        if found is not None:
+            return found
+    if get_origin(annotation) is dict:
+        return _first_model(get_args(annotation)[1])
+    return None
+
+
+def _describe(value) -> str:
+    kind = _TOML_TYPE.get(type(value), type(value).__name__)
+    text = repr(value) if not isinstance(value, bool) else str(value).lower()
+    if len(text) > 60:
+        text = text[:57] + "..."
+    return f"{text} ({kind})"
+
+
+_REQUIRED_HINT = {
+    "system": "add a [system] table with `states` and [system.equations] (or `function`, or kind = \"state-space\")",
+    "time": "add a [time] table with at least `stop`",
+    "time.stop": "add `stop = 10` (or an expression such as \"2*pi\") under [time]",
+    "type": "give the signal's `type`: step, ramp, sine, pulse, table, expression or constant",
+}
+
+
+def schema_error(exc: ValidationError, *, source: str, case: str | None) -> ExperimentError:
+    """Turn pydantic's errors into one message, one line per key, most useful first."""
+    by_key: dict[str, list[dict]] = {}
+    for err in exc.errors():
+        by_key.setdefault(_key(err["loc"]), []).append(err)
+    lines = []
+    first_key = None
+    for key, errs in by_key.items():
+        first_key = first_key or key
+        kinds = {e["type"] for e in errs}
+        err = errs[0]
+        if "extra_forbidden" in kinds:
+            known = _model_fields_at(err["loc"])
+            leaf = str(err["loc"][-1])
+            close = difflib.get_close_matches(leaf, known, n=1, cutoff=0.6)
+            where = key.rsplit(".", 1)[0] if "." in key else "the top level"
+            hint = f" Did you mean `{close[0]}`?" if close else ""
+            allowed = f" Known keys in {'[' + where + ']' if '.' in key else where}: {', '.join(known)}." if known else ""
+            lines.append(f"unknown key `{key}`.{hint}{allowed}")
+        elif "missing" in kinds:
+            hint = _REQUIRED_HINT.get(key) or _REQUIRED_HINT.get(key.rsplit(".", 1)[-1], "")
+            lines.append(f"`{key}` is required" + (f": {hint}." if hint else "."))
+        elif "literal_error" in kinds:
+            expected = err.get("ctx", {}).get("expected", "")
+            lines.append(f"`{key}` is {_describe(err['input'])}; it must be one of {expected}.")
+        else:
+            expected = sorted({_EXPECTED.get(e["type"], e["msg"]) for e in errs})
+            if "a number" in expected and "a whole number" in expected:
+                expected.remove("a whole number")
+            if expected == ["a number", "a string"]:
+                expected = ["a number or an expression string"]
+            lines.append(f"`{key}` must be {' or '.join(expected)}; got {_describe(err['input'])}.")
+    where = f" (in case {case!r})" if case else ""
+    message = lines[0] + where if len(lines) == 1 else "\n  ".join([f"{len(lines)} problems{where}:", *lines])
+    return ExperimentError(message, source=source, key=first_key)
+
+
+# --- loading ------------------------------------------------------------------------------
+
+
+def load_experiment(path: str | Path) -> LoadedExperiment:
+    """Read, validate and compile an experiment file into its cases.
+
+    Raises
+    ------
+    ExperimentError
+        Naming the file, the key, the value and the fix.
+    """
+    path = Path(path)
+    src = str(path)
+    data, raw = read_toml(path)
+    file_hash = hashlib.sha256(raw).hexdigest()
+    cases_raw = data.pop("case", None)
+    if cases_raw is None:
+        cases_raw = [None]
+    elif not isinstance(cases_raw, list) or not all(isinstance(c, dict) for c in cases_raw):
+        raise ExperimentError("`case` must be an array of tables: write each case as [[case]].", source=src,
+                              key="case")
+    elif not cases_raw:
+        cases_raw = [None]
+    name = data.get("name", path.stem)
+    if not isinstance(name, str) or not name.strip():
+        raise ExperimentError(f"`name` must be a non-empty string; got {_describe(name)}.", source=src, key="name")
+
+    cases = []
+    seen: dict[str, int] = {}
+    for index, override in enumerate(cases_raw):
+        if override is None:
+            merged = data
+            case_name = None
+        else:
+            case_name = override.get("name")
+            if not isinstance(case_name, str) or not case_name.strip():
+                raise ExperimentError(
+                    f"[[case]] number {index + 1} needs a `name` (a non-empty string), e.g. name = \"ode45\".",
+                    source=src, key=f"case[{index}].name")
+            if case_name in seen:
+                raise ExperimentError(f"two cases are named {case_name!r} (cases {seen[case_name] + 1} and "
+                                      f"{index + 1}); give each case its own name.", source=src,
+                                      key=f"case[{index}].name")
+            seen[case_name] = index
+            merged = merge(data, {k: v for k, v in override.items() if k != "name"})
+        try:
+            model = schema.Experiment.model_validate(_normalize_solver(merged, src, case_name))
+        except ValidationError as exc:
+            error = schema_error(exc, source=src, case=None)
+            raise _in_case(error, override, case_name) from None
+        try:
+            problem, resolved = compile_case(model, path)
+        except InputError as exc:
+            raise _in_case(exc.located(source=src), override, case_name) from None
+        if case_name is None:
+            case_name = problem.method
+        config = {"name": name, **resolved, "case": [{"name": case_name}]}
+        cases.append(Case(experiment=name, name=case_name, title=model.title or name, source=path,
+                          file_hash=file_hash, config=config, problem=problem))
+    title = data.get("title") if isinstance(data.get("title"), str) else name
+    return LoadedExperiment(name=name, title=title, source=path, file_hash=file_hash, cases=tuple(cases))
+
+
+def _in_case(exc: InputError, override: dict | None, case_name: str | None) -> InputError:
+    """Say which case an error comes from when the offending key is set by that case."""
+    if not override or not case_name or not exc.key:
+        return exc
+    node: Any = override
+    for part in re.split(r"\.|\[", exc.key):
+        part = part.rstrip("]")
+        if isinstance(node, dict) and part in node:
+            node = node[part]
+        elif isinstance(node, list) and part.isdigit() and int(part) < len(node):
+            node = node[int(part)]
+        else:
+            return exc
+    exc.message += f" (set in case {case_name!r})"
+    return exc
+
+
+def _normalize_solver(config: dict, src: str, case: str | None) -> dict:
+    """Map MATLAB's option names in [solver] (RelTol, AbsTol, ...) to odelab's, before the schema."""
+    solver = config.get("solver")
+    if not isinstance(solver, dict):
+        return config
+    from odelab.solvers.options import _ALIASES
+
+    out: dict[str, Any] = {}
+    origin: dict[str, str] = {}
+    for key, value in solver.items():
+        canonical = key if key == "method" else _ALIASES.get(key.lower().replace("_", ""), key)
+        if canonical in out:
+            where = f" (in case {case!r})" if case else ""
+            raise ExperimentError(f"`solver.{key}` and `solver.{origin[canonical]}` set the same option{where}; "
+                                  "keep one.", source=src, key=f"solver.{key}")
+        out[canonical] = value
+        origin[canonical] = key
+    return {**config, "solver": out}
+
+
+# --- compiling a case -----------------------------------------------------------------------
+
+
+def _expr():
+    from odelab import expressions
+
+    return expressions
+
+
+def _names(values: list[str], key: str, what: str) -> tuple[str, ...]:
+    ex = _expr()
+    out = []
+    for i, name in enumerate(values):
+        out.append(ex.check_identifier(name, key=f"{key}[{i}]", what=what))
+    dupes = sorted({n for n in out if out.count(n) > 1})
+    if dupes:
+        raise ExperimentError(f"`{key}` names {dupes[0]!r} twice; {what} names must be unique.", key=key)
+    return tuple(out)
+
+
+def _check_keys(given: dict, expected: tuple[str, ...], key: str, what: str, *, require_all: bool) -> None:
+    for name in given:
+        if name not in expected:
+            close = difflib.get_close_matches(name, expected, n=1)
+            hint = f" Did you mean `{close[0]}`?" if close else ""
+            raise ExperimentError(f"`{key}.{name}`: {name!r} is not one of the {what} ({', '.join(expected)}).{hint}",
+                                  key=f"{key}.{name}")
+    if require_all:
+        missing = [n for n in expected if n not in given]
+        if missing:
+            raise ExperimentError(
+                f"`{key}` has no value for {', '.join(repr(m) for m in missing)}: give one for every "
+                f"{what[:-1] if what.endswith('s') else what} ({', '.join(expected)}).", key=key)
+
+
+def _constant(value, key: str, params: dict[str, float]) -> float:
+    return _expr().evaluate_constant(value, values=params, key=key)
+
+
+def compile_case(model: schema.Experiment, path: Path) -> tuple[Problem, dict]:
+    """Compile a validated case into a :class:`Problem` and its resolved configuration."""
+    ex = _expr()
+    params = ex.evaluate_parameters(model.parameters) if model.parameters else {}
+    system = model.system
+    resolved: dict[str, Any] = {}
+    if model.title:
+        resolved["title"] = model.title
+    if model.description:
+        resolved["description"] = model.description
+    if params:
+        resolved["parameters"] = dict(params)
+
+    if system.kind == "state-space":
+        from odelab.experiment.build import build_state_space
+
+        built = build_state_space(model, params)
+    elif system.function is not None:
+        built = _build_function_system(model, path)
+    else:
+        from odelab.experiment.build import build_ode
+
+        built = build_ode(model, params)
+    states, inputs, outputs = built.states, built.inputs, built.outputs
+    resolved["system"] = built.resolved
+
+    # initial state
+    _check_keys(model.initial, states, "initial", "states", require_all=True)
+    x0 = np.array([_constant(model.initial[s], f"initial.{s}", params) for s in states])
+    resolved["initial"] = {s: float(v) for s, v in zip(states, x0)}
+
+    tspan, time_resolved = _tspan(model.time, params)
+    resolved["time"] = time_resolved
+
+    # inputs
+    signals: tuple = ()
+    input_fn = None
+    if inputs:
+        from odelab.experiment.build import build_inputs
+
+        signals, input_fn, resolved["inputs"] = build_inputs(model, inputs, path, tspan)
+    elif model.inputs:
+        raise ExperimentError(
+            "[inputs] is given but the system declares no inputs: add `inputs = [...]` under [system].",
+            key="inputs")
+
+    # solver
+    from odelab.solvers.options import as_tspan, normalize_options, resolve_options
+    from odelab.solvers.registry import get_method
+
+    method = get_method(model.solver.method, key="solver.method")
+    options = {k: v for k, v in model.solver.model_dump().items() if k != "method" and v is not None}
+    try:
+        as_tspan(tspan)
+        resolve_options(method, normalize_options(options, method), tspan, len(states))
+    except InputError as exc:
+        raise ExperimentError(exc.message.replace(f"`{exc.key}`", f"`solver.{exc.key}`"),
+                              key=f"solver.{exc.key}" if exc.key else "solver") from None
+    resolved["solver"] = {"method": method.name, **_plain(options)}
+    if method.kind == "adaptive":
+        resolved["solver"].setdefault("rtol", 1e-3)
+        resolved["solver"].setdefault("atol", 1e-6)
+
+    # exact solution and reference
+    exact_fn = None
+    if model.exact is not None:
+        _check_keys(model.exact, states + outputs, "exact", "states and outputs", require_all=False)
+        compiled = {
+            name: ex.compile_expression(text, names=["t", *params], key=f"exact.{name}")
+            for name, text in model.exact.items()
+        }
+
+        def exact_fn(t, _compiled=compiled, _params=params):
+            return {name: np.broadcast_to(np.asarray(fn(t=t, **_params), dtype=float), np.shape(t)).astype(float)
+                    for name, fn in _compiled.items()}
+
+        resolved["exact"] = {k: v for k, v in model.exact.items()}
+    ref = model.reference
+    kind = ref.method
+    if kind == "auto":
+        kind = "exact" if exact_fn else ("lti" if built.linear and _all_exact(signals) else "none")
+    if kind == "exact" and exact_fn is None:
+        raise ExperimentError("`reference.method` is \"exact\" but the file has no [exact] section: add one, "
+                              "or use \"high-accuracy\".", key="reference.method")
+    if kind == "lti" and not built.linear:
+        raise ExperimentError("`reference.method` is \"lti\" but the system is not a linear state-space "
+                              "model: use \"high-accuracy\".", key="reference.method")
+    if kind == "lti" and not _all_exact(signals):
+        kind = "high-accuracy"
+    get_method(ref.solver, key="reference.solver")
+    resolved["reference"] = {"method": kind, "solver": ref.solver, "rtol": ref.rtol, "atol": ref.atol}
+    if model.linearize is not None:
+        resolved["linearize"] = _plain(model.linearize.model_dump(exclude_none=True))
+
+    problem = Problem(
+        states=states, inputs=inputs, outputs=outputs, fun=built.fun, tspan=tspan, x0=x0, method=method.name,
+        options=options, output_fn=built.output_fn, input_fn=input_fn, exact_fn=exact_fn, reference=kind,
+        reference_solver=(ref.solver, float(ref.rtol), float(ref.atol)), system=built.system, signals=signals,
+        linearize=model.linearize, parameters=params,
+    )
+    return problem, resolved
+
+
+def _all_exact(signals) -> bool:
+    return all(s.exact_terms() is not None for s in signals)
+
+
+def _plain(value):
+    """Make a value TOML-writable (tuples to lists, numpy scalars to floats)."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items() if v is not None}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def _tspan(time: schema.Time, params: dict[str, float]) -> tuple[np.ndarray, dict]:
+    if time.output is not None and time.points is not None:
+        raise ExperimentError("give either `time.output` (the output times) or `time.points` (how many evenly "
+                              "spaced ones), not both.", key="time.points")
+    start = _constant(time.start, "time.start", params)
+    stop = _constant(time.stop, "time.stop", params)
+    if start == stop:
+        raise ExperimentError(f"`time.stop` equals `time.start` ({start:g}): the time span has zero length.",
+                              key="time.stop")
+    resolved: dict[str, Any] = {"start": start, "stop": stop}
+    if time.output is not None:
+        out = np.array([_constant(v, f"time.output[{i}]", params) for i, v in enumerate(time.output)])
+        if out.size < 2:
+            raise ExperimentError("`time.output` needs at least two times (MATLAB's vector tspan).",
+                                  key="time.output")
+        if out[0] != start or out[-1] != stop:
+            raise ExperimentError(
+                f"`time.output` must run from time.start ({start:g}) to time.stop ({stop:g}), as MATLAB's tspan "
+                f"does; it runs from {out[0]:g} to {out[-1]:g}.", key="time.output")
+        steps = np.sign(stop - start) * np.diff(out)
+        if np.any(steps <= 0):
+            i = int(np.argmax(steps <= 0)) + 1
+            raise ExperimentError(f"`time.output` must be strictly monotonic from start to stop; entry {i} "
+                                  f"({out[i]:g}) follows {out[i - 1]:g}.", key="time.output")
+        resolved["output"] = out.tolist()
+        return out, resolved
+    if time.points is not None:
+        if time.points < 2:
+            raise ExperimentError(f"`time.points` must be at least 2; got {time.points}.", key="time.points")
+        resolved["points"] = time.points
+        return np.linspace(start, stop, time.points), resolved
+    return np.array([start, stop]), resolved
+
+
+# --- Python-function systems (the lab's `function ydot = eq1(t, y)`) -----------------------
+
+
+@dataclass(frozen=True, eq=False)
+class Built:
+    states: tuple[str, ...]
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    fun: Callable
+    output_fn: Callable | None
+    resolved: dict
+    linear: bool = False
+    system: Any = None
+
+
+def _build_function_system(model: schema.Experiment, path: Path) -> Built:
+    system = model.system
+    if system.equations is not None:
+        raise ExperimentError("[system] has both `function` and [system.equations]; keep one.",
+                              key="system.function")
+    if system.inputs:
+        raise ExperimentError("a `function` system cannot declare `inputs`: compute u(t) inside the function, "
+                              "or write the equations as expressions.", key="system.inputs")
+    if system.outputs:
+        raise ExperimentError("`system.outputs` is not supported with `function`; compute outputs with "
+                              "expressions of an equations system.", key="system.outputs")
+    states = _names(system.states, "system.states", "state") if system.states else tuple(model.initial)
+    if not states:
+        raise ExperimentError("`system.states` is required: list the state names, e.g. states = [\"y\"].",
+                              key="system.states")
+    fun = load_function(system.function, path)
+    return Built(states=states, inputs=(), outputs=(), fun=fun, output_fn=None,
+                 resolved={"states": list(states), "function": system.function})
+
+
+def load_function(spec: str, experiment_path: Path) -> Callable:
+    """Import ``"file.py:name"`` (relative to the experiment file) and return the callable.
+
+    This runs the user's own Python code, as MATLAB runs a function file; expressions never do.
+    """
+    key = "system.function"
+    if ":" not in spec:
+        raise ExperimentError(f"`{key}` is {spec!r}; write it as \"file.py:function_name\".", key=key)
+    file_part, _, name = spec.rpartition(":")
+    file = (experiment_path.parent / file_part).resolve()
+    if not file.is_file():
+        raise ExperimentError(f"`{key}`: the file {file_part!r} does not exist (looked for {file}).", key=key)
+    if not name.isidentifier():
+        raise ExperimentError(f"`{key}`: {name!r} is not a valid Python function name.", key=key)
+    module_name = "odelab_user_" + hashlib.sha256(str(file).encode()).hexdigest()[:12]
+    module = sys.modules.get(module_name)
+    if module is None:
+        spec_obj = importlib.util.spec_from_file_location(module_name, file)
+        if spec_obj is None or spec_obj.loader is None:
+            raise ExperimentError(f"`{key}`: {file_part!r} cannot be imported as Python.", key=key)
+        module = importlib.util.module_from_spec(spec_obj)
+        try:
+            spec_obj.loader.exec_module(module)
+        except Exception as exc:
+            raise ExperimentError(f"`{key}`: importing {file_part!r} raised {type(exc).__name__}: {exc}.",
+                                  key=key) from None
+        sys.modules[module_name] = module
+    fn = getattr(module, name, None)
+    if fn is None:
+        names = [n for n in vars(module) if callable(vars(module)[n]) and not n.startswith("_")]
+        close = difflib.get_close_matches(name, names, n=1)
+        hint = f" Did you mean {close[0]!r}?" if close else ""
+        raise ExperimentError(f"`{key}`: {file_part!r} has no function {name!r}.{hint}", key=key)
+    if not callable(fn):
+        raise ExperimentError(f"`{key}`: {name!r} in {file_part!r} is not callable.", key=key)
+    return fn
+
+
+def is_finite_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)

@@ -1,0 +1,133 @@
+"""Running a case: solve, compute its reference, and measure the errors."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from odelab.analysis.errors import ErrorSummary, summarize
+from odelab.experiment.loader import Case, LoadedExperiment, load_experiment
+from odelab.solution import Stats
+
+__all__ = ["CaseResult", "run_case", "run_experiment"]
+
+
+@dataclass(eq=False)
+class CaseResult:
+    """Everything one run of a case produced; what the results store writes and the report reads."""
+
+    case: Case
+    status: str
+    message: str
+    stats: Stats
+    elapsed: float
+    t: np.ndarray
+    x: np.ndarray
+    u: np.ndarray | None = None
+    y: np.ndarray | None = None
+    reference: dict[str, np.ndarray] = field(default_factory=dict)  # name -> reference values at t
+    reference_kind: str = "none"
+    errors: dict[str, ErrorSummary] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+    extra: dict[str, Any] = field(default_factory=dict)  # e.g. the linearisation study
+
+    @property
+    def method(self) -> str:
+        return self.case.problem.method
+
+    def series(self) -> dict[str, np.ndarray]:
+        """Every named column at the output times: states, inputs, outputs."""
+        p = self.case.problem
+        out = {name: self.x[:, i] for i, name in enumerate(p.states)}
+        if self.u is not None:
+            out.update({name: self.u[:, i] for i, name in enumerate(p.inputs)})
+        if self.y is not None:
+            out.update({name: self.y[:, i] for i, name in enumerate(p.outputs)})
+        return out
+
+
+def _integrate(problem, tspan, method, options):
+    """Solve (no inputs) or simulate (inputs, restarting at their discontinuities)."""
+    if problem.signals:
+        from odelab.systems.simulate import simulate
+
+        r = simulate(problem.system, tspan, problem.x0, u=list(problem.signals), method=method, **options)
+        return r.t, r.x, r.u, r.stats, r.status, r.message, ()
+    from odelab.solvers.api import solve
+
+    sol = solve(problem.fun, tspan, problem.x0, method=method, **options)
+    return sol.t, sol.y, None, sol.stats, sol.status, sol.message, sol.warnings
+
+
+def run_case(case: Case, *, max_steps: int | None = None) -> CaseResult:
+    """Run one case and compute its error table (never raises for a failed integration)."""
+    p = case.problem
+    options = dict(p.options)
+    if max_steps and "h" not in options:
+        options.setdefault("max_steps", max_steps)
+    start = time.perf_counter()
+    t, x, u, stats, status, message, warnings = _integrate(p, p.tspan, p.method, options)
+    elapsed = time.perf_counter() - start
+    if u is None and p.input_fn is not None:
+        u = p.input_fn(t)
+    y = p.output_fn(t, x, u) if p.output_fn is not None else None
+    result = CaseResult(case=case, status=status, message=message, stats=stats, elapsed=elapsed, t=t, x=x, u=u,
+                        y=y, warnings=list(warnings))
+    _reference(result)
+    if p.linearize is not None:
+        from odelab.experiment.linearization import study
+
+        study(result)
+    return result
+
+
+def _reference(result: CaseResult) -> None:
+    p = result.case.problem
+    t = result.t
+    kind = p.reference
+    ref: dict[str, np.ndarray] = {}
+    if kind == "none" or t.size < 2:
+        return
+    if kind == "exact":
+        ref = p.exact_fn(t)
+    elif kind == "lti" and np.all(np.diff(t) > 0):
+        from odelab.analysis.lti import lti_response
+
+        xr, yr = lti_response(p.system, t, p.x0, u=list(p.signals) if p.signals else None)
+        ref = {name: xr[:, i] for i, name in enumerate(p.states)}
+        ref.update({name: yr[:, i] for i, name in enumerate(p.outputs)})
+    else:
+        if kind == "lti":
+            result.warnings.append("exact LTI reference needs increasing time; used a high-accuracy one instead")
+            kind = "high-accuracy"
+        solver, rtol, atol = p.reference_solver
+        options = {"rtol": rtol, "atol": atol}
+        rt, rx, ru, _, status, message, _ = _integrate(p, t, solver, options)
+        if status != "success" or rt.size != t.size:
+            result.warnings.append(f"the high-accuracy reference ({solver}, rtol {rtol:g}) failed: {message}")
+            return
+        ref = {name: rx[:, i] for i, name in enumerate(p.states)}
+        if p.output_fn is not None:
+            if ru is None and p.input_fn is not None:
+                ru = p.input_fn(rt)
+            ry = p.output_fn(rt, rx, ru)
+            ref.update({name: ry[:, i] for i, name in enumerate(p.outputs)})
+    result.reference_kind = kind
+    series = result.series()
+    for name, values in ref.items():
+        result.reference[name] = np.asarray(values, dtype=float)
+        result.errors[name] = summarize(name, t, series[name], result.reference[name])
+    undefined = {n: e.undefined for n, e in result.errors.items() if e.undefined}
+    for name, count in undefined.items():
+        result.warnings.append(
+            f"relative error of {name} is undefined at {count} point{'s' if count > 1 else ''} where the reference "
+            "is zero or tiny; left out of the maximum")
+
+
+def run_experiment(path_or_experiment, *, max_steps: int | None = None) -> list[CaseResult]:
+    """Load (if given a path) and run every case of an experiment."""
+    exp = path_or_experiment if isinstance(path_or_experiment, LoadedExperiment) else load_experiment(path_or_experiment)
+    return [run_case(case, max_steps=max_steps) for case in exp.cases]

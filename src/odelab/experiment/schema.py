@@ -1,0 +1,131 @@
+"""The experiment file schema (pydantic models).
+
+The models check structure and types only: which keys exist, which are tables, lists,
+numbers or strings. Meaning (expressions, shapes, tolerances) is checked by the loader, which
+knows the key paths, so every message can name the file, the key, the value and the fix.
+
+A value written ``Value`` is a number or a string in the expression language (``stop = "pi"``).
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal, Union
+
+from pydantic import BaseModel, ConfigDict, Field, StrictBool, StrictFloat, StrictInt, StrictStr
+
+Number = Union[StrictInt, StrictFloat]
+Value = Union[StrictInt, StrictFloat, StrictStr]
+Matrix = Union[Value, list[Value], list[list[Value]]]
+
+__all__ = ["Experiment", "SOLVER_KEYS"]
+
+# [solver] keys, after MATLAB's names are mapped to odelab's (see odelab.solvers.options).
+SOLVER_KEYS = ("method", "rtol", "atol", "max_step", "initial_step", "refine", "norm_control", "h", "max_steps")
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class System(_Section):
+    """[system]: what is integrated."""
+
+    kind: Literal["ode", "state-space"] = "ode"
+    states: list[StrictStr] | None = None
+    equations: dict[str, Value] | None = None
+    function: StrictStr | None = None
+    inputs: list[StrictStr] | None = None
+    outputs: Union[dict[str, Value], list[StrictStr], None] = None
+    A: Matrix | None = None
+    B: Matrix | None = None
+    C: Matrix | None = None
+    D: Matrix | None = None
+
+
+class Time(_Section):
+    """[time]: the span and the output times."""
+
+    start: Value = 0
+    stop: Value
+    output: list[Value] | None = None
+    points: StrictInt | None = None
+
+
+class Solver(_Section):
+    """[solver]: method and options (MATLAB's odeset names are mapped before validation)."""
+
+    method: StrictStr = "ode45"
+    rtol: Number | None = None
+    atol: Union[Number, list[Number], None] = None
+    max_step: Number | None = None
+    initial_step: Number | None = None
+    refine: StrictInt | None = None
+    norm_control: Union[StrictBool, Literal["on", "off"], None] = None
+    h: Number | None = None
+    max_steps: StrictInt | None = None
+
+
+class Reference(_Section):
+    """[reference]: what errors are measured against."""
+
+    method: Literal["auto", "exact", "lti", "high-accuracy", "none"] = "auto"
+    solver: StrictStr = "DOP853"
+    rtol: Number = 1e-12
+    atol: Number = 1e-14
+
+
+class InputSignal(_Section):
+    """One entry of [inputs]: u(t) for one input name."""
+
+    type: Literal["step", "ramp", "sine", "pulse", "table", "expression", "constant"]
+    # step
+    time: Number | None = None
+    initial: Number | None = None
+    final: Number | None = None
+    # ramp
+    slope: Number | None = None
+    start: Number | None = None
+    # sine
+    amplitude: Number | None = None
+    frequency: Number | None = None
+    phase: Number | None = None
+    bias: Number | None = None
+    # pulse
+    period: Number | None = None
+    width: Number | None = None
+    delay: Number | None = None
+    # table
+    file: StrictStr | None = None
+    # expression / constant
+    expression: Value | None = None
+    value: Number | None = None
+
+
+class Linearize(_Section):
+    """[linearize]: operating point and the comparison / amplitude study."""
+
+    input: dict[str, Value] | None = None
+    state: dict[str, Value] | None = None
+    guess: dict[str, Value] | None = None
+    fixed: dict[str, Value] | None = None
+    amplitudes: list[Number] | None = None
+    threshold: Number = 0.05
+    quantity: StrictStr | None = None
+    step_time: Number = 0.0
+
+
+class Experiment(_Section):
+    """A whole experiment file, or one case after merging it over the base."""
+
+    name: StrictStr | None = None
+    title: StrictStr | None = None
+    description: StrictStr | None = None
+    parameters: dict[str, Value] = Field(default_factory=dict)
+    system: System
+    initial: dict[str, Value] = Field(default_factory=dict)
+    time: Time
+    exact: dict[str, Value] | None = None
+    solver: Solver = Field(default_factory=Solver)
+    reference: Reference = Field(default_factory=Reference)
+    inputs: dict[str, Annotated[InputSignal, Field()]] | None = None
+    linearize: Linearize | None = None

@@ -1,0 +1,38 @@
+"""Running cases: references and error tables in units of the tolerance."""
+
+from pathlib import Path
+
+import numpy as np
+
+from odelab.experiment.loader import load_experiment
+from odelab.experiment.runner import run_case, run_experiment
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_exercise1_numbers():
+    results = run_experiment(ROOT / "experiments" / "exercise1.toml")
+    by_case = {r.case.name: r for r in results}
+    assert f"{by_case['ode23'].errors['y'].max_rel:.3e}" == "1.068e-04"
+    assert by_case["ode45"].stats.nfevals == 61 and by_case["ode45"].t.size == 41
+    assert by_case["ode23"].reference_kind == "exact"
+
+
+def test_rigid_body_against_a_high_accuracy_reference():
+    (result,) = run_experiment(ROOT / "experiments" / "rigid_body.toml")
+    assert result.reference_kind == "high-accuracy"
+    assert (result.stats.nsteps, result.stats.nfailed, result.stats.nfevals) == (21, 0, 127)
+    # Global errors of a run at rtol 1e-4 stay within a few tens of tolerance units.
+    for name in ("y1", "y2", "y3"):
+        assert result.errors[name].max_abs < 30 * 1e-4
+    # The reference itself is far more accurate: comparing two tight solves agrees to ~1e-10.
+    assert abs(result.reference["y3"][-1] - result.x[-1, 2]) < 1e-3
+
+
+def test_max_steps_guard_is_applied(tmp_path):
+    path = tmp_path / "vdp.toml"
+    path.write_text('[parameters]\nmu = 1000\n[system]\nstates = ["x", "v"]\n[system.equations]\nx = "v"\n'
+                    'v = "mu*(1 - x^2)*v - x"\n[initial]\nx = 2\nv = 0\n[time]\nstop = 3000\n')
+    result = run_case(load_experiment(path).cases[0], max_steps=300)
+    assert result.status == "failed" and result.stats.nsteps == 300
+    assert "stiff" in result.message and "Radau" in result.message

@@ -1,0 +1,177 @@
+"""The CLI through typer's CliRunner: exit codes, messages, JSON shape, the bad-file corpus."""
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from odelab.cli import app
+
+ROOT = Path(__file__).resolve().parents[1]
+EXPERIMENTS = ROOT / "experiments"
+BAD = sorted((ROOT / "tests" / "assets" / "bad").glob("*.toml"))
+
+runner = CliRunner()
+
+
+def invoke(*args):
+    return runner.invoke(app, [str(a) for a in args])
+
+
+def expected_message(path: Path) -> str:
+    first = path.read_text().splitlines()[0]
+    assert first.startswith("# expect: "), f"{path.name} must start with '# expect: <message>'"
+    return first[len("# expect: "):]
+
+
+def test_version_and_help():
+    result = invoke("--version")
+    assert result.exit_code == 0 and result.output.startswith("odelab 0.")
+    result = invoke("--help")
+    assert result.exit_code == 0
+    for command in ("run", "validate", "new", "solvers"):
+        assert command in result.output
+
+
+def test_run_exercise1_prints_the_lab_numbers(tmp_path):
+    result = invoke("run", EXPERIMENTS / "exercise1.toml", "--runs", tmp_path / "runs")
+    assert result.exit_code == 0, result.output
+    lines = {line.split()[0]: line.split() for line in result.output.splitlines() if line.startswith("ode")}
+    # case method points steps failed fevals quantity max-abs max-rel status
+    assert lines["ode23"][1:6] == ["ode23", "12", "11", "0", "34"] and lines["ode23"][8] == "1.068e-04"
+    assert lines["ode45"][1:6] == ["ode45", "41", "10", "0", "61"] and lines["ode45"][8] == "1.187e-07"
+    for case in ("ode23", "ode45"):
+        folder = tmp_path / "runs" / "exercise1" / case
+        assert sorted(p.name for p in folder.iterdir() if not p.name.startswith(".")) == [
+            "resolved.toml", "result.json", "trajectory.csv"]
+
+
+def test_run_folder_json_shape(tmp_path):
+    result = invoke("run", EXPERIMENTS, "--runs", tmp_path / "runs", "--json")
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.output)
+    names = [e["name"] for e in doc["experiments"]]
+    assert {"exercise1", "exercise1_2pi", "rigid_body"} <= set(names)
+    exp = doc["experiments"][names.index("exercise1_2pi")]
+    assert exp["title"].startswith("Exercise 1 over [0, 2 pi]")
+    case = exp["cases"][0]
+    for key in ("name", "method", "status", "message", "points", "stats", "max_abs_error", "max_rel_error"):
+        assert key in case or (key == "name" and "case" in case)
+    assert case["points"] == 17 and f"{case['max_rel_error']['y']:.3e}" == "6.907e-04"
+    assert case["stats"] == {"nsteps": 16, "nfailed": 2, "nfevals": 55}
+    rigid = doc["experiments"][names.index("rigid_body")]["cases"][0]
+    assert rigid["stats"] == {"nsteps": 21, "nfailed": 0, "nfevals": 127} and rigid["points"] == 85
+    assert set(rigid["max_rel_error"]) == {"y1", "y2", "y3"}
+
+
+def test_table_prints_every_point(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    result = invoke("run", EXPERIMENTS / "exercise1.toml", "--no-store", "--table")
+    assert result.exit_code == 0
+    assert "ode23: y at each output point" in result.output
+    assert result.output.count("1.068e-04") >= 2  # in the summary and at its point in the table
+    assert not (tmp_path / "runs").exists()  # --no-store writes nothing
+
+
+def test_resolved_toml_reproduces_the_case(tmp_path):
+    invoke("run", EXPERIMENTS / "rigid_body.toml", "--runs", tmp_path / "a")
+    resolved = tmp_path / "a" / "rigid_body" / "ode45" / "resolved.toml"
+    again = invoke("run", resolved, "--runs", tmp_path / "b", "--json")
+    assert again.exit_code == 0, again.output
+    first = json.loads((tmp_path / "a" / "rigid_body" / "ode45" / "result.json").read_text())
+    second = json.loads(again.output)["experiments"][0]["cases"][0]
+    assert second["stats"] == first["stats"] and second["max_abs_error"] == first["max_abs_error"]
+
+
+def test_failed_integration_exits_1_and_keeps_partial_results(tmp_path):
+    exp = tmp_path / "blowup.toml"
+    exp.write_text('[system]\nstates = ["y"]\n[system.equations]\ny = "y^2"\n[initial]\ny = 1\n'
+                   '[time]\nstop = 2\n[exact]\ny = "1/(1 - t)"\n')
+    result = invoke("run", exp, "--runs", tmp_path / "runs")
+    assert result.exit_code == 1
+    assert "FAILED" in result.output and "step size fell below" in result.output
+    record = json.loads((tmp_path / "runs" / "blowup" / "ode45" / "result.json").read_text())
+    assert record["status"] == "failed" and record["points"] > 10
+
+
+@pytest.mark.parametrize("path", BAD, ids=lambda p: p.stem)
+def test_bad_file_gives_one_clear_message_and_exit_2(path, tmp_path):
+    runs = tmp_path / "runs"
+    result = invoke("run", path, "--runs", runs)
+    assert result.exit_code == 2, result.output
+    assert expected_message(path) in result.output
+    assert path.name in result.output
+    assert "Traceback" not in result.output
+    assert not runs.exists() or not any(runs.rglob("*.json"))
+
+
+def test_special_bad_inputs(tmp_path):
+    (tmp_path / "empty.toml").write_text("")
+    (tmp_path / "binary.toml").write_bytes(b"\x00\x01\x02title")
+    (tmp_path / "latin1.toml").write_bytes("title = 'caf\xe9'".encode("latin-1"))
+    (tmp_path / "folder").mkdir()
+    cases = {
+        "empty.toml": "is empty; an experiment needs at least [system], [initial] and [time]",
+        "binary.toml": "is a binary file, not a TOML text file",
+        "latin1.toml": "is not UTF-8 text",
+        "folder": "is a folder with no *.toml experiment files in it",
+        "missing.toml": "no such file or folder",
+    }
+    for name, message in cases.items():
+        result = invoke("run", tmp_path / name, "--runs", tmp_path / "runs")
+        assert result.exit_code == 2, name
+        assert message in result.output, (name, result.output)
+        assert "Traceback" not in result.output
+
+
+def test_a_bad_file_does_not_stop_the_others(tmp_path):
+    shutil.copy(EXPERIMENTS / "exercise1.toml", tmp_path / "good.toml")
+    shutil.copy(ROOT / "tests" / "assets" / "bad" / "rtol_negative.toml", tmp_path / "bad.toml")
+    result = invoke("run", tmp_path, "--runs", tmp_path / "runs")
+    assert result.exit_code == 2
+    assert "1.068e-04" in result.output
+    assert (tmp_path / "runs" / "good" / "ode23" / "result.json").exists()
+
+
+def test_validate(tmp_path):
+    result = invoke("validate", EXPERIMENTS)
+    assert result.exit_code == 0
+    assert "ok: " in result.output and "(2 cases: ode23, ode45)" in result.output
+    result = invoke("validate", ROOT / "tests" / "assets" / "bad" / "unknown_method.toml")
+    assert result.exit_code == 2 and "Did you mean 'ode45'?" in result.output
+
+
+@pytest.mark.parametrize("kind", ["ode", "state-space", "python"])
+def test_new_writes_a_starter_that_runs(kind, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    result = invoke("new", "exp.toml", "--kind", kind)
+    assert result.exit_code == 0, result.output
+    assert "wrote exp.toml" in result.output
+    ran = invoke("run", "exp.toml", "--runs", "runs")
+    assert ran.exit_code == 0, ran.output
+    again = invoke("new", "exp.toml", "--kind", kind)
+    assert again.exit_code == 2 and "exists; choose another name or pass --force" in again.output
+
+
+def test_new_rejects_unknown_kind(tmp_path):
+    result = invoke("new", tmp_path / "x.toml", "--kind", "pde")
+    assert result.exit_code == 2 and "choose one of ode, state-space, python" in result.output
+
+
+def test_solvers_lists_every_method():
+    result = invoke("solvers")
+    assert result.exit_code == 0
+    for name in ("ode23", "ode45", "euler", "heun", "midpoint", "ralston", "rk3", "rk4", "RK45", "LSODA"):
+        assert name in result.output
+
+
+def test_function_system_runs_the_users_file(tmp_path):
+    (tmp_path / "eq1.py").write_text("import math\n\ndef eq1(t, y):\n    return math.cos(t)\n")
+    (tmp_path / "exp.toml").write_text('[system]\nstates = ["y"]\nfunction = "eq1.py:eq1"\n[initial]\ny = 2\n'
+                                       '[time]\nstop = "pi"\n[exact]\ny = "sin(t) + 2"\n[solver]\nmethod = "ode23"\n')
+    result = invoke("run", tmp_path / "exp.toml", "--runs", tmp_path / "runs", "--json")
+    assert result.exit_code == 0, result.output
+    case = json.loads(result.output)["experiments"][0]["cases"][0]
+    assert case["points"] == 12 and f"{case['max_rel_error']['y']:.3e}" == "1.068e-04"
