@@ -183,8 +183,9 @@ class ExactForm:
     Parameters
     ----------
     generate
-        ``generate(lo, hi)`` returns contiguous, sorted pieces covering ``[lo, hi]``
-        (extra pieces outside the window are allowed).
+        ``generate(lo, hi)`` returns contiguous, sorted pieces covering ``[lo, hi]``; only
+        their values on ``[lo, hi]`` count (a piece reaching outside it may be wrong there,
+        e.g. the first piece of a Pulse over a late window).
     """
 
     __slots__ = ("_generate",)
@@ -251,13 +252,16 @@ class ExactForm:
             starts = sorted({p.start for part in parts for p in part})
             stops = [*starts[1:], min(part[-1].stop for part in parts if part)] if starts else []
             out = []
+            cursor = [0] * len(parts)  # starts increase: each part is scanned once overall
             for a, b in zip(starts, stops):
                 terms: list[Term] = []
-                for part in parts:
-                    for p in part:
-                        if p.start <= a < p.stop:
-                            terms.extend(p.terms)
-                            break
+                for k, part in enumerate(parts):
+                    i = cursor[k]
+                    while i < len(part) and part[i].stop <= a:
+                        i += 1
+                    cursor[k] = i
+                    if i < len(part) and part[i].start <= a:
+                        terms.extend(part[i].terms)
                 out.append(Piece(a, b, tuple(terms)))
             return tuple(out)
 
