@@ -108,6 +108,7 @@ def run(
     total = sum(len(e.cases) for e in loaded)
     report_json = {"experiments": []}
     any_failed = False
+    stored = 0
     from rich.progress import Progress
 
     with Progress(console=err, transient=True, disable=total < 2 or not err.is_terminal) as progress:
@@ -116,7 +117,14 @@ def run(
             results = []
             for case in exp.cases:
                 progress.update(task, description=f"{exp.name}/{case.name}")
-                result = run_case(case, max_steps=max_steps or None)
+                try:
+                    result = run_case(case, max_steps=max_steps or None)
+                except InputError as exc:  # found only when running, e.g. no equilibrium for an input
+                    message = _error_text(exc.located(source=str(case.source)))
+                    bad.append(message)
+                    err.print(f"[bold red]error:[/] {_escape(message)} (case {_escape(case.name)!r})")
+                    progress.advance(task)
+                    continue
                 results.append(result)
                 any_failed |= result.status != "success"
                 if store:
@@ -134,17 +142,18 @@ def run(
                 report_json["experiments"].append({
                     "name": exp.name, "title": exp.title, "file": str(exp.source),
                     "cases": [summary(r) for r in results]})
-            else:
+            elif results:
                 from odelab.experiment.display import print_experiment
 
                 print_experiment(out, exp, results, table=table)
+            stored += len(results) if store else 0
     if json_out:
         import json
 
         if bad:
             report_json["errors"] = bad
         sys.stdout.write(json.dumps(report_json, indent=2, allow_nan=False) + "\n")
-    elif store and loaded:
+    elif stored:
         out.print(f"results stored in {_escape(str(runs))}/")
     raise typer.Exit(EXIT_INPUT if bad else EXIT_FAILED if any_failed else EXIT_OK)
 

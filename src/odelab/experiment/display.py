@@ -9,6 +9,8 @@ from rich.table import Table
 
 __all__ = ["print_experiment", "fmt"]
 
+UNDEFINED_NOTE = "relative error undefined where the reference is zero or tiny"
+
 
 def fmt(value, digits: int = 4) -> str:
     """An error as the lab quotes it: 4 significant digits (1.068e-04), 'undefined' if missing."""
@@ -37,17 +39,27 @@ def print_experiment(console: Console, exp, results, *, table: bool = False) -> 
     console.print(summary)
     kinds = {r.reference_kind for r in results if r.errors}
     if kinds:
-        names = {"exact": "the exact solution in \\[exact]", "lti": "the exact LTI response (matrix exponential)",
+        names = {"linearization": "the linearised model (x̄ added back): errors are nonlinear minus linear",
+                 "exact": "the exact solution in \\[exact]", "lti": "the exact LTI response (matrix exponential)",
                  "high-accuracy": "a high-accuracy solve"}
         console.print("[dim]errors against " + "; ".join(names.get(k, k) for k in sorted(kinds))
                       + ". relative error = |f - y| / |f|.[/]")
+    undefined = []
     for r in results:
         if r.status != "success":
             console.print(f"[red]{escape(r.case.name)}: {escape(r.message)}[/]")
         for w in r.warnings:
-            console.print(f"[yellow]{escape(r.case.name)}: note: {escape(w)}[/]")
-        for line in r.extra.get("lines", []):
-            console.print(escape(line))
+            if w.startswith(UNDEFINED_NOTE):
+                counts = ", ".join(f"{n} {e.undefined}" for n, e in r.errors.items() if e.undefined)
+                undefined.append(f"{r.case.name}: {counts}")
+            else:
+                console.print(f"[yellow]{escape(r.case.name)}: note: {escape(w)}[/]")
+    if undefined:
+        console.print("[dim]relative error undefined (reference zero or tiny; left out of the maximum) at this many "
+                      f"points: {escape('; '.join(undefined))}[/]")
+    for r in results:
+        if "linearization" in r.extra:
+            print_linearization(console, r.case.name, r.extra["linearization"])
         if table and r.errors:
             print_point_table(console, r)
 
@@ -67,3 +79,35 @@ def print_point_table(console: Console, r) -> None:
             t.add_row(f"{row[0]:.6g}", f"{row[1]:.10g}", f"{row[2]:.10g}", fmt(float(row[3])),
                       fmt(None if np.isnan(row[4]) else float(row[4])))
         console.print(t)
+
+
+def _matrix(rows) -> str:
+    return "[" + "; ".join(" ".join(f"{v:.6g}" for v in row) for row in rows) + "]"
+
+
+def print_linearization(console: Console, case: str, info: dict) -> None:
+    """Operating point, linear model and the amplitude study of a [linearize] case."""
+    op = info["operating_point"]
+    point = ", ".join(f"{k} = {v:.6g}" for k, v in {**op["x"], **op["u"]}.items())
+    console.print(f"[bold]{escape(case)}[/]: operating point {escape(point)} (residual {op['residual']:.1e})")
+    console.print(f"  linear model in deviations: A = {_matrix(info['A'])}, B = {_matrix(info['B'])}, "
+                  f"C = {_matrix(info['C'])}, D = {_matrix(info['D'])}")
+    if "amplitudes" not in info:
+        return
+    q = info["quantity"]
+    t = Table(show_edge=False, box=None, header_style="bold", pad_edge=False)
+    t.add_column(f"step of {escape(info['drive'])}", justify="right")
+    t.add_column(f"max |{escape(q)} nonlinear - linear|", justify="right")
+    t.add_column("relative to peak response", justify="right")
+    t.add_column("within threshold", justify="left")
+    for a, e_abs, e_rel in zip(info["amplitudes"], info["abs_errors"][q], info["errors"][q]):
+        ok = e_rel is not None and e_rel <= info["threshold"]
+        t.add_row(f"{a:g}", fmt(e_abs), fmt(e_rel), "yes" if ok else "[red]no[/]")
+    console.print(t)
+    within = info["max_amplitude_within"]
+    slope = info.get("slope")
+    console.print(
+        f"  largest step within {info['threshold']:.0%} of the peak response: "
+        + (f"{within:g}" if within is not None else "none of those tested")
+        + (f" (interpolated: {info['threshold_amplitude']:.3g})" if info.get("threshold_amplitude") else "")
+        + (f"; log-log slope of the error over these amplitudes: {slope:.2f}" if slope is not None else ""))

@@ -477,6 +477,7 @@ def compile_case(model: schema.Experiment, path: Path) -> tuple[Problem, dict]:
     get_method(ref.solver, key="reference.solver")
     resolved["reference"] = {"method": kind, "solver": ref.solver, "rtol": ref.rtol, "atol": ref.atol}
     if model.linearize is not None:
+        _check_linearize(model.linearize, states, inputs, outputs, built)
         resolved["linearize"] = _plain(model.linearize.model_dump(exclude_none=True))
 
     problem = Problem(
@@ -486,6 +487,38 @@ def compile_case(model: schema.Experiment, path: Path) -> tuple[Problem, dict]:
         linearize=model.linearize, parameters=params,
     )
     return problem, resolved
+
+
+def _check_linearize(spec: schema.Linearize, states, inputs, outputs, built) -> None:
+    """Catch [linearize] mistakes when the file is loaded, not halfway through a run."""
+    if built.system is None:
+        raise ExperimentError("[linearize] needs a system of equations or a state-space model; a `function` "
+                              "system cannot be linearised from the file.", key="linearize")
+    for field_name, names, what in (("input", inputs, "inputs"), ("state", states, "states"),
+                                    ("guess", states, "states"), ("fixed", states, "states")):
+        for name in getattr(spec, field_name) or {}:
+            if name not in names:
+                close = difflib.get_close_matches(name, names, n=1)
+                hint = f" Did you mean `{close[0]}`?" if close else ""
+                raise ExperimentError(f"`linearize.{field_name}.{name}`: {name!r} is not one of the {what} "
+                                      f"({', '.join(names) or 'none'}).{hint}", key=f"linearize.{field_name}.{name}")
+    if spec.amplitudes is not None:
+        if not inputs:
+            raise ExperimentError("`linearize.amplitudes` steps an input, but the system has no inputs.",
+                                  key="linearize.amplitudes")
+        bad = [a for a in spec.amplitudes if not (math.isfinite(a) and a > 0)]
+        if bad or not spec.amplitudes:
+            raise ExperimentError(f"`linearize.amplitudes` must be positive, finite step sizes; got {bad or '[]'}.",
+                                  key="linearize.amplitudes")
+    if spec.drive is not None and spec.drive not in inputs:
+        raise ExperimentError(f"`linearize.drive` is {spec.drive!r}, not one of the inputs ({', '.join(inputs)}).",
+                              key="linearize.drive")
+    if spec.quantity is not None and spec.quantity not in states + outputs:
+        raise ExperimentError(f"`linearize.quantity` is {spec.quantity!r}, not a state or output "
+                              f"({', '.join(states + outputs)}).", key="linearize.quantity")
+    if not (math.isfinite(spec.threshold) and spec.threshold > 0):
+        raise ExperimentError(f"`linearize.threshold` must be a positive fraction such as 0.05; got {spec.threshold!r}.",
+                              key="linearize.threshold")
 
 
 def _all_exact(signals) -> bool:

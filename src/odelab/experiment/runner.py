@@ -65,6 +65,10 @@ def _integrate(problem, tspan, method, options):
 def run_case(case: Case, *, max_steps: int | None = None) -> CaseResult:
     """Run one case and compute its error table (never raises for a failed integration)."""
     p = case.problem
+    if p.linearize is not None:
+        from odelab.experiment.linearization import run_linearization_case
+
+        return run_linearization_case(case, max_steps=max_steps)
     options = dict(p.options)
     if max_steps and "h" not in options:
         options.setdefault("max_steps", max_steps)
@@ -77,10 +81,6 @@ def run_case(case: Case, *, max_steps: int | None = None) -> CaseResult:
     result = CaseResult(case=case, status=status, message=message, stats=stats, elapsed=elapsed, t=t, x=x, u=u,
                         y=y, warnings=list(warnings))
     _reference(result)
-    if p.linearize is not None:
-        from odelab.experiment.linearization import study
-
-        study(result)
     return result
 
 
@@ -120,11 +120,11 @@ def _reference(result: CaseResult) -> None:
     for name, values in ref.items():
         result.reference[name] = np.asarray(values, dtype=float)
         result.errors[name] = summarize(name, t, series[name], result.reference[name])
-    undefined = {n: e.undefined for n, e in result.errors.items() if e.undefined}
-    for name, count in undefined.items():
+    undefined = [f"{n} ({e.undefined})" for n, e in result.errors.items() if e.undefined]
+    if undefined:
         result.warnings.append(
-            f"relative error of {name} is undefined at {count} point{'s' if count > 1 else ''} where the reference "
-            "is zero or tiny; left out of the maximum")
+            "relative error undefined where the reference is zero or tiny, at the number of points shown: "
+            + ", ".join(undefined) + "; left out of the maximum")
 
 
 def run_experiment(path_or_experiment, *, max_steps: int | None = None) -> list[CaseResult]:

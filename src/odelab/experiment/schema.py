@@ -102,8 +102,10 @@ class InputSignal(_Section):
 
 
 class Linearize(_Section):
-    """[linearize]: operating point and the comparison / amplitude study."""
+    """[linearize]: operating point, the linear-versus-nonlinear comparison, the amplitude study."""
 
+    start: Literal["operating-point", "initial"] = "operating-point"
+    drive: StrictStr | None = None
     input: dict[str, Value] | None = None
     state: dict[str, Value] | None = None
     guess: dict[str, Value] | None = None
