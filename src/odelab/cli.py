@@ -7,6 +7,7 @@ imported at module level, so ``odelab --help`` starts fast (no numpy, scipy or m
 
 from __future__ import annotations
 
+import contextlib
 import sys
 from pathlib import Path
 from typing import Annotated, Optional
@@ -106,6 +107,40 @@ def run(
         err.print(f"[bold red]error:[/] {_escape(line)}")
 
     total = sum(len(e.cases) for e in loaded)
+    with _interruptible(err, total) as done:
+        return _run_all(loaded, bad, out, err, runs=runs, json_out=json_out, table=table, mat=mat,
+                        max_steps=max_steps, store=store, total=total, done=done)
+
+
+class _Terminated(BaseException):
+    """SIGTERM, raised like KeyboardInterrupt so that cleanup (temporary files) runs."""
+
+
+@contextlib.contextmanager
+def _interruptible(err, total: int):
+    """Turn Ctrl-C and SIGTERM into a clean stop: finished cases stay stored, nothing half-written."""
+    import signal
+
+    def on_term(signum, frame):
+        raise _Terminated()
+
+    previous = signal.signal(signal.SIGTERM, on_term)
+    done = [0]
+    try:
+        yield done
+    except (KeyboardInterrupt, _Terminated) as exc:
+        what = "interrupted" if isinstance(exc, KeyboardInterrupt) else "terminated"
+        err.print(f"[bold red]{what}:[/] {done[0]} of {total} case{'s' if total != 1 else ''} finished and stored; "
+                  "the case that was running was not stored.")
+        raise typer.Exit(130 if isinstance(exc, KeyboardInterrupt) else 143) from None
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, store, total, done) -> None:
+    from odelab.exceptions import InputError
+    from odelab.experiment.runner import run_case
+
     report_json = {"experiments": []}
     any_failed = False
     stored = 0
@@ -135,6 +170,7 @@ def run(
                     except OSError as exc:
                         err.print(f"[bold red]error:[/] cannot write results to {_escape(str(runs))}: {exc}")
                         raise typer.Exit(EXIT_INPUT) from None
+                done[0] += 1
                 progress.advance(task)
             if json_out:
                 from odelab.experiment.store import summary

@@ -48,16 +48,26 @@ def atomic_write(path: Path, data: str | bytes) -> None:
 
 
 @contextlib.contextmanager
-def _locked(folder: Path):
-    folder.mkdir(parents=True, exist_ok=True)
-    with open(folder / ".lock", "a+b") as fh:
-        try:
-            import fcntl
+def _locked(folder: Path, *, shared: bool = False):
+    """An advisory lock on a case folder: exclusive to write its files, shared to read them."""
+    if not shared:
+        folder.mkdir(parents=True, exist_ok=True)
+    try:
+        fh = open(folder / ".lock", "a+b") if not shared or (folder / ".lock").exists() else None
+    except OSError:  # a read-only results folder can still be read
+        fh = None
+    try:
+        if fh is not None:
+            try:
+                import fcntl
 
-            fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
-        except ImportError:  # pragma: no cover - non-POSIX: atomic renames still hold
-            pass
+                fcntl.flock(fh.fileno(), fcntl.LOCK_SH if shared else fcntl.LOCK_EX)
+            except ImportError:  # pragma: no cover - non-POSIX: atomic renames still hold
+                pass
         yield
+    finally:
+        if fh is not None:
+            fh.close()
 
 
 def case_dir(runs: Path, experiment: str, case: str) -> Path:
@@ -178,13 +188,16 @@ def _mat_bytes(result: CaseResult) -> bytes:
 
 def read_run(folder: Path) -> dict[str, Any]:
     """Read a stored case: result.json plus the trajectory columns (raises ValueError if broken)."""
-    record = json.loads((folder / "result.json").read_text(encoding="utf-8"))
+    with _locked(folder, shared=True):  # never read a case while another run rewrites it
+        record = json.loads((folder / "result.json").read_text(encoding="utf-8"))
+        text = (folder / "trajectory.csv").read_text(encoding="utf-8").splitlines()
     if not isinstance(record, dict) or record.get("format") != RESULT_FORMAT:
         raise ValueError(f"{folder / 'result.json'} is not an odelab result (format {RESULT_FORMAT})")
     for key in ("experiment", "case", "status", "method", "stats"):
         if key not in record:
             raise ValueError(f"{folder / 'result.json'} has no {key!r}")
-    text = (folder / "trajectory.csv").read_text(encoding="utf-8").splitlines()
+    if not text:
+        raise ValueError(f"{folder / 'trajectory.csv'} is empty")
     names = text[0].split(",")
     rows = [[float(v) if v else math.nan for v in line.split(",")] for line in text[1:] if line]
     data = np.array(rows, dtype=float).reshape(len(rows), len(names))
