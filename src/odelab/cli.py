@@ -94,6 +94,11 @@ def run(
     from odelab.experiment.loader import load_experiment
     from odelab.experiment.runner import run_case
 
+    import warnings
+
+    # Everything worth saying (RelTol raised, equilibrium residuals...) reaches the user as a
+    # note in the output; Python's own warning lines would only repeat it.
+    warnings.simplefilter("ignore")
     out, err = _consoles()
     files, problems = expand_paths(paths)
     bad = [f"{p}: {why}" for p, why in problems]

@@ -56,9 +56,18 @@ def _integrate(problem, tspan, method, options):
 
         r = simulate(problem.system, tspan, problem.x0, u=list(problem.signals), method=method, **options)
         return r.t, r.x, r.u, r.stats, r.status, r.message, ()
+    from odelab.exceptions import InputError
     from odelab.solvers.api import solve
 
-    sol = solve(problem.fun, tspan, problem.x0, method=method, **options)
+    try:
+        sol = solve(problem.fun, tspan, problem.x0, method=method, **options)
+    except InputError as exc:
+        if exc.key != "fun":
+            raise
+        # The user's function returned something unusable (wrong shape, complex): a failed
+        # case with the reason, like any other fault of the right-hand side.
+        message = f"{method} could not start: {exc.message.replace('`fun`', 'the system function')}"
+        return (tspan[:1].copy(), problem.x0.reshape(1, -1), None, Stats(0, 0, 1), "failed", message, ())
     return sol.t, sol.y, None, sol.stats, sol.status, sol.message, sol.warnings
 
 
