@@ -222,7 +222,8 @@ def test_rejected_with_message_and_caret(text, message, column):
     assert isinstance(err, InputError) and isinstance(err, ValueError)
     assert message in err.message
     assert err.column == column
-    assert str(err).splitlines()[-1] == "    " + " " * column + "^"
+    line_start = text.rfind("\n", 0, column) + 1  # the caret sits under the line holding the column
+    assert str(err).splitlines()[-1] == "    " + " " * (column - line_start) + "^"
 
 
 def test_errors_carry_key_and_source():

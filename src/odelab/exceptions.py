@@ -80,14 +80,25 @@ class ExpressionError(InputError):
         self.column = column
 
     def caret(self) -> str:
-        """The expression and a caret under the offending column (two lines), or ''."""
-        if self.column is None or len(self.expression) > 200:
+        """The offending line of the expression and a caret under the column (two lines), or ''.
+
+        ``column`` counts characters from the start of the whole text, so for a multi-line
+        TOML string the line holding it is shown, with the caret at its place in that line.
+        """
+        if self.column is None:
             return ""
-        return f"    {self.expression}\n    {' ' * self.column}^"
+        start = self.expression.rfind("\n", 0, self.column) + 1
+        end = self.expression.find("\n", self.column)
+        line = self.expression[start : end if end >= 0 else len(self.expression)]
+        col = self.column - start
+        if len(line) > 120:  # show a window around the column of a long line
+            left = max(0, col - 60)
+            line, col = line[left : left + 120], col - left
+        return f"    {line}\n    {' ' * col}^"
 
     def __str__(self) -> str:
         head = super().__str__()
-        if self.key and self.key not in head:
+        if self.key and f"`{self.key}`" not in head:
             head = head.replace(self.message, f"`{self.key}`: {self.message}", 1)
         tail = self.caret()
         return f"{head}\n{tail}" if tail else head
