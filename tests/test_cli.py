@@ -175,3 +175,32 @@ def test_function_system_runs_the_users_file(tmp_path):
     assert result.exit_code == 0, result.output
     case = json.loads(result.output)["experiments"][0]["cases"][0]
     assert case["points"] == 12 and f"{case['max_rel_error']['y']:.3e}" == "1.068e-04"
+
+
+def _modules_after(*args) -> set[str]:
+    import subprocess
+    import sys
+
+    code = ("import sys\nfrom odelab.cli import app\ntry:\n    app(%r)\nexcept SystemExit:\n    pass\n"
+            "print(' '.join(m for m in ('numpy', 'scipy', 'matplotlib', 'pydantic') if m in sys.modules))" % (list(args),))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    return set(out.split("\n")[-2].split())
+
+
+def test_help_imports_neither_numpy_scipy_nor_matplotlib():
+    assert _modules_after("--help") == set()
+
+
+def test_exercise1_run_imports_neither_scipy_nor_matplotlib(tmp_path):
+    loaded = _modules_after("run", str(EXPERIMENTS / "exercise1.toml"), "--runs", str(tmp_path))
+    assert "numpy" in loaded and "scipy" not in loaded and "matplotlib" not in loaded
+
+
+def test_mat_export_loads_in_scipy(tmp_path):
+    from scipy.io import loadmat
+
+    result = invoke("run", EXPERIMENTS / "rigid_body.toml", "--runs", tmp_path, "--mat")
+    assert result.exit_code == 0
+    data = loadmat(tmp_path / "rigid_body" / "ode45" / "result.mat")
+    assert data["t"].shape == (85, 1) and data["x"].shape == (85, 3)
+    assert data["ref_y3"].shape == (85, 1)
