@@ -90,11 +90,10 @@ def run(
     store: Annotated[bool, typer.Option("--store/--no-store", help="Write results to the results folder.")] = True,
 ) -> None:
     """Run experiments: solve every case, print the error tables and store the results."""
+    import warnings
+
     from odelab.exceptions import InputError
     from odelab.experiment.loader import load_experiment
-    from odelab.experiment.runner import run_case
-
-    import warnings
 
     # Everything worth saying (RelTol raised, equilibrium residuals...) reaches the user as a
     # note in the output; Python's own warning lines would only repeat it.
@@ -203,6 +202,39 @@ def _escape(text: str) -> str:
     from rich.markup import escape
 
     return escape(text)
+
+
+@app.command()
+def report(
+    experiments: Annotated[Optional[list[str]], typer.Argument(
+        help="Experiments to include (default: every one in the results folder).", show_default=False)] = None,
+    runs: Annotated[Path, typer.Option("--runs", help="Results folder to read.")] = Path("runs"),
+    out: Annotated[Path, typer.Option("--out", help="Folder to write the report to.")] = Path("report"),
+    fmt: Annotated[str, typer.Option("--format", help="html, md or both.")] = "both",
+    template: Annotated[Optional[Path], typer.Option("--template",
+                                                     help="A folder of Jinja templates to use instead.")] = None,
+) -> None:
+    """Build the lab report (HTML and Markdown, with plots and error tables) from stored runs."""
+    import warnings
+
+    from odelab.exceptions import InputError
+    from odelab.report import build_report
+
+    warnings.simplefilter("ignore")
+    out_console, err = _consoles()
+    try:
+        result = build_report(runs, out, formats=fmt, experiments=experiments or None, template_dir=template)
+    except InputError as exc:
+        err.print(f"[bold red]error:[/] {_escape(_error_text(exc))}")
+        raise typer.Exit(EXIT_INPUT) from None
+    for line in result.warnings:
+        err.print(f"[yellow]warning:[/] {_escape(line)}")
+    for path in result.paths:
+        if path.suffix in (".html", ".md"):
+            out_console.print(f"wrote {_escape(str(path))}")
+    figures = sum(1 for p in result.paths if p.suffix == ".png")
+    if figures:
+        out_console.print(f"wrote {figures} figures in {_escape(str(out / 'figures'))}/")
 
 
 @app.command()

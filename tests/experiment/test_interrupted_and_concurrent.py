@@ -1,7 +1,5 @@
 """Interrupted and concurrent runs with real processes: nothing stored is lost or half-written."""
 
-import json
-import os
 import signal
 import subprocess
 import sys

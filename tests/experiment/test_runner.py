@@ -2,7 +2,6 @@
 
 from pathlib import Path
 
-import numpy as np
 
 from odelab.experiment.loader import load_experiment
 from odelab.experiment.runner import run_case, run_experiment

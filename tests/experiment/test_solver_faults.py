@@ -1,7 +1,6 @@
 """Solver faults through the CLI: status "failed" or a warning that explains, partial results kept, exit 1."""
 
 import json
-from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner

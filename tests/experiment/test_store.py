@@ -1,8 +1,6 @@
 """The results store: atomic writes, JSON safety, reading back."""
 
-import json
 import math
-import os
 from pathlib import Path
 
 import numpy as np
@@ -26,9 +24,6 @@ def test_atomic_write_replaces_and_leaves_no_temporary(tmp_path):
 def test_atomic_write_failure_keeps_the_old_file(tmp_path):
     target = tmp_path / "file.txt"
     atomic_write(target, "old")
-
-    class Boom(bytes):
-        pass
 
     with pytest.raises(TypeError):
         atomic_write(target, object())  # cannot be encoded: fails mid-write

@@ -1,7 +1,6 @@
 """MATLAB parity: the numbers of shared/docs/MATLAB-PARITY.md, and MATLAB's algorithm rules."""
 
 import math
-import warnings
 
 import numpy as np
 import pytest

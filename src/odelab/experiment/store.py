@@ -11,10 +11,8 @@ from __future__ import annotations
 import contextlib
 import json
 import math
-import os
 import platform
 import sys
-import tempfile
 from datetime import datetime, timezone
 from importlib import metadata
 from pathlib import Path
@@ -23,28 +21,13 @@ from typing import Any
 import numpy as np
 
 from odelab.analysis.errors import error_columns
+from odelab.fileio import atomic_write
 from odelab.experiment.loader import slug
 from odelab.experiment.runner import CaseResult
 
 __all__ = ["RESULT_FORMAT", "atomic_write", "case_dir", "summary", "write_case", "read_run", "list_runs"]
 
 RESULT_FORMAT = "odelab-result/1"
-
-
-def atomic_write(path: Path, data: str | bytes) -> None:
-    """Write ``data`` to ``path`` so that readers see the old file or the new one, never a part."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data.encode("utf-8") if isinstance(data, str) else data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
 
 
 @contextlib.contextmanager

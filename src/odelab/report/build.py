@@ -1,0 +1,194 @@
+"""``build_report``: the stored runs in, a lab report out (one self-contained HTML file and Markdown).
+
+The HTML page embeds its figures (base64 PNG) and its CSS and loads nothing from anywhere:
+it opens offline, from a file or an e-mail attachment, and prints with every collapsed
+section opened. The Markdown report links the same figures as PNG files in ``figures/``.
+Every file is written atomically (temporary file, then rename), and the texts are rendered
+before anything is written, so a failing template or an interrupted report leaves the
+previous report as it was rather than half a new one.
+"""
+
+from __future__ import annotations
+
+import base64
+import platform
+from dataclasses import dataclass
+from datetime import datetime
+from pathlib import Path
+from typing import Iterable
+
+from odelab.exceptions import InputError
+from odelab.fileio import atomic_write
+
+__all__ = ["FORMATS", "Figure", "ReportResult", "build_report"]
+
+FORMATS = ("html", "md")
+HTML_NAME = "index.html"
+MARKDOWN_NAME = "report.md"
+FIGURES_DIR = "figures"
+# Per-step tables: the HTML folds them away, so it can hold far more rows than the Markdown.
+HTML_STEP_ROWS = 200
+MD_STEP_ROWS = 40
+
+
+@dataclass(frozen=True, eq=False)
+class Figure:
+    """A drawn figure: the PNG bytes, embedded in the HTML and written for the Markdown."""
+
+    name: str
+    caption: str
+    alt: str
+    png: bytes
+
+    @property
+    def path(self) -> str:
+        """Where the Markdown report links it, relative to the report folder."""
+        return f"{FIGURES_DIR}/{self.name}.png"
+
+    @property
+    def data_uri(self) -> str:
+        return "data:image/png;base64," + base64.b64encode(self.png).decode("ascii")
+
+
+@dataclass(frozen=True)
+class ReportResult:
+    """What :func:`build_report` wrote, and what it had to leave out or warn about."""
+
+    paths: tuple[Path, ...]
+    warnings: tuple[str, ...]
+
+    @property
+    def html(self) -> Path | None:
+        return next((p for p in self.paths if p.name == HTML_NAME), None)
+
+    @property
+    def markdown(self) -> Path | None:
+        return next((p for p in self.paths if p.name == MARKDOWN_NAME), None)
+
+
+def _formats(formats: Iterable[str]) -> tuple[str, ...]:
+    if isinstance(formats, str):
+        formats = FORMATS if formats == "both" else (formats,)
+    chosen = []
+    for f in formats:
+        name = "md" if f in ("md", "markdown") else f
+        if name not in FORMATS:
+            raise InputError(f"`formats` has {f!r}; choose html, md or both.", key="formats")
+        if name not in chosen:
+            chosen.append(name)
+    if not chosen:
+        raise InputError("`formats` is empty; choose html, md or both.", key="formats")
+    return tuple(chosen)
+
+
+def _draw(spec, taken: set[str]) -> Figure | None:
+    from odelab.report.plots import render_png
+
+    if spec is None:
+        return None
+    name, i = spec.name, 2
+    while name in taken:
+        name, i = f"{spec.name}-{i}", i + 1
+    taken.add(name)
+    return Figure(name=name, caption=spec.caption, alt=spec.alt, png=render_png(spec))
+
+
+def build_report(
+    runs: Path,
+    out: Path,
+    *,
+    formats: Iterable[str] = FORMATS,
+    experiments: list[str] | None = None,
+    template_dir: Path | None = None,
+) -> ReportResult:
+    """Write the lab report of the runs stored in ``runs`` into the folder ``out``.
+
+    Parameters
+    ----------
+    runs
+        The results folder written by ``odelab run`` (``runs/<experiment>/<case>/``).
+    out
+        The report folder: ``index.html`` (self-contained) and ``report.md`` with its PNG
+        figures in ``figures/``. Created if missing; the report's own files are replaced.
+    formats
+        ``"html"``, ``"md"``, both (the default; also spelt ``"both"``).
+    experiments
+        Report only these experiments (by name); all stored ones when None.
+    template_dir
+        A folder of the course's own templates (``report.html.j2``, ``report.md.j2``,
+        ``report.css``); the package's are used for any it does not hold.
+
+    Returns
+    -------
+    ReportResult
+        The files written and the warnings: runs that could not be read (skipped),
+        experiments asked for but not stored, studies that could not be shown. The report
+        shows them too, in its header.
+
+    Raises
+    ------
+    InputError
+        If ``runs`` is not a folder, a format is unknown, or a template is missing or broken.
+    """
+    from odelab import __version__
+    from odelab.report.collect import collect_runs
+    from odelab.report.content import build_sections
+    from odelab.report.render import environments, render_template
+
+    runs, out = Path(runs), Path(out)
+    chosen = _formats(formats)
+    if not runs.is_dir():
+        raise InputError(f"`runs` {str(runs)!r} is not a folder; run experiments first (`odelab run "
+                         f"experiments/ --runs {runs}`) or give the results folder.", key="runs")
+    html_env, md_env = environments(template_dir)
+
+    groups, warnings = collect_runs(runs, experiments)
+    if not groups and not experiments:
+        warnings.append(f"{runs} holds no stored runs; run experiments with `odelab run` first")
+    sections, more = build_sections(groups)
+    warnings.extend(more)
+
+    taken: set[str] = set()
+    figures: list[Figure] = []
+    for section in sections:
+        section.solution_figure = _draw(section.solution_figure, taken)
+        section.error_figure = _draw(section.error_figure, taken)
+        for view in section.linearisations:
+            view.figures = [_draw(spec, taken) for spec in view.figures]
+        figures.extend(f for f in (section.solution_figure, section.error_figure) if f is not None)
+        figures.extend(f for view in section.linearisations for f in view.figures)
+
+    cases = [case for section in sections for case in section.cases]
+    context = {
+        "report": {
+            "title": "odelab lab report",
+            "generated": datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z"),
+            "odelab_version": __version__,
+            "python_version": platform.python_version(),
+            "runs": str(runs),
+            "experiments": len(sections),
+            "cases": len(cases),
+            "failed": [(section, case) for section in sections for case in section.cases if not case.ok],
+            "warnings": list(warnings),
+            "html_step_rows": HTML_STEP_ROWS,
+            "md_step_rows": MD_STEP_ROWS,
+        },
+        "sections": sections,
+    }
+    texts = {}
+    if "html" in chosen:
+        texts[HTML_NAME] = render_template(html_env, "report.html.j2", context)
+    if "md" in chosen:
+        texts[MARKDOWN_NAME] = render_template(md_env, "report.md.j2", context)
+
+    written: list[Path] = []
+    if "md" in chosen:  # the figures first, so the Markdown never links a file not yet there
+        for figure in figures:
+            path = out / figure.path
+            atomic_write(path, figure.png)
+            written.append(path)
+    for name, text in texts.items():
+        path = out / name
+        atomic_write(path, text)
+        written.append(path)
+    return ReportResult(paths=tuple(written), warnings=tuple(warnings))

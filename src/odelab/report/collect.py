@@ -1,0 +1,296 @@
+"""Reading the results store for a report: validated runs, grouped by experiment, in lab order.
+
+A run that cannot be read (a corrupted or foreign ``result.json``, a broken trajectory) is
+skipped with a warning that names the folder and the reason; it never stops the report.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["LAB_ORDER", "ExperimentRuns", "QuantityErrors", "StoredRun", "collect_runs", "parse_record"]
+
+# The lab's experiments in the order of the lab sheet; linearisation studies come next, then
+# everything else alphabetically.
+LAB_ORDER = ("exercise1", "exercise1_2pi", "rigid_body", "exercise2")
+LINEARISATION_NAMES = ("linearisation", "linearization")
+
+# Source files are read only to order cases and to notice a file edited since its runs.
+_MAX_SOURCE_BYTES = 1_000_000
+
+
+@dataclass(frozen=True)
+class QuantityErrors:
+    """The stored maximum errors of one quantity (``max_rel`` is None where undefined)."""
+
+    name: str
+    max_abs: float | None
+    t_max_abs: float | None
+    max_rel: float | None
+    t_max_rel: float | None
+    undefined: int
+
+
+@dataclass(frozen=True, eq=False)
+class StoredRun:
+    """One stored case, validated: the fields the report uses, typed, plus the raw record."""
+
+    experiment: str
+    case: str
+    title: str
+    method: str
+    status: str
+    message: str
+    points: int
+    nsteps: int | None
+    nfailed: int | None
+    nfevals: int | None
+    reference: str
+    errors: dict[str, QuantityErrors]
+    states: tuple[str, ...]
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    warnings: tuple[str, ...]
+    elapsed_s: float | None
+    source: str
+    file_sha256: str
+    created: str
+    versions: dict[str, str]
+    config: dict[str, Any]
+    extra: dict[str, Any]
+    trajectory: dict[str, np.ndarray]
+    folder: Path
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "success"
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.trajectory["t"]
+
+    def column(self, name: str) -> np.ndarray | None:
+        return self.trajectory.get(name)
+
+    def has_reference(self, name: str) -> bool:
+        return f"{name}_ref" in self.trajectory
+
+
+@dataclass(eq=False)
+class ExperimentRuns:
+    """The stored cases of one experiment, in the order of the experiment file."""
+
+    name: str
+    runs: list[StoredRun]
+    notes: list[str] = field(default_factory=list)  # provenance remarks for the section
+
+    @property
+    def title(self) -> str:
+        first = self.runs[0]
+        title = first.config.get("title") if isinstance(first.config.get("title"), str) else None
+        return title or first.title or self.name
+
+    @property
+    def description(self) -> str:
+        value = self.runs[0].config.get("description")
+        return value if isinstance(value, str) else ""
+
+    @property
+    def source(self) -> str:
+        return self.runs[0].source
+
+    @property
+    def file_hashes(self) -> list[str]:
+        return sorted({r.file_sha256 for r in self.runs if r.file_sha256})
+
+    @property
+    def linearisation(self) -> bool:
+        return any(isinstance(r.extra.get("linearization"), dict) for r in self.runs)
+
+
+def _str(record: dict, key: str, *, required: bool = False) -> str:
+    value = record.get(key)
+    if value is None and not required:
+        return ""
+    if not isinstance(value, str):
+        raise ValueError(f"`{key}` must be a string; got {type(value).__name__}")
+    return value
+
+
+def _count(value: Any, key: str) -> int | None:
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or value != value or value < 0:
+        raise ValueError(f"`{key}` must be a non-negative count; got {value!r}")
+    return int(value)
+
+
+def _number(value: Any, key: str) -> float | None:
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"`{key}` must be a number; got {value!r}")
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def _names(record: dict, key: str) -> tuple[str, ...]:
+    value = record.get(key) or []
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise ValueError(f"`{key}` must be a list of names")
+    return tuple(value)
+
+
+def parse_record(record: dict[str, Any]) -> StoredRun:
+    """Check and type a record returned by :func:`odelab.experiment.store.read_run`.
+
+    Raises
+    ------
+    ValueError
+        Naming the field that is missing or of the wrong type.
+    """
+    stats = record.get("stats")
+    if not isinstance(stats, dict):
+        raise ValueError("`stats` must be a table of nsteps, nfailed, nfevals")
+    errors_raw = record.get("errors") or {}
+    if not isinstance(errors_raw, dict):
+        raise ValueError("`errors` must be a table")
+    errors = {}
+    for name, e in errors_raw.items():
+        if not isinstance(e, dict):
+            raise ValueError(f"`errors.{name}` must be a table")
+        errors[name] = QuantityErrors(
+            name=name, max_abs=_number(e.get("max_abs"), f"errors.{name}.max_abs"),
+            t_max_abs=_number(e.get("t_max_abs"), f"errors.{name}.t_max_abs"),
+            max_rel=_number(e.get("max_rel"), f"errors.{name}.max_rel"),
+            t_max_rel=_number(e.get("t_max_rel"), f"errors.{name}.t_max_rel"),
+            undefined=_count(e.get("undefined_rel_points"), f"errors.{name}.undefined_rel_points") or 0)
+    trajectory = record.get("trajectory")
+    if not isinstance(trajectory, dict) or "t" not in trajectory:
+        raise ValueError("trajectory.csv has no `t` column")
+    trajectory = {str(k): np.asarray(v, dtype=float) for k, v in trajectory.items()}
+    warnings = record.get("warnings") or []
+    if not isinstance(warnings, list):
+        raise ValueError("`warnings` must be a list")
+    versions = record.get("versions") or {}
+    config = record.get("config") or {}
+    extra = record.get("extra") or {}
+    for key, value in (("versions", versions), ("config", config), ("extra", extra)):
+        if not isinstance(value, dict):
+            raise ValueError(f"`{key}` must be a table")
+    status = _str(record, "status", required=True)
+    return StoredRun(
+        experiment=_str(record, "experiment", required=True),
+        case=_str(record, "case", required=True),
+        title=_str(record, "title"),
+        method=_str(record, "method", required=True),
+        status=status,
+        message=_str(record, "message"),
+        points=_count(record.get("points"), "points") or int(trajectory["t"].size),
+        nsteps=_count(stats.get("nsteps"), "stats.nsteps"),
+        nfailed=_count(stats.get("nfailed"), "stats.nfailed"),
+        nfevals=_count(stats.get("nfevals"), "stats.nfevals"),
+        reference=_str(record, "reference") or "none",
+        errors=errors,
+        states=_names(record, "states"),
+        inputs=_names(record, "inputs"),
+        outputs=_names(record, "outputs"),
+        warnings=tuple(str(w) for w in warnings),
+        elapsed_s=_number(record.get("elapsed_s"), "elapsed_s"),
+        source=_str(record, "source"),
+        file_sha256=_str(record, "file_sha256"),
+        created=_str(record, "created"),
+        versions={str(k): str(v) for k, v in versions.items() if v is not None},
+        config=config,
+        extra=extra,
+        trajectory=trajectory,
+        folder=Path(str(record.get("folder", ""))),
+    )
+
+
+def _read(folder: Path) -> StoredRun:
+    from odelab.experiment.store import read_run
+
+    return parse_record(read_run(folder))
+
+
+def _source_info(source: str) -> tuple[list[str] | None, str | None]:
+    """The case names of an experiment file in file order, and its current sha256 (None if unreadable)."""
+    if not source:
+        return None, None
+    path = Path(source)
+    try:
+        if not path.is_file() or path.stat().st_size > _MAX_SOURCE_BYTES:
+            return None, None
+        raw = path.read_bytes()
+    except OSError:
+        return None, None
+    digest = hashlib.sha256(raw).hexdigest()
+    try:
+        data = tomllib.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return None, digest
+    cases = data.get("case")
+    if not isinstance(cases, list):
+        return None, digest
+    return [c.get("name") for c in cases if isinstance(c, dict) and isinstance(c.get("name"), str)], digest
+
+
+def _order_cases(group: ExperimentRuns) -> None:
+    names, digest = _source_info(group.source)
+    position = {name: i for i, name in enumerate(names or [])}
+    group.runs.sort(key=lambda r: (position.get(r.case, len(position)), r.created, r.case))
+    hashes = group.file_hashes
+    if len(hashes) > 1:
+        group.notes.append(f"the cases of this experiment come from {len(hashes)} different versions of "
+                           f"{group.source or 'its file'} (sha256 {', '.join(h[:12] for h in hashes)}); "
+                           "run the experiment again to bring them in line")
+    elif digest is not None and hashes and digest != hashes[0]:
+        group.notes.append(f"{group.source} has changed since these runs (sha256 {hashes[0][:12]} then, "
+                           f"{digest[:12]} now); run it again to report the current file")
+
+
+def experiment_sort_key(group: ExperimentRuns) -> tuple:
+    if group.name in LAB_ORDER:
+        return (0, LAB_ORDER.index(group.name), "")
+    if group.name in LINEARISATION_NAMES or group.linearisation:
+        return (1, 0, group.name)
+    return (2, 0, group.name)
+
+
+def collect_runs(runs: Path, experiments: list[str] | None = None) -> tuple[list[ExperimentRuns], list[str]]:
+    """Read every stored case under ``runs``; returns the experiments in lab order and the warnings."""
+    from odelab.experiment.store import list_runs
+
+    warnings: list[str] = []
+    groups: dict[str, ExperimentRuns] = {}
+    for folder in list_runs(runs):
+        try:
+            run = _read(folder)
+        except json.JSONDecodeError as exc:
+            warnings.append(f"skipped {folder}: result.json is not valid JSON ({exc.msg}, line {exc.lineno})")
+            continue
+        except (OSError, ValueError, IndexError, KeyError, TypeError) as exc:
+            # read_run's ValueError for a foreign file, OSError for a missing trajectory, and the
+            # parse errors of a truncated or hand-edited trajectory.csv
+            reason = str(exc) or type(exc).__name__
+            warnings.append(f"skipped {folder}: {reason}")
+            continue
+        if experiments and run.experiment not in experiments:
+            continue
+        groups.setdefault(run.experiment, ExperimentRuns(run.experiment, [])).runs.append(run)
+    for name in experiments or []:
+        if name not in groups:
+            warnings.append(f"no stored runs of experiment {name!r} in {runs}; run it with `odelab run` first")
+    ordered = sorted(groups.values(), key=experiment_sort_key)
+    for group in ordered:
+        _order_cases(group)
+    return ordered, warnings

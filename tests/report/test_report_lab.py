@@ -1,0 +1,293 @@
+"""The report of real runs of the lab's experiments: structure, figures, numbers, validity."""
+
+from __future__ import annotations
+
+import base64
+import re
+
+import pytest
+from report_support import markdown_cells, markdown_tables, parse_html, table_records
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+LAB = ("exercise1", "exercise1_2pi", "rigid_body")
+
+
+@pytest.fixture(scope="module")
+def tree(lab_report):
+    root, errors, doctype = parse_html(lab_report.html)
+    assert not errors, errors[:10]
+    return root
+
+
+def section(tree, name):
+    node = tree.find("section", id=name)
+    assert node is not None, f"no section for {name}"
+    return node
+
+
+def png_of(img) -> bytes:
+    src = img.attrs["src"]
+    assert src.startswith("data:image/png;base64,"), src[:40]
+    return base64.b64decode(src.split(",", 1)[1], validate=True)
+
+
+def test_writes_one_html_page_the_markdown_and_its_figures(lab_report):
+    out = lab_report.out
+    paths = set(lab_report.result.paths)
+    assert out / "index.html" in paths and out / "report.md" in paths
+    assert lab_report.result.warnings == ()
+    linked = re.findall(r"!\[[^\]]*\]\((figures/[^)]+\.png)\)", lab_report.md)
+    assert len(linked) >= 2 * len(LAB) + 2  # solution + error per experiment, + the linearisation's two
+    for rel in linked:
+        data = (out / rel).read_bytes()
+        assert data.startswith(PNG_SIGNATURE) and len(data) > 10_000, rel
+        assert out / rel in paths
+    assert not list(out.rglob("*.tmp")), "a temporary file was left behind"
+
+
+def test_html_is_well_formed_with_unique_ids_and_working_links(lab_report, tree):
+    _, errors, doctype = parse_html(lab_report.html)
+    assert doctype and doctype.lower() == "doctype html"
+    assert errors == []
+    ids = [n.attrs["id"] for n in tree.iter() if "id" in n.attrs]
+    assert len(ids) == len(set(ids)), "duplicate ids"
+    for a in tree.find_all("a"):
+        href = a.attrs.get("href", "")
+        if href.startswith("#"):
+            assert href[1:] in ids, f"link to missing #{href[1:]}"
+    assert tree.find("html").attrs.get("lang") == "en"
+    assert tree.find("meta", charset="utf-8") is not None
+
+
+def test_no_remote_resources_and_no_external_files(lab_report, tree):
+    html = lab_report.html
+    assert not re.search(r"""(src|href)\s*=\s*["']?\s*(https?:)?//""", html, re.I)
+    assert not re.search(r"url\(\s*['\"]?(https?:)?//", html, re.I)
+    assert "@import" not in html and "@font-face" not in html
+    assert not tree.find_all("link"), "stylesheets or icons must be inline"
+    for node in tree.iter():
+        for attr in ("src", "href"):
+            value = node.attrs.get(attr)
+            if value is not None:
+                assert value.startswith(("data:", "#")), f"<{node.tag} {attr}={value[:60]!r}>"
+    # the Content-Security-Policy makes any remote load fail in the browser as well
+    csp = tree.find("meta", http_equiv="Content-Security-Policy")
+    assert csp is not None and "default-src 'none'" in csp.attrs["content"]
+
+
+def test_every_figure_is_an_embedded_non_trivial_png(tree):
+    images = tree.find_all("img")
+    assert len(images) >= 2 * len(LAB) + 2
+    for img in images:
+        data = png_of(img)
+        assert data.startswith(PNG_SIGNATURE)
+        assert len(data) > 10_000
+        assert img.attrs.get("alt")
+        assert img.parent.tag == "figure" and img.parent.find("figcaption").text()
+
+
+def test_sections_follow_the_lab_order(tree):
+    order = [s.attrs["id"] for s in tree.find_all("section", cls="experiment")]
+    present = [name for name in ("exercise1", "exercise1_2pi", "rigid_body", "exercise2") if name in order]
+    assert order[:len(present)] == present
+    # a linearisation study comes before the remaining experiments, which are alphabetical
+    rest = order[len(present):]
+    lin = [name for name in rest if name in ("linearisation", "linearization", "nonlinear_spring")]
+    assert rest[:len(lin)] == lin and "nonlinear_spring" in lin
+    others = rest[len(lin):]
+    assert others == sorted(others) and "msd_inputs" in others
+
+
+def test_every_experiment_section_has_its_parts(tree):
+    for name in (*LAB, "msd_inputs", "nonlinear_spring"):
+        node = section(tree, name)
+        assert node.find("h2").text()
+        assert node.find("table", cls="errors") is not None
+        figures = {f.attrs["id"] for f in node.find_all("figure")}
+        assert f"fig-{name}-solution" in figures
+        assert f"fig-{name}-relative-error" in figures
+        steps = node.find_all("details", cls="steps")
+        assert steps, f"{name}: no per-step tables"
+        for d in steps:
+            assert d.find("summary").text()
+            assert len(d.find("tbody").find_all("tr")) >= 2
+
+
+def test_summary_table_lists_every_case_with_its_numbers(tree):
+    summary = tree.find("section", id="summary")
+    rows = summary.find("table").find("tbody").find_all("tr", cls="group-start")
+    listed = {(r.attrs["data-experiment"], r.attrs["data-case"]) for r in rows}
+    for case in [("exercise1", "ode23"), ("exercise1", "ode45"), ("exercise1_2pi", "ode23"),
+                 ("exercise1_2pi", "ode45"), ("rigid_body", "ode45"), ("msd_inputs", "step"),
+                 ("msd_inputs", "step-ode23"), ("msd_inputs", "sine"), ("msd_inputs", "ramp"),
+                 ("nonlinear_spring", "ode45")]:
+        assert case in listed
+
+    def tail(experiment, case):  # points, steps, failed, fevals, quantity, max abs, max rel
+        row = summary.find("tr", data_experiment=experiment, data_case=case)
+        return [c.text() for c in row.children if not isinstance(c, str)][-7:]
+
+    assert tail("exercise1", "ode23") == ["12", "11", "0", "34", "y", "2.136e-04", "1.068e-04"]
+    assert tail("exercise1_2pi", "ode23")[-1] == "6.907e-04"
+    assert tail("rigid_body", "ode45")[:4] == ["85", "21", "0", "127"]
+    assert tail("exercise1", "ode23")[0] == "12"
+    status = summary.find("tr", data_experiment="rigid_body", data_case="ode45").find("span", cls="status")
+    assert status.text() == "ok"
+
+
+def test_error_tables_hold_the_stored_maxima(tree):
+    records = {r["Case"]: r for r in table_records(section(tree, "exercise1").find("table", cls="errors"))}
+    assert records["ode23"]["Max rel error"] == "1.068e-04"
+    assert records["ode23"]["Points"] == "12"
+    assert records["ode45"]["Max rel error"] == "1.187e-07"
+    rigid = table_records(section(tree, "rigid_body").find("table", cls="errors"))[0]
+    assert (rigid["Steps"], rigid["Failed"], rigid["F-evals"]) == ("21", "0", "127")
+    assert rigid["Quantity"] == "y1" and rigid["Max rel error"] == "1.728e-02 (1 undefined)"
+
+
+def test_exercise1_note_quotes_the_stored_numbers(lab_report, tree):
+    expected = "1.068e-04 on [0, pi] with 12 points; 6.907e-04 on [0, 2 pi] with 17 points"
+    note = section(tree, "exercise1").find("div", cls="lab-note")
+    assert note is not None and expected in note.text()
+    assert "6.907e-4 is ode23 on [0, 2 pi]" in note.text()
+    assert expected in lab_report.md
+
+
+def test_rigid_body_plots_every_state_with_the_step_statistics(tree):
+    figure = section(tree, "rigid_body").find("figure", id="fig-rigid_body-solution")
+    caption = figure.find("figcaption").text()
+    assert "21 successful steps, 0 failed attempts, 127 function evaluations" in caption
+    assert "markers at the output points" in caption
+
+
+def test_cases_that_differ_by_input_get_a_panel_each(tree):
+    node = section(tree, "msd_inputs")
+    caption = node.find("figure", id="fig-msd_inputs-solution").find("figcaption").text()
+    assert caption.startswith("One panel per input; cases that differ only in their solver share a panel")
+    records = {r["Case"]: r for r in table_records(node.find("table", cls="errors"))}
+    assert list(records) == ["step", "step-ode23", "sine", "ramp"]  # the file's order, not alphabetical
+    assert records["sine"]["Input"] == "f = sin(0.2 t)"
+    assert records["ramp"]["Input"] == "f = t"
+    assert records["step-ode23"]["Method"] == "ode23"
+    # with outputs, the plots and per-step tables show the output y
+    steps = [d.find("summary").text() for d in node.find_all("details", cls="steps")]
+    assert len(steps) == 4 and all(": y at each of" in s for s in steps)
+
+
+def test_set_ups_group_cases_that_differ_only_in_their_solver(lab_runs):
+    from odelab.report.collect import collect_runs
+    from odelab.report.content import setups
+
+    groups, warnings = collect_runs(lab_runs, ["msd_inputs"])
+    assert warnings == []
+    found = setups(groups[0].runs)
+    assert [g.label for g in found] == ["step: f steps 0 → 1 at t = 0", "sine: f = sin(0.2 t)", "ramp: f = t"]
+    assert [[r.case for r in g.runs] for g in found] == [["step", "step-ode23"], ["sine"], ["ramp"]]
+    # within a set-up the methods differ, so each line has its method's report-wide colour
+    from odelab.report.plots import METHOD_COLORS
+
+    assert found[0].colors == {"step": METHOD_COLORS["ode45"], "step-ode23": METHOD_COLORS["ode23"]}
+
+
+def test_per_step_table_in_html_has_every_point(tree):
+    details = section(tree, "exercise1").find_all("details", cls="steps")
+    ode23 = next(d for d in details if d.find("summary").text().startswith("ode23"))
+    rows = [[c.text() for c in tr.children if not isinstance(c, str)] for tr in ode23.find("tbody").find_all("tr")]
+    assert len(rows) == 12
+    assert rows[0][:3] == ["0", "2", "2"]
+    assert rows[-1][4] == "1.068e-04"  # the maximum, at t = pi
+
+
+def test_markdown_caps_long_tables_and_says_how_many_rows_are_left_out(lab_report):
+    md = lab_report.md
+    head = "**ode45: y1 at each of the 85 output points**"
+    assert head in md
+    block = md.split(head, 1)[1].split("\n\n", 2)[1]
+    lines = [line for line in block.splitlines() if line.startswith("|")]
+    assert "45 rows left out" in block
+    assert len(lines) == 2 + 40 + 1  # header, rule, 20 + 20 rows, the note
+    # a short table is complete
+    short = md.split("**ode23: y at each of the 12 output points**", 1)[1].split("\n\n", 2)[1]
+    assert len([line for line in short.splitlines() if line.startswith("|")]) == 2 + 12
+
+
+def test_markdown_tables_are_rectangular(lab_report):
+    tables = markdown_tables(lab_report.md)
+    assert len(tables) >= 10
+    for table in tables:
+        widths = {len(markdown_cells(line)) for line in table}
+        assert len(widths) == 1, table[:3]
+        assert re.fullmatch(r"\|(\s*:?-+:?\s*\|)+", table[1].replace(" ", "")), table[1]
+
+
+def test_markdown_has_the_sections_in_order(lab_report):
+    md = lab_report.md
+    positions = [md.index(f"({name})\n") for name in LAB]
+    assert positions == sorted(positions)
+    assert md.index("## Summary") < positions[0]
+    assert "## Resolved settings" in md and "```toml" in md
+
+
+def test_header_has_version_date_hashes_and_settings(lab_report, tree):
+    from odelab import __version__
+
+    header = tree.find("header", id="header")
+    assert f"odelab {__version__}" in header.text()
+    assert re.search(r"Generated \d{4}-\d\d-\d\d \d\d:\d\d", header.text())
+    provenance = header.find("details", id="provenance")
+    digest = __import__("hashlib").sha256((__import__("pathlib").Path(
+        section(tree, "exercise1").find("code").text())).read_bytes()).hexdigest()
+    assert digest[:12] in provenance.text()
+    settings = tree.find("section", id="settings").find_all("details", cls="settings")
+    assert any(d.find("summary").text() == "exercise1 / ode23" and 'method = "ode23"' in d.find("pre").text()
+               for d in settings)
+    assert provenance.find("a", href="#settings") is not None
+
+
+def test_linearisation_section(tree, study):
+    node = section(tree, "nonlinear_spring")
+    assert "Linearisation" in [h.text() for h in node.find_all("h3")]
+    figures = {f.attrs["id"] for f in node.find_all("figure")}
+    assert {"fig-nonlinear_spring-linearised-responses", "fig-nonlinear_spring-linearisation-error"} <= figures
+    op = node.find("table", cls="operating-point")
+    assert ["state", "x", "0"] in [[c.text() for c in tr.children if not isinstance(c, str)]
+                                    for tr in op.find("tbody").find_all("tr")]
+    a = next(t for t in node.find_all("table", cls="matrix") if t.find("caption").text() == "A")
+    rows = [[c.text() for c in tr.children if not isinstance(c, str)] for tr in a.find("tbody").find_all("tr")]
+    assert rows == [["x", "0", "1"], ["v", "-3", "-4"]]
+    amplitudes = table_records(node.find("table", cls="amplitudes"))
+    assert [r["Amplitude"] for r in amplitudes] == ["0.1", "0.3", "1", "3", "10"]
+    within = [r["Within threshold"] for r in amplitudes]
+    assert within[0] == "yes" and within[-1] == "no"
+    summary = node.find("p", cls="lin-summary").text()
+    assert f"up to an input amplitude of {study['max_amplitude_within']:g}" in summary
+    assert "within 5% of the nonlinear response of y" in summary
+
+
+def shipped(name: str):
+    from report_support import ROOT
+
+    if not (ROOT / "experiments" / f"{name}.toml").exists():
+        pytest.skip(f"experiments/{name}.toml is not shipped")
+
+
+def test_shipped_exercise2_shares_a_panel_per_input(tree):
+    shipped("exercise2")
+    node = section(tree, "exercise2")
+    caption = node.find("figure", id="fig-exercise2-solution").find("figcaption").text()
+    assert caption.startswith("One panel per input; cases that differ only in their solver share a panel")
+    records = table_records(node.find("table", cls="errors"))
+    assert len(records) >= 3 and all(r["Status"] == "ok" for r in records)
+    assert any(r["Input"] == "f = sin(0.2 t)" for r in records)
+
+
+def test_shipped_linearisation_study_is_rendered(tree):
+    shipped("linearisation")
+    node = section(tree, "linearisation")
+    summaries = [p.text() for p in node.find_all("p", cls="lin-summary")]
+    assert summaries and all("of the nonlinear response" in s for s in summaries)
+    assert node.find_all("table", cls="amplitudes") and node.find_all("table", cls="operating-point")
+    ids = {f.attrs["id"] for f in node.find_all("figure")}
+    assert any(i.endswith("-linearised-responses") for i in ids)
+    assert any(i.endswith("-linearisation-error") for i in ids)
+    assert "linearised model" in node.find("p", cls="source").text()
