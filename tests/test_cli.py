@@ -204,3 +204,18 @@ def test_mat_export_loads_in_scipy(tmp_path):
     data = loadmat(tmp_path / "rigid_body" / "ode45" / "result.mat")
     assert data["t"].shape == (85, 1) and data["x"].shape == (85, 3)
     assert data["ref_y3"].shape == (85, 1)
+
+
+def test_names_cannot_escape_the_results_folder(tmp_path):
+    text = (EXPERIMENTS / "exercise1.toml").read_text()
+    text = 'name = "../../escaped"\n' + text.replace('name = "ode23"', 'name = "/etc/passwd"').replace(
+        'name = "ode45"', 'name = "a\\u0000b/../../c"')
+    (tmp_path / "work").mkdir()
+    (tmp_path / "work" / "exp.toml").write_text(text)
+    result = invoke("run", tmp_path / "work" / "exp.toml", "--runs", tmp_path / "work" / "runs")
+    assert result.exit_code == 0, result.output
+    runs = (tmp_path / "work" / "runs").resolve()
+    written = [p for p in tmp_path.rglob("*") if p.is_file() and p.name != "exp.toml"]
+    assert written and all(runs in p.resolve().parents for p in written)
+    assert sorted(p.parent.relative_to(runs).as_posix() for p in runs.rglob("result.json")) == [
+        "escaped/ab-..-..-c", "escaped/etc-passwd"]
