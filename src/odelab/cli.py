@@ -181,7 +181,7 @@ def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, st
 
                 report_json["experiments"].append({
                     "name": exp.name, "title": exp.title, "file": str(exp.source),
-                    "cases": [summary(r) for r in results]})
+                    "cases": [{"name": r.case.name, **summary(r)} for r in results]})
             elif results:
                 from odelab.experiment.display import print_experiment
 
