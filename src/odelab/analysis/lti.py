@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 
 from odelab.exceptions import InputError
+from odelab.systems.common import as_initial_state
 from odelab.signals import ExactForm, Piece, as_signals
 
 __all__ = ["lti_response", "NoExactForm"]
@@ -100,7 +101,7 @@ def lti_response(ss: Any, t: Any, x0: Any, u: Any = None) -> tuple[np.ndarray, n
     nx = A.shape[0]
     inputs = tuple(getattr(ss, "inputs", (f"u{i + 1}" for i in range(B.shape[1]))))
     t = _output_times(t)
-    x0 = _initial_state(x0, nx, getattr(ss, "states", None))
+    x0 = as_initial_state(x0, nx, getattr(ss, "states", None))
     signals = as_signals(u, inputs)
 
     forms: list[ExactForm] = []
@@ -168,23 +169,6 @@ def _output_times(t: Any) -> np.ndarray:
             key="t",
         )
     return t
-
-
-def _initial_state(x0: Any, nx: int, states: Sequence[str] | None) -> np.ndarray:
-    try:
-        x0 = np.array(x0, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise InputError(f"`x0` must be an array of {nx} numbers; got {x0!r}.", key="x0") from None
-    if x0.size != nx:
-        names = f" ({', '.join(states)})" if states else ""
-        raise InputError(
-            f"`x0` has {x0.size} entr{'y' if x0.size == 1 else 'ies'} but the system has {nx} "
-            f"state{'' if nx == 1 else 's'}{names}: give one initial value per state.",
-            key="x0",
-        )
-    if not np.all(np.isfinite(x0)):
-        raise InputError(f"`x0` must be finite; got {x0.tolist()!r}.", key="x0")
-    return x0
 
 
 def _piece_at(pieces: Sequence[Piece], a: float, cursor: list[int], k: int) -> Piece:

@@ -641,7 +641,3 @@ def load_function(spec: str, experiment_path: Path) -> Callable:
     if not callable(fn):
         raise ExperimentError(f"`{key}`: {name!r} in {file_part!r} is not callable.", key=key)
     return fn
-
-
-def is_finite_number(value) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)

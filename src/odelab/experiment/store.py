@@ -195,7 +195,3 @@ def list_runs(runs: Path) -> list[Path]:
     if not runs.is_dir():
         return []
     return sorted(p.parent for p in runs.glob("*/*/result.json"))
-
-
-def python_info() -> str:
-    return f"Python {platform.python_version()} on {sys.platform}"

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from odelab.exceptions import InputError
+from odelab.systems.common import as_initial_state
 from odelab.signals import Signal, as_signals
 from odelab.solution import Solution, Stats
 
@@ -162,7 +163,7 @@ def simulate(
     inputs = tuple(system.inputs)
     outputs = tuple(system.outputs)
     tspan = as_tspan(tspan)
-    x0 = _initial_state(x0, states)
+    x0 = as_initial_state(x0, len(states), states)
     signals = as_signals(u, inputs)
     kind = get_method(method).kind
 
@@ -280,20 +281,3 @@ def _piece_rhs(
             return dynamics(t, x, np.array([s(tu) for s in signals]))
 
     return fun
-
-
-def _initial_state(x0: Any, states: tuple[str, ...]) -> np.ndarray:
-    nx = len(states)
-    try:
-        arr = np.array(x0, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise InputError(f"`x0` must be an array of {nx} numbers; got {x0!r}.", key="x0") from None
-    if arr.size != nx:
-        raise InputError(
-            f"`x0` has {arr.size} entr{'y' if arr.size == 1 else 'ies'} but the system has {nx} "
-            f"state{'' if nx == 1 else 's'} ({', '.join(states)}): give one initial value per state.",
-            key="x0",
-        )
-    if not np.all(np.isfinite(arr)):
-        raise InputError(f"`x0` must be finite; got {arr.tolist()!r}.", key="x0")
-    return arr
