@@ -12,7 +12,6 @@ import contextlib
 import json
 import math
 import platform
-import sys
 from datetime import datetime, timezone
 from importlib import metadata
 from pathlib import Path
