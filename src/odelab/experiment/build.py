@@ -3,26 +3,31 @@
 from __future__ import annotations
 
 import difflib
+import hashlib
+import importlib.util
+import sys
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
 from odelab.exceptions import ExperimentError, InputError
 from odelab.experiment import schema
-from odelab.experiment.loader import Built, _check_keys, _constant, _expr, _names
+from odelab.experiment.cases import Built
+from odelab.experiment.fields import check_keys, check_names, constant, expr
 
-__all__ = ["build_ode", "build_state_space", "build_inputs", "SIGNAL_KEYS"]
+__all__ = ["build_function_system", "build_ode", "build_state_space", "build_inputs", "load_function", "SIGNAL_KEYS"]
 
 
 def build_ode(model: schema.Experiment, params: dict[str, float]) -> Built:
     """An ODE system from [system.equations] (and [system.outputs]) expressions."""
-    ex = _expr()
+    ex = expr()
     system = model.system
     if not system.states:
         raise ExperimentError("`system.states` is required: list the state names, e.g. states = [\"x\", \"v\"].",
                               key="system.states")
-    states = _names(system.states, "system.states", "state")
-    inputs = _names(system.inputs, "system.inputs", "input") if system.inputs else ()
+    states = check_names(system.states, "system.states", "state")
+    inputs = check_names(system.inputs, "system.inputs", "input") if system.inputs else ()
     clash = sorted((set(states) | set(inputs)) & set(params))
     if clash:
         raise ExperimentError(f"{clash[0]!r} is both a parameter and a state or input; rename one.",
@@ -37,7 +42,7 @@ def build_ode(model: schema.Experiment, params: dict[str, float]) -> Built:
     if isinstance(system.outputs, list):
         raise ExperimentError("`system.outputs` of an equations system is a table of expressions, e.g. "
                               "[system.outputs] y = \"10*x\".", key="system.outputs")
-    _check_keys(system.equations, states, "system.equations", "states", require_all=True)
+    check_keys(system.equations, states, "system.equations", "states", require_all=True)
     args = ["t", *states, *inputs]
     F = ex.compile_vector([system.equations[s] for s in states], args=args, constants=params,
                           keys=[f"system.equations.{s}" for s in states])
@@ -82,16 +87,16 @@ def _matrix(value, key: str, params: dict[str, float]) -> np.ndarray | None:
     if value is None:
         return None
     if not isinstance(value, list):
-        return np.array([[_constant(value, key, params)]])
+        return np.array([[constant(value, key, params)]])
     if all(not isinstance(v, list) for v in value):
-        return np.array([_constant(v, f"{key}[{j}]", params) for j, v in enumerate(value)])
+        return np.array([constant(v, f"{key}[{j}]", params) for j, v in enumerate(value)])
     if not all(isinstance(v, list) for v in value):
         raise ExperimentError(f"`{key}` mixes rows and numbers; write a matrix as [[a, b], [c, d]].", key=key)
     widths = {len(row) for row in value}
     if len(widths) != 1:
         raise ExperimentError(f"`{key}` has rows of different lengths ({', '.join(str(len(r)) for r in value)}); "
                               "every row needs the same number of entries.", key=key)
-    return np.array([[_constant(v, f"{key}[{i}][{j}]", params) for j, v in enumerate(row)]
+    return np.array([[constant(v, f"{key}[{i}][{j}]", params) for j, v in enumerate(row)]
                      for i, row in enumerate(value)])
 
 
@@ -110,9 +115,9 @@ def build_state_space(model: schema.Experiment, params: dict[str, float]) -> Bui
         raise ExperimentError("`system.outputs` of a state-space system is a list of output names (the rows "
                               "of C), e.g. outputs = [\"y\"].", key="system.outputs")
     mats = {name: _matrix(getattr(system, name), f"system.{name}", params) for name in "ABCD"}
-    states = _names(system.states, "system.states", "state") if system.states else None
-    inputs = _names(system.inputs, "system.inputs", "input") if system.inputs else None
-    outputs = _names(system.outputs, "system.outputs", "output") if system.outputs else None
+    states = check_names(system.states, "system.states", "state") if system.states else None
+    inputs = check_names(system.inputs, "system.inputs", "input") if system.inputs else None
+    outputs = check_names(system.outputs, "system.outputs", "output") if system.outputs else None
     try:
         ss = StateSpace(mats["A"], mats["B"], mats["C"], mats["D"], states=states, inputs=inputs, outputs=outputs)
     except InputError as exc:
@@ -219,10 +224,11 @@ def build_inputs(model: schema.Experiment, inputs: tuple[str, ...], path: Path, 
             elif spec.type == "constant":
                 signal = sg.Constant(float(values["value"]))
             else:
-                expr = _expr().compile_expression(values["expression"], names=["t", *model_params(model)],
-                                                  key=f"{key}.expression")
+                compiled = expr().compile_expression(values["expression"], names=["t", *model_params(model)],
+                                                     key=f"{key}.expression")
                 params = model_params(model)
-                signal = sg.Function(lambda t, _e=expr, _p=params: _e(t=t, **_p), label=str(values["expression"]))
+                signal = sg.Function(lambda t, _e=compiled, _p=params: _e(t=t, **_p),
+                                     label=str(values["expression"]))
         except InputError as exc:
             raise exc.located(key=key) from None
         out.append(signal)
@@ -238,4 +244,65 @@ def build_inputs(model: schema.Experiment, inputs: tuple[str, ...], path: Path, 
 
 
 def model_params(model: schema.Experiment) -> dict[str, float]:
-    return _expr().evaluate_parameters(model.parameters) if model.parameters else {}
+    return expr().evaluate_parameters(model.parameters) if model.parameters else {}
+
+
+# --- Python-function systems (the lab's `function ydot = eq1(t, y)`) -----------------------
+
+
+def build_function_system(model: schema.Experiment, path: Path) -> Built:
+    system = model.system
+    if system.equations is not None:
+        raise ExperimentError("[system] has both `function` and [system.equations]; keep one.",
+                              key="system.function")
+    if system.inputs:
+        raise ExperimentError("a `function` system cannot declare `inputs`: compute u(t) inside the function, "
+                              "or write the equations as expressions.", key="system.inputs")
+    if system.outputs:
+        raise ExperimentError("`system.outputs` is not supported with `function`; compute outputs with "
+                              "expressions of an equations system.", key="system.outputs")
+    states = check_names(system.states, "system.states", "state") if system.states else tuple(model.initial)
+    if not states:
+        raise ExperimentError("`system.states` is required: list the state names, e.g. states = [\"y\"].",
+                              key="system.states")
+    fun = load_function(system.function, path)
+    return Built(states=states, inputs=(), outputs=(), fun=fun, output_fn=None,
+                 resolved={"states": list(states), "function": system.function})
+
+
+def load_function(spec: str, experiment_path: Path) -> Callable:
+    """Import ``"file.py:name"`` (relative to the experiment file) and return the callable.
+
+    This runs the user's own Python code, as MATLAB runs a function file; expressions never do.
+    """
+    key = "system.function"
+    if ":" not in spec:
+        raise ExperimentError(f"`{key}` is {spec!r}; write it as \"file.py:function_name\".", key=key)
+    file_part, _, name = spec.rpartition(":")
+    file = (experiment_path.parent / file_part).resolve()
+    if not file.is_file():
+        raise ExperimentError(f"`{key}`: the file {file_part!r} does not exist (looked for {file}).", key=key)
+    if not name.isidentifier():
+        raise ExperimentError(f"`{key}`: {name!r} is not a valid Python function name.", key=key)
+    module_name = "odelab_user_" + hashlib.sha256(str(file).encode()).hexdigest()[:12]
+    module = sys.modules.get(module_name)
+    if module is None:
+        spec_obj = importlib.util.spec_from_file_location(module_name, file)
+        if spec_obj is None or spec_obj.loader is None:
+            raise ExperimentError(f"`{key}`: {file_part!r} cannot be imported as Python.", key=key)
+        module = importlib.util.module_from_spec(spec_obj)
+        try:
+            spec_obj.loader.exec_module(module)
+        except Exception as exc:
+            raise ExperimentError(f"`{key}`: importing {file_part!r} raised {type(exc).__name__}: {exc}.",
+                                  key=key) from None
+        sys.modules[module_name] = module
+    fn = getattr(module, name, None)
+    if fn is None:
+        names = [n for n in vars(module) if callable(vars(module)[n]) and not n.startswith("_")]
+        close = difflib.get_close_matches(name, names, n=1)
+        hint = f" Did you mean {close[0]!r}?" if close else ""
+        raise ExperimentError(f"`{key}`: {file_part!r} has no function {name!r}.{hint}", key=key)
+    if not callable(fn):
+        raise ExperimentError(f"`{key}`: {name!r} in {file_part!r} is not callable.", key=key)
+    return fn

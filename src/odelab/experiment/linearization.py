@@ -17,8 +17,8 @@ import numpy as np
 
 from odelab.analysis.errors import summarize
 from odelab.exceptions import ExperimentError
-from odelab.experiment.loader import Case
-from odelab.experiment.runner import CaseResult
+from odelab.experiment.cases import Case
+from odelab.experiment.result import CaseResult
 
 __all__ = ["run_linearization_case"]
 

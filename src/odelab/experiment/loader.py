@@ -9,69 +9,23 @@ from __future__ import annotations
 import copy
 import difflib
 import hashlib
-import importlib.util
 import math
 import re
-import sys
 import tomllib
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, get_args, get_origin
+from typing import Any, get_args, get_origin
 
 import numpy as np
 from pydantic import BaseModel, ValidationError
 
 from odelab.exceptions import ExperimentError, InputError
 from odelab.experiment import schema
+from odelab.experiment.cases import Case, LoadedExperiment, Problem
+from odelab.experiment.fields import check_keys, constant, expr
 
 __all__ = ["Case", "LoadedExperiment", "Problem", "load_experiment", "merge", "slug"]
 
 MAX_FILE_BYTES = 1_000_000
-
-
-@dataclass(frozen=True, eq=False)
-class Problem:
-    """A case compiled for running: everything the runner needs, nothing it must parse."""
-
-    states: tuple[str, ...]
-    inputs: tuple[str, ...]
-    outputs: tuple[str, ...]
-    fun: Callable  # fun(t, x) -> dx/dt, with the inputs applied
-    tspan: np.ndarray  # MATLAB tspan given to the solver
-    x0: np.ndarray
-    method: str
-    options: dict[str, Any]
-    output_fn: Callable | None = None  # (t (N,), x (N, n)) -> (N, ny)
-    input_fn: Callable | None = None  # t (N,) -> (N, nu)
-    exact_fn: Callable | None = None  # t (N,) -> {name: (N,)} for states and outputs
-    reference: str = "none"  # "exact", "lti", "high-accuracy" or "none"
-    reference_solver: tuple[str, float, float] = ("DOP853", 1e-12, 1e-14)
-    system: Any = None  # a StateSpace or NonlinearSystem where one was built
-    signals: tuple = ()  # one odelab.signals signal per input
-    linearize: Any = None  # the [linearize] section, if any
-    parameters: dict[str, float] = field(default_factory=dict)
-
-
-@dataclass(frozen=True, eq=False)
-class Case:
-    """One case of an experiment, merged over the base and resolved."""
-
-    experiment: str
-    name: str
-    title: str
-    source: Path
-    file_hash: str
-    config: dict[str, Any]  # the merged configuration, defaults filled in (resolved.toml)
-    problem: Problem
-
-
-@dataclass(frozen=True, eq=False)
-class LoadedExperiment:
-    name: str
-    title: str
-    source: Path
-    file_hash: str
-    cases: tuple[Case, ...]
 
 
 # --- reading ------------------------------------------------------------------------------
@@ -349,45 +303,9 @@ def _normalize_solver(config: dict, src: str, case: str | None) -> dict:
 # --- compiling a case -----------------------------------------------------------------------
 
 
-def _expr():
-    from odelab import expressions
-
-    return expressions
-
-
-def _names(values: list[str], key: str, what: str) -> tuple[str, ...]:
-    ex = _expr()
-    out = []
-    for i, name in enumerate(values):
-        out.append(ex.check_identifier(name, key=f"{key}[{i}]", what=what))
-    dupes = sorted({n for n in out if out.count(n) > 1})
-    if dupes:
-        raise ExperimentError(f"`{key}` names {dupes[0]!r} twice; {what} names must be unique.", key=key)
-    return tuple(out)
-
-
-def _check_keys(given: dict, expected: tuple[str, ...], key: str, what: str, *, require_all: bool) -> None:
-    for name in given:
-        if name not in expected:
-            close = difflib.get_close_matches(name, expected, n=1)
-            hint = f" Did you mean `{close[0]}`?" if close else ""
-            raise ExperimentError(f"`{key}.{name}`: {name!r} is not one of the {what} ({', '.join(expected)}).{hint}",
-                                  key=f"{key}.{name}")
-    if require_all:
-        missing = [n for n in expected if n not in given]
-        if missing:
-            raise ExperimentError(
-                f"`{key}` has no value for {', '.join(repr(m) for m in missing)}: give one for every "
-                f"{what[:-1] if what.endswith('s') else what} ({', '.join(expected)}).", key=key)
-
-
-def _constant(value, key: str, params: dict[str, float]) -> float:
-    return _expr().evaluate_constant(value, values=params, key=key)
-
-
 def compile_case(model: schema.Experiment, path: Path) -> tuple[Problem, dict]:
     """Compile a validated case into a :class:`Problem` and its resolved configuration."""
-    ex = _expr()
+    ex = expr()
     params = ex.evaluate_parameters(model.parameters) if model.parameters else {}
     system = model.system
     resolved: dict[str, Any] = {}
@@ -403,7 +321,9 @@ def compile_case(model: schema.Experiment, path: Path) -> tuple[Problem, dict]:
 
         built = build_state_space(model, params)
     elif system.function is not None:
-        built = _build_function_system(model, path)
+        from odelab.experiment.build import build_function_system
+
+        built = build_function_system(model, path)
     else:
         from odelab.experiment.build import build_ode
 
@@ -412,8 +332,8 @@ def compile_case(model: schema.Experiment, path: Path) -> tuple[Problem, dict]:
     resolved["system"] = built.resolved
 
     # initial state
-    _check_keys(model.initial, states, "initial", "states", require_all=True)
-    x0 = np.array([_constant(model.initial[s], f"initial.{s}", params) for s in states])
+    check_keys(model.initial, states, "initial", "states", require_all=True)
+    x0 = np.array([constant(model.initial[s], f"initial.{s}", params) for s in states])
     resolved["initial"] = {s: float(v) for s, v in zip(states, x0)}
 
     tspan, time_resolved = _tspan(model.time, params)
@@ -451,7 +371,7 @@ def compile_case(model: schema.Experiment, path: Path) -> tuple[Problem, dict]:
     # exact solution and reference
     exact_fn = None
     if model.exact is not None:
-        _check_keys(model.exact, states + outputs, "exact", "states and outputs", require_all=False)
+        check_keys(model.exact, states + outputs, "exact", "states and outputs", require_all=False)
         compiled = {
             name: ex.compile_expression(text, names=["t", *params], key=f"exact.{name}")
             for name, text in model.exact.items()
@@ -540,14 +460,14 @@ def _tspan(time: schema.Time, params: dict[str, float]) -> tuple[np.ndarray, dic
     if time.output is not None and time.points is not None:
         raise ExperimentError("give either `time.output` (the output times) or `time.points` (how many evenly "
                               "spaced ones), not both.", key="time.points")
-    start = _constant(time.start, "time.start", params)
-    stop = _constant(time.stop, "time.stop", params)
+    start = constant(time.start, "time.start", params)
+    stop = constant(time.stop, "time.stop", params)
     if start == stop:
         raise ExperimentError(f"`time.stop` equals `time.start` ({start:g}): the time span has zero length.",
                               key="time.stop")
     resolved: dict[str, Any] = {"start": start, "stop": stop}
     if time.output is not None:
-        out = np.array([_constant(v, f"time.output[{i}]", params) for i, v in enumerate(time.output)])
+        out = np.array([constant(v, f"time.output[{i}]", params) for i, v in enumerate(time.output)])
         if out.size < 2:
             raise ExperimentError("`time.output` needs at least two times (MATLAB's vector tspan).",
                                   key="time.output")
@@ -570,74 +490,3 @@ def _tspan(time: schema.Time, params: dict[str, float]) -> tuple[np.ndarray, dic
     return np.array([start, stop]), resolved
 
 
-# --- Python-function systems (the lab's `function ydot = eq1(t, y)`) -----------------------
-
-
-@dataclass(frozen=True, eq=False)
-class Built:
-    states: tuple[str, ...]
-    inputs: tuple[str, ...]
-    outputs: tuple[str, ...]
-    fun: Callable
-    output_fn: Callable | None
-    resolved: dict
-    linear: bool = False
-    system: Any = None
-
-
-def _build_function_system(model: schema.Experiment, path: Path) -> Built:
-    system = model.system
-    if system.equations is not None:
-        raise ExperimentError("[system] has both `function` and [system.equations]; keep one.",
-                              key="system.function")
-    if system.inputs:
-        raise ExperimentError("a `function` system cannot declare `inputs`: compute u(t) inside the function, "
-                              "or write the equations as expressions.", key="system.inputs")
-    if system.outputs:
-        raise ExperimentError("`system.outputs` is not supported with `function`; compute outputs with "
-                              "expressions of an equations system.", key="system.outputs")
-    states = _names(system.states, "system.states", "state") if system.states else tuple(model.initial)
-    if not states:
-        raise ExperimentError("`system.states` is required: list the state names, e.g. states = [\"y\"].",
-                              key="system.states")
-    fun = load_function(system.function, path)
-    return Built(states=states, inputs=(), outputs=(), fun=fun, output_fn=None,
-                 resolved={"states": list(states), "function": system.function})
-
-
-def load_function(spec: str, experiment_path: Path) -> Callable:
-    """Import ``"file.py:name"`` (relative to the experiment file) and return the callable.
-
-    This runs the user's own Python code, as MATLAB runs a function file; expressions never do.
-    """
-    key = "system.function"
-    if ":" not in spec:
-        raise ExperimentError(f"`{key}` is {spec!r}; write it as \"file.py:function_name\".", key=key)
-    file_part, _, name = spec.rpartition(":")
-    file = (experiment_path.parent / file_part).resolve()
-    if not file.is_file():
-        raise ExperimentError(f"`{key}`: the file {file_part!r} does not exist (looked for {file}).", key=key)
-    if not name.isidentifier():
-        raise ExperimentError(f"`{key}`: {name!r} is not a valid Python function name.", key=key)
-    module_name = "odelab_user_" + hashlib.sha256(str(file).encode()).hexdigest()[:12]
-    module = sys.modules.get(module_name)
-    if module is None:
-        spec_obj = importlib.util.spec_from_file_location(module_name, file)
-        if spec_obj is None or spec_obj.loader is None:
-            raise ExperimentError(f"`{key}`: {file_part!r} cannot be imported as Python.", key=key)
-        module = importlib.util.module_from_spec(spec_obj)
-        try:
-            spec_obj.loader.exec_module(module)
-        except Exception as exc:
-            raise ExperimentError(f"`{key}`: importing {file_part!r} raised {type(exc).__name__}: {exc}.",
-                                  key=key) from None
-        sys.modules[module_name] = module
-    fn = getattr(module, name, None)
-    if fn is None:
-        names = [n for n in vars(module) if callable(vars(module)[n]) and not n.startswith("_")]
-        close = difflib.get_close_matches(name, names, n=1)
-        hint = f" Did you mean {close[0]!r}?" if close else ""
-        raise ExperimentError(f"`{key}`: {file_part!r} has no function {name!r}.{hint}", key=key)
-    if not callable(fn):
-        raise ExperimentError(f"`{key}`: {name!r} in {file_part!r} is not callable.", key=key)
-    return fn

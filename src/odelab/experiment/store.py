@@ -22,7 +22,7 @@ import numpy as np
 from odelab.analysis.errors import error_columns
 from odelab.fileio import atomic_write
 from odelab.experiment.loader import slug
-from odelab.experiment.runner import CaseResult
+from odelab.experiment.result import CaseResult
 
 __all__ = ["RESULT_FORMAT", "atomic_write", "case_dir", "summary", "write_case", "read_run", "list_runs"]
 

@@ -1,0 +1,72 @@
+"""The types loading produces: a compiled problem, a case, an experiment, a built system.
+
+They sit below the loader, the builders and the runner so that each of those imports them and
+none imports another for its types.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+__all__ = ["Built", "Case", "LoadedExperiment", "Problem"]
+
+
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """A case compiled for running: everything the runner needs, nothing it must parse."""
+
+    states: tuple[str, ...]
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    fun: Callable  # fun(t, x) -> dx/dt, with the inputs applied
+    tspan: np.ndarray  # MATLAB tspan given to the solver
+    x0: np.ndarray
+    method: str
+    options: dict[str, Any]
+    output_fn: Callable | None = None  # (t (N,), x (N, n)) -> (N, ny)
+    input_fn: Callable | None = None  # t (N,) -> (N, nu)
+    exact_fn: Callable | None = None  # t (N,) -> {name: (N,)} for states and outputs
+    reference: str = "none"  # "exact", "lti", "high-accuracy" or "none"
+    reference_solver: tuple[str, float, float] = ("DOP853", 1e-12, 1e-14)
+    system: Any = None  # a StateSpace or NonlinearSystem where one was built
+    signals: tuple = ()  # one odelab.signals signal per input
+    linearize: Any = None  # the [linearize] section, if any
+    parameters: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, eq=False)
+class Case:
+    """One case of an experiment, merged over the base and resolved."""
+
+    experiment: str
+    name: str
+    title: str
+    source: Path
+    file_hash: str
+    config: dict[str, Any]  # the merged configuration, defaults filled in (resolved.toml)
+    problem: Problem
+
+
+@dataclass(frozen=True, eq=False)
+class LoadedExperiment:
+    name: str
+    title: str
+    source: Path
+    file_hash: str
+    cases: tuple[Case, ...]
+
+
+@dataclass(frozen=True, eq=False)
+class Built:
+    states: tuple[str, ...]
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    fun: Callable
+    output_fn: Callable | None
+    resolved: dict
+    linear: bool = False
+    system: Any = None

@@ -1,0 +1,48 @@
+"""The result of running one case: what the results store writes and the report reads."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from odelab.analysis.errors import ErrorSummary
+from odelab.experiment.cases import Case
+from odelab.solution import Stats
+
+__all__ = ["CaseResult"]
+
+
+@dataclass(eq=False)
+class CaseResult:
+    """Everything one run of a case produced; what the results store writes and the report reads."""
+
+    case: Case
+    status: str
+    message: str
+    stats: Stats
+    elapsed: float
+    t: np.ndarray
+    x: np.ndarray
+    u: np.ndarray | None = None
+    y: np.ndarray | None = None
+    reference: dict[str, np.ndarray] = field(default_factory=dict)  # name -> reference values at t
+    reference_kind: str = "none"
+    errors: dict[str, ErrorSummary] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+    extra: dict[str, Any] = field(default_factory=dict)  # e.g. the linearisation study
+
+    @property
+    def method(self) -> str:
+        return self.case.problem.method
+
+    def series(self) -> dict[str, np.ndarray]:
+        """Every named column at the output times: states, inputs, outputs."""
+        p = self.case.problem
+        out = {name: self.x[:, i] for i, name in enumerate(p.states)}
+        if self.u is not None:
+            out.update({name: self.u[:, i] for i, name in enumerate(p.inputs)})
+        if self.y is not None:
+            out.update({name: self.y[:, i] for i, name in enumerate(p.outputs)})
+        return out
