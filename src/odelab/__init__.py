@@ -33,10 +33,17 @@ _LAZY = {
     "run_experiment": "odelab.experiment.runner",
 }
 
-__all__ = ["__version__", *_LAZY]
+# public name -> a whole module (``from odelab import diagram as dg``)
+_MODULES = {"diagram": "odelab.systems.diagram"}
+
+__all__ = ["__version__", *_LAZY, *_MODULES]
 
 
 def __getattr__(name: str):
+    if name in _MODULES:
+        module = importlib.import_module(_MODULES[name])
+        globals()[name] = module
+        return module
     try:
         module = _LAZY[name]
     except KeyError:

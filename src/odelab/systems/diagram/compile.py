@@ -1,0 +1,171 @@
+"""A wired diagram -> an ordinary system the solvers, the linearisation and the report use.
+
+The states are the states of the blocks that hold them (integrators, state-space and
+transfer-function blocks), in the order of ``states`` or of the blocks' declaration; the
+inputs are the source blocks (their signals drive :func:`~odelab.systems.simulate.simulate`,
+which restarts the solver at their discontinuities, as for any input); the outputs are the
+named ports. One evaluation computes every port in the order :func:`~odelab.systems.diagram.
+graph.wire` fixed once, then the derivatives of the blocks with state.
+
+A diagram made only of linear blocks compiles to a :class:`~odelab.systems.statespace.
+StateSpace` whose A, B, C, D are read off the evaluation at unit vectors (exact: the blocks
+are linear with no offsets, so each column is the product of the gains along the paths, to
+round-off), so it gets the exact LTI reference. Any other diagram compiles to a
+:class:`~odelab.systems.nonlinear.NonlinearSystem` that also offers its complex-step variant,
+so its Jacobians (its linear model about an operating point) are exact too.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from odelab.exceptions import InputError
+from odelab.systems.diagram.blocks import Clock
+from odelab.systems.diagram.graph import DiagramError, Wiring
+
+__all__ = ["CompiledDiagram"]
+
+
+class CompiledDiagram:
+    """A diagram ready to evaluate: states, inputs (sources), outputs, x0 and the system."""
+
+    def __init__(self, wiring: Wiring, *, states: list[str] | None = None, t0: float = 0.0):
+        from odelab import signals as sg
+
+        self.wiring = wiring
+        blocks = wiring.blocks
+        holders = [n for n, b in blocks.items() if b.nstates]
+        if not holders:
+            raise DiagramError("the diagram has no block with state (integrator, state-space, transfer-fcn): there "
+                               "is nothing to integrate.", key="blocks")
+        if states is not None:
+            for i, name in enumerate(states):
+                if name not in blocks or not blocks[name].nstates:
+                    import difflib
+
+                    close = difflib.get_close_matches(str(name), holders, n=1)
+                    hint = f" Did you mean `{close[0]}`?" if close else ""
+                    raise DiagramError(f"`system.states[{i}]`: {name!r} is not a block with state ({', '.join(holders)})."
+                                       f"{hint}", key=f"system.states[{i}]")
+            missing = [n for n in holders if n not in states]
+            if missing or len(set(states)) != len(states):
+                raise DiagramError(f"`system.states` orders the blocks with state: list each of {', '.join(holders)} "
+                                   "once.", key="system.states")
+            holders = list(states)
+        self.slices: dict[str, slice] = {}
+        names: list[str] = []
+        x0 = []
+        for name in holders:
+            b = blocks[name]
+            self.slices[name] = slice(len(names), len(names) + b.nstates)
+            names.extend(b.state_names(name))
+            x0.append(b.initial_state())
+        self.states = tuple(names)
+        self.x0 = np.concatenate(x0)
+        self.inputs = tuple(n for n, b in blocks.items() if b.SOURCE)
+        self.signals = tuple(sg.Ramp(slope=1.0, start=float(t0), initial=float(t0)) if isinstance(blocks[n], Clock)
+                             else blocks[n].signal for n in self.inputs)
+        self.outputs = tuple(wiring.outputs)
+        self.linear = all(b.linear for b in blocks.values())
+        self._order = [n for n in wiring.order if not blocks[n].SOURCE]
+        self._system = None
+
+    # -- evaluation ------------------------------------------------------------------------------
+
+    def _ports(self, t, x, u, cplx):
+        w = self.wiring
+        vals = {(name, 0): u[i:i + 1] for i, name in enumerate(self.inputs)}
+        for name in self._order:
+            b = w.blocks[name]
+            xs = x[self.slices[name]] if name in self.slices else None
+            ins = [vals[s] for s in w.sources[name]] if b.feedthrough else []
+            for i, v in enumerate(b.outputs(t, xs, ins, cplx)):
+                vals[(name, i)] = v
+        return vals
+
+    def _dynamics(self, t, x, u, cplx=False):
+        w = self.wiring
+        vals = self._ports(t, x, u, cplx)
+        parts = [w.blocks[n].derivative(t, x[s], [vals[p] for p in w.sources[n]]) for n, s in self.slices.items()]
+        return np.concatenate(parts)
+
+    def _output(self, t, x, u, cplx=False):
+        vals = self._ports(t, x, u, cplx)
+        return np.concatenate([np.reshape(vals[p], (1,)) for p in self.wiring.outputs.values()]) \
+            if self.outputs else np.zeros(0)
+
+    def dynamics(self, t, x, u=None):
+        """x' at one point."""
+        return self._dynamics(t, np.asarray(x), np.zeros(0) if u is None else np.asarray(u))
+
+    def output(self, t, x, u=None):
+        """y at one point."""
+        return self._output(t, np.asarray(x), np.zeros(0) if u is None else np.asarray(u))
+
+    def output_many(self, t, x, u=None) -> np.ndarray:
+        """y at many points at once: t (N,), x (N, nx), u (N, nu) -> (N, ny)."""
+        t = np.asarray(t, dtype=float)
+        u = np.zeros((t.size, 0)) if u is None else np.asarray(u, dtype=float)
+        vals = self._ports(t, np.asarray(x, dtype=float).T, u.T, False)
+        return np.column_stack([np.broadcast_to(vals[p][0], t.shape) for p in self.wiring.outputs.values()]) \
+            if self.outputs else np.zeros((t.size, 0))
+
+    # -- the system ----------------------------------------------------------------------------
+
+    @property
+    def system(self):
+        """A StateSpace (every block linear) or a NonlinearSystem, with the diagram's names."""
+        if self._system is None:
+            self._system = self._state_space() if self.linear else self._nonlinear()
+        return self._system
+
+    def matrices(self):
+        """A, B, C, D of a linear diagram, column by column from unit vectors."""
+        if not self.linear:
+            raise InputError("the diagram has nonlinear blocks; linearise it about an operating point instead.")
+        n, m, p = len(self.states), len(self.inputs), len(self.outputs)
+        A, B = np.zeros((n, n)), np.zeros((n, m))
+        C, D = np.zeros((p, n)), np.zeros((p, m))
+        for j in range(n):
+            e = np.zeros(n)
+            e[j] = 1.0
+            A[:, j] = self._dynamics(0.0, e, np.zeros(m))
+            C[:, j] = self._output(0.0, e, np.zeros(m))
+        for j in range(m):
+            e = np.zeros(m)
+            e[j] = 1.0
+            B[:, j] = self._dynamics(0.0, np.zeros(n), e)
+            D[:, j] = self._output(0.0, np.zeros(n), e)
+        return A, B, C, D
+
+    def _state_space(self):
+        from odelab.systems.statespace import StateSpace
+
+        A, B, C, D = self.matrices()
+        if not self.outputs:
+            return StateSpace(A, B, None, None, states=self.states, inputs=self.inputs)
+        return StateSpace(A, B, C, D, states=self.states, inputs=self.inputs, outputs=self.outputs)
+
+    def _nonlinear(self):
+        from odelab.systems.nonlinear import NonlinearSystem
+
+        system = NonlinearSystem(lambda t, x, u: self._dynamics(t, x, u),
+                                 (lambda t, x, u: self._output(t, x, u)) if self.outputs else None,
+                                 states=self.states, inputs=self.inputs, outputs=self.outputs or None,
+                                 name="diagram", complex_step=True)
+        system.complex_step_dynamics = lambda t, x, u: self._dynamics(t, x, u, True)
+        if self.outputs:
+            system.complex_step_output = lambda t, x, u: self._output(t, x, u, True)
+        return system
+
+    def simulate(self, tspan, *, method: str = "ode45", x0=None, **options):
+        """Simulate the diagram from its blocks' initial states (or ``x0``) with its sources."""
+        from odelab.systems.simulate import simulate
+
+        return simulate(self.system, tspan, self.x0 if x0 is None else x0, u=list(self.signals) or None,
+                        method=method, **options)
+
+    def __repr__(self) -> str:
+        kind = "linear" if self.linear else "nonlinear"
+        return (f"CompiledDiagram({kind}, states={list(self.states)}, inputs={list(self.inputs)}, "
+                f"outputs={list(self.outputs)})")
