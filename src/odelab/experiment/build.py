@@ -16,7 +16,8 @@ from odelab.experiment import schema
 from odelab.experiment.cases import Built
 from odelab.experiment.fields import check_keys, check_names, constant, expr
 
-__all__ = ["build_function_system", "build_ode", "build_state_space", "build_inputs", "load_function", "SIGNAL_KEYS"]
+__all__ = ["build_function_system", "build_ode", "build_state_space", "build_inputs", "build_signal", "load_function",
+           "SIGNAL_KEYS"]
 
 
 def build_ode(model: schema.Experiment, params: dict[str, float]) -> Built:
@@ -169,8 +170,6 @@ SIGNAL_KEYS = {
 
 def build_inputs(model: schema.Experiment, inputs: tuple[str, ...], path: Path, tspan: np.ndarray):
     """One signal per declared input, from [inputs.<name>] tables."""
-    from odelab import signals as sg
-
     specs = model.inputs or {}
     for name in specs:
         if name not in inputs:
@@ -185,54 +184,11 @@ def build_inputs(model: schema.Experiment, inputs: tuple[str, ...], path: Path, 
         if spec is None:
             raise ExperimentError(f"input {name!r} has no signal: add [inputs.{name}] with a `type` (step, ramp, "
                                   "sine, pulse, table, expression, constant).", key=f"inputs.{name}")
-        allowed = SIGNAL_KEYS[spec.type]
         given = {k: v for k, v in spec.model_dump().items() if v is not None and k != "type"}
-        for key in given:
-            if key not in allowed:
-                raise ExperimentError(
-                    f"`inputs.{name}.{key}` does not apply to a {spec.type} input; a {spec.type} takes "
-                    f"{', '.join(allowed)}.", key=f"inputs.{name}.{key}")
-        values = {**allowed, **given}
-        for key, default in allowed.items():
-            if values[key] is None and key in ("file", "expression", "value"):
-                raise ExperimentError(f"`inputs.{name}.{key}` is required for a {spec.type} input.",
-                                      key=f"inputs.{name}.{key}")
-        for key, value in values.items():
-            if isinstance(value, float) and not np.isfinite(value):
-                raise ExperimentError(f"`inputs.{name}.{key}` must be finite; got {value!r}.",
-                                      key=f"inputs.{name}.{key}")
-        key = f"inputs.{name}"
-        try:
-            if spec.type == "step":
-                signal = sg.Step(time=float(values["time"]), initial=float(values["initial"]),
-                                 final=float(values["final"]))
-            elif spec.type == "ramp":
-                signal = sg.Ramp(slope=float(values["slope"]), start=float(values["start"]),
-                                 initial=float(values["initial"]))
-            elif spec.type == "sine":
-                signal = sg.Sine(amplitude=float(values["amplitude"]), frequency=float(values["frequency"]),
-                                 phase=float(values["phase"]), bias=float(values["bias"]))
-            elif spec.type == "pulse":
-                signal = sg.Pulse(amplitude=float(values["amplitude"]), period=float(values["period"]),
-                                  width=float(values["width"]), delay=float(values["delay"]))
-            elif spec.type == "table":
-                csv = (path.parent / values["file"]).resolve()
-                if not csv.is_file():
-                    raise ExperimentError(f"`{key}.file`: {values['file']!r} does not exist (looked for {csv}).",
-                                          key=f"{key}.file")
-                signal = sg.Table.from_csv(csv)
-            elif spec.type == "constant":
-                signal = sg.Constant(float(values["value"]))
-            else:
-                compiled = expr().compile_expression(values["expression"], names=["t", *model_params(model)],
-                                                     key=f"{key}.expression")
-                params = model_params(model)
-                signal = sg.Function(lambda t, _e=compiled, _p=params: _e(t=t, **_p),
-                                     label=str(values["expression"]))
-        except InputError as exc:
-            raise exc.located(key=key) from None
+        signal, values = build_signal(spec.type, given, key=f"inputs.{name}", path=path, params=model_params(model),
+                                      what="input")
         out.append(signal)
-        resolved[name] = {"type": spec.type, **{k: v for k, v in values.items() if v is not None}}
+        resolved[name] = {"type": spec.type, **values}
 
     signals = tuple(out)
 
@@ -241,6 +197,57 @@ def build_inputs(model: schema.Experiment, inputs: tuple[str, ...], path: Path, 
         return np.column_stack([np.broadcast_to(np.asarray(s(t), dtype=float), t.shape) for s in signals])
 
     return signals, input_fn, resolved
+
+
+def build_signal(kind: str, given: dict, *, key: str, path: Path, params: dict[str, float], what: str = "input"):
+    """One :mod:`odelab.signals` signal of type ``kind`` from its keys (numbers already evaluated).
+
+    Shared by [inputs] and the source blocks of diagrams. ``key`` is the table's key path
+    (``inputs.f``, ``blocks.force``) and ``what`` the noun for messages. Returns the signal and
+    its resolved keys (defaults filled in).
+    """
+    from odelab import signals as sg
+
+    allowed = SIGNAL_KEYS[kind]
+    for k in given:
+        if k not in allowed:
+            raise ExperimentError(f"`{key}.{k}` does not apply to a {kind} {what}; a {kind} takes "
+                                  f"{', '.join(allowed)}.", key=f"{key}.{k}")
+    values = {**allowed, **given}
+    for k in allowed:
+        if values[k] is None and k in ("file", "expression", "value"):
+            raise ExperimentError(f"`{key}.{k}` is required for a {kind} {what}.", key=f"{key}.{k}")
+    for k, value in values.items():
+        if isinstance(value, float) and not np.isfinite(value):
+            raise ExperimentError(f"`{key}.{k}` must be finite; got {value!r}.", key=f"{key}.{k}")
+    try:
+        if kind == "step":
+            signal = sg.Step(time=float(values["time"]), initial=float(values["initial"]),
+                             final=float(values["final"]))
+        elif kind == "ramp":
+            signal = sg.Ramp(slope=float(values["slope"]), start=float(values["start"]),
+                             initial=float(values["initial"]))
+        elif kind == "sine":
+            signal = sg.Sine(amplitude=float(values["amplitude"]), frequency=float(values["frequency"]),
+                             phase=float(values["phase"]), bias=float(values["bias"]))
+        elif kind == "pulse":
+            signal = sg.Pulse(amplitude=float(values["amplitude"]), period=float(values["period"]),
+                              width=float(values["width"]), delay=float(values["delay"]))
+        elif kind == "table":
+            csv = (path.parent / values["file"]).resolve()
+            if not csv.is_file():
+                raise ExperimentError(f"`{key}.file`: {values['file']!r} does not exist (looked for {csv}).",
+                                      key=f"{key}.file")
+            signal = sg.Table.from_csv(csv)
+        elif kind == "constant":
+            signal = sg.Constant(float(values["value"]))
+        else:
+            compiled = expr().compile_expression(values["expression"], names=["t", *params],
+                                                 key=f"{key}.expression")
+            signal = sg.Function(lambda t, _e=compiled, _p=params: _e(t=t, **_p), label=str(values["expression"]))
+    except InputError as exc:
+        raise exc.located(key=key) from None
+    return signal, {k: v for k, v in values.items() if v is not None}
 
 
 def model_params(model: schema.Experiment) -> dict[str, float]:

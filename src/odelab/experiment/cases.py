@@ -36,6 +36,7 @@ class Problem:
     signals: tuple = ()  # one odelab.signals signal per input
     linearize: Any = None  # the [linearize] section, if any
     parameters: dict[str, float] = field(default_factory=dict)
+    diagram: Any = None  # the CompiledDiagram of a kind = "diagram" system
 
 
 @dataclass(frozen=True, eq=False)
@@ -70,3 +71,6 @@ class Built:
     resolved: dict
     linear: bool = False
     system: Any = None
+    x0: Any = None  # initial state set by the system itself (a diagram's blocks)
+    signals: tuple = ()  # input signals set by the system itself (a diagram's sources)
+    diagram: Any = None  # the CompiledDiagram, for drawings and reports

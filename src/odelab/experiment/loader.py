@@ -62,14 +62,23 @@ def read_toml(path: Path) -> tuple[dict, bytes]:
 
 
 def merge(base: dict, override: dict) -> dict:
-    """Deep-merge ``override`` over ``base``: tables merge key by key, other values replace."""
+    """Deep-merge ``override`` over ``base``: tables merge key by key, other values replace.
+
+    A table that changes its ``type`` (``inputs.f`` or ``blocks.force`` from a step to a sine)
+    replaces the base's table instead, since the base's keys would not apply to the new type.
+    """
     out = copy.deepcopy(base)
     for key, value in override.items():
-        if isinstance(value, dict) and isinstance(out.get(key), dict):
+        if isinstance(value, dict) and isinstance(out.get(key), dict) and not _retyped(out[key], value):
             out[key] = merge(out[key], value)
         else:
             out[key] = copy.deepcopy(value)
     return out
+
+
+def _retyped(base: dict, override: dict) -> bool:
+    """A case's table with another `type` (a step input becoming a sine) replaces the base's."""
+    return "type" in override and "type" in base and override["type"] != base["type"]
 
 
 _SLUG = re.compile(r"[^A-Za-z0-9._-]+")
@@ -320,6 +329,13 @@ def compile_case(model: schema.Experiment, path: Path) -> tuple[Problem, dict]:
         from odelab.experiment.build import build_state_space
 
         built = build_state_space(model, params)
+    elif system.kind == "diagram":
+        from odelab.experiment.diagram import build_diagram
+
+        built = build_diagram(model, params, path, constant(model.time.start, "time.start", params))
+    elif model.blocks is not None:
+        raise ExperimentError("[blocks] is given but the system is not a diagram: add kind = \"diagram\" under "
+                              "[system].", key="blocks")
     elif system.function is not None:
         from odelab.experiment.build import build_function_system
 
@@ -331,9 +347,10 @@ def compile_case(model: schema.Experiment, path: Path) -> tuple[Problem, dict]:
     states, inputs, outputs = built.states, built.inputs, built.outputs
     resolved["system"] = built.resolved
 
-    # initial state
-    check_keys(model.initial, states, "initial", "states", require_all=True)
-    x0 = np.array([constant(model.initial[s], f"initial.{s}", params) for s in states])
+    # initial state (a diagram's blocks carry theirs; [initial] may override some)
+    check_keys(model.initial, states, "initial", "states", require_all=built.x0 is None)
+    x0 = np.array([constant(model.initial[s], f"initial.{s}", params) if s in model.initial else built.x0[i]
+                   for i, s in enumerate(states)], dtype=float)
     resolved["initial"] = {s: float(v) for s, v in zip(states, x0)}
 
     tspan, time_resolved = _tspan(model.time, params)
@@ -342,7 +359,16 @@ def compile_case(model: schema.Experiment, path: Path) -> tuple[Problem, dict]:
     # inputs
     signals: tuple = ()
     input_fn = None
-    if inputs:
+    if built.signals:
+        signals = built.signals
+        resolved["blocks"] = _plain(model.blocks)
+
+        def input_fn(t, _signals=signals):
+            t = np.asarray(t, dtype=float)
+            return np.column_stack([np.broadcast_to(np.asarray(s(t), dtype=float), t.shape) for s in _signals])
+    elif built.diagram is not None:
+        resolved["blocks"] = _plain(model.blocks)
+    elif inputs:
         from odelab.experiment.build import build_inputs
 
         signals, input_fn, resolved["inputs"] = build_inputs(model, inputs, path, tspan)
@@ -404,7 +430,7 @@ def compile_case(model: schema.Experiment, path: Path) -> tuple[Problem, dict]:
         states=states, inputs=inputs, outputs=outputs, fun=built.fun, tspan=tspan, x0=x0, method=method.name,
         options=options, output_fn=built.output_fn, input_fn=input_fn, exact_fn=exact_fn, reference=kind,
         reference_solver=(ref.solver, float(ref.rtol), float(ref.atol)), system=built.system, signals=signals,
-        linearize=model.linearize, parameters=params,
+        linearize=model.linearize, parameters=params, diagram=built.diagram,
     )
     return problem, resolved
 

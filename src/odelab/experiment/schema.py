@@ -9,7 +9,7 @@ A value written ``Value`` is a number or a string in the expression language (``
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, Union
+from typing import Annotated, Any, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, StrictBool, StrictFloat, StrictInt, StrictStr
 
@@ -30,7 +30,7 @@ class _Section(BaseModel):
 class System(_Section):
     """[system]: what is integrated."""
 
-    kind: Literal["ode", "state-space"] = "ode"
+    kind: Literal["ode", "state-space", "diagram"] = "ode"
     states: list[StrictStr] | None = None
     equations: dict[str, Value] | None = None
     function: StrictStr | None = None
@@ -131,3 +131,4 @@ class Experiment(_Section):
     reference: Reference = Field(default_factory=Reference)
     inputs: dict[str, Annotated[InputSignal, Field()]] | None = None
     linearize: Linearize | None = None
+    blocks: dict[str, dict[str, Any]] | None = None  # kind = "diagram"; checked by experiment/diagram.py

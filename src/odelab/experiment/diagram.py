@@ -1,0 +1,185 @@
+"""Building a diagram from an experiment file's [blocks] table (``kind = "diagram"``).
+
+Each entry of [blocks] is a block: its ``type`` is a block type of
+:data:`odelab.systems.diagram.BLOCKS` or an input signal type (step, ramp, sine, pulse, table,
+expression, constant), which makes it a source built exactly as [inputs] are
+(:func:`~odelab.experiment.build.build_signal`). Numbers in every numeric key may be
+expressions of [parameters]. Every message names ``blocks.<name>.<key>``.
+"""
+
+from __future__ import annotations
+
+import difflib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from odelab.exceptions import ExperimentError, InputError
+from odelab.experiment import schema
+from odelab.experiment.build import SIGNAL_KEYS, _matrix, build_signal
+from odelab.experiment.cases import Built
+from odelab.experiment.fields import constant
+
+__all__ = ["build_diagram", "block_types"]
+
+_TOML_KIND = {bool: "a boolean", int: "a number", float: "a number", str: "a string", list: "an array",
+              dict: "a table"}
+
+
+def block_types() -> list[str]:
+    """Every TOML block type: the signal sources, then the blocks of the registry."""
+    from odelab.systems.diagram.blocks import BLOCKS
+
+    return [*SIGNAL_KEYS, *BLOCKS]
+
+
+def _got(value) -> str:
+    text = str(value).lower() if isinstance(value, bool) else repr(value)
+    return f"{text} ({_TOML_KIND.get(type(value), type(value).__name__)})"
+
+
+def _value(kind: str, value, key: str, params: dict[str, float]):
+    """A key's value converted by its declared kind (expressions of parameters evaluated)."""
+    if kind == "number":
+        if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+            raise ExperimentError(f"`{key}` must be a number or an expression string; got {_got(value)}.", key=key)
+        return constant(value, key, params)
+    if kind == "numbers":
+        if isinstance(value, list):
+            return [_value("number", v, f"{key}[{i}]", params) for i, v in enumerate(value)]
+        return _value("number", value, key, params)
+    if kind == "matrix":
+        if isinstance(value, bool) or not isinstance(value, (int, float, str, list)):
+            raise ExperimentError(f"`{key}` must be a number, an expression or a matrix [[...]]; got {_got(value)}.",
+                                  key=key)
+        return _matrix(value, key, params)
+    if kind in ("text", "expression"):
+        if kind == "expression" and isinstance(value, (int, float)) and not isinstance(value, bool):
+            return str(value)
+        if not isinstance(value, str):
+            raise ExperimentError(f"`{key}` must be a string; got {_got(value)}.", key=key)
+        return value
+    if kind == "count":
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ExperimentError(f"`{key}` must be a whole number; got {_got(value)}.", key=key)
+        return value
+    if kind == "names":
+        if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+            raise ExperimentError(f"`{key}` must be an array of names, e.g. [\"y\"]; got {_got(value)}.", key=key)
+        return value
+    raise AssertionError(kind)  # pragma: no cover - a Key with an unknown kind
+
+
+def _source(name: str, spec: dict, path: Path, params: dict[str, float]):
+    from odelab.systems.diagram.blocks import Source
+
+    kind = spec["type"]
+    key = f"blocks.{name}"
+    given = {}
+    for k, v in spec.items():
+        if k == "type":
+            continue
+        if k in ("input", "inputs"):
+            raise ExperimentError(f"`{key}.{k}`: a {kind} block is a source and takes no input; remove `{k}`.",
+                                  key=f"{key}.{k}")
+        if k not in SIGNAL_KEYS[kind]:
+            given[k] = v  # build_signal names the keys that do not apply
+        elif k in ("file", "expression"):
+            given[k] = _value("expression" if k == "expression" else "text", v, f"{key}.{k}", params)
+        else:
+            given[k] = _value("number", v, f"{key}.{k}", params)
+    signal, values = build_signal(kind, given, key=key, path=path, params=params, what="block")
+    shown = ", ".join(f"{k} {v:g}" if isinstance(v, float) else f"{k} {v}" for k, v in values.items())
+    return Source(signal, kind=kind, label=f"{kind}" + (f"\n{shown}" if shown else ""))
+
+
+def _block(name: str, spec: dict, params: dict[str, float]):
+    from odelab.systems.diagram.blocks import BLOCKS, BlockError, Fcn
+    from odelab.systems.diagram.graph import located
+
+    cls = BLOCKS[spec["type"]]
+    key = f"blocks.{name}"
+    values: dict[str, Any] = {}
+    texts = {}
+    for k, v in spec.items():
+        if k == "type":
+            continue
+        if k == "input":
+            values[k] = _value("text", v, f"{key}.input", params)
+        elif k == "inputs":
+            values[k] = _value("names", v, f"{key}.inputs", params)
+        elif k in cls.KEYS:
+            values[k] = _value(cls.KEYS[k].kind, v, f"{key}.{k}", params)
+            texts[k] = v
+        else:
+            known = ", ".join(["input" if cls.INPUTS[1] == 1 else "inputs", *cls.KEYS]) if not cls.SOURCE \
+                else ", ".join(cls.KEYS) or "no other keys"
+            close = difflib.get_close_matches(k, ["input", "inputs", *cls.KEYS], n=1)
+            hint = f" Did you mean `{close[0]}`?" if close else ""
+            raise ExperimentError(f"`{key}.{k}` does not apply to a {cls.TYPE} block; a {cls.TYPE} takes {known}."
+                                  f"{hint}", key=f"{key}.{k}")
+    if isinstance(values.get("gain"), np.ndarray) and values["gain"].size == 1:
+        values["gain"] = float(values["gain"].reshape(()))
+    try:
+        block = cls(parameters=params, **values) if cls is Fcn else cls(**values)
+    except BlockError as exc:
+        raise located(exc, name) from None
+    block.texts = texts
+    return block
+
+
+def build_diagram(model: schema.Experiment, params: dict[str, float], path: Path, t0: float) -> Built:
+    """A system from [blocks]: linear diagrams become StateSpace systems, others NonlinearSystem."""
+    from odelab.systems.diagram.compile import CompiledDiagram
+    from odelab.systems.diagram.graph import wire
+
+    system = model.system
+    for field_name in ("equations", "function", "inputs", "A", "B", "C", "D"):
+        if getattr(system, field_name) is not None:
+            raise ExperimentError(f"`system.{field_name}` does not apply to kind = \"diagram\": a diagram is its "
+                                  "[blocks]; remove it (sources are blocks too).", key=f"system.{field_name}")
+    if model.inputs:
+        raise ExperimentError("[inputs] does not apply to kind = \"diagram\": write each source as a block, e.g. "
+                              "force = { type = \"step\", time = 0 } under [blocks].", key="inputs")
+    if not model.blocks:
+        raise ExperimentError("kind = \"diagram\" needs a [blocks] table: one block per line, e.g. "
+                              "force = { type = \"step\" }, gain = { type = \"gain\", gain = 2, input = \"force\" }.",
+                              key="blocks")
+    if system.outputs is not None and not isinstance(system.outputs, dict):
+        raise ExperimentError("`system.outputs` of a diagram maps output names to blocks, e.g. "
+                              "outputs = { y = \"sensor\" }.", key="system.outputs")
+    outputs = dict(system.outputs or {})
+    for out, ref in outputs.items():
+        if not isinstance(ref, str):
+            raise ExperimentError(f"`system.outputs.{out}` must name a block (or block.port); got {_got(ref)}.",
+                                  key=f"system.outputs.{out}")
+    types = block_types()
+    blocks = {}
+    for name, spec in model.blocks.items():
+        key = f"blocks.{name}"
+        kind = spec.get("type")
+        if kind is None:
+            raise ExperimentError(f"`{key}.type` is required: one of {', '.join(types)}.", key=f"{key}.type")
+        if kind not in types:
+            close = difflib.get_close_matches(str(kind), types, n=1)
+            hint = f" Did you mean {close[0]!r}?" if close else ""
+            raise ExperimentError(f"`{key}.type` is {_got(kind)}; block types are {', '.join(types)}.{hint}",
+                                  key=f"{key}.type")
+        try:
+            blocks[name] = _source(name, spec, path, params) if kind in SIGNAL_KEYS else _block(name, spec, params)
+        except InputError as exc:
+            raise exc.located(key=key) from None
+    compiled = CompiledDiagram(wire(blocks, outputs), states=system.states, t0=t0)  # DiagramError: keyed
+    sys_obj = compiled.system
+    resolved = {"kind": "diagram", "outputs": outputs}
+    if system.states is not None:
+        resolved["states"] = list(system.states)
+    output_fn = compiled.output_many if compiled.outputs else None
+    fun = None
+    if not compiled.inputs:
+        def fun(t, x, _f=compiled.dynamics):
+            return _f(t, x)
+    return Built(states=compiled.states, inputs=compiled.inputs, outputs=compiled.outputs, fun=fun,
+                 output_fn=output_fn, resolved=resolved, linear=compiled.linear, system=sys_obj,
+                 x0=compiled.x0, signals=compiled.signals, diagram=compiled)
