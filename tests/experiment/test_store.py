@@ -1,6 +1,7 @@
 """The results store: atomic writes, JSON safety, reading back."""
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -61,3 +62,113 @@ def test_undefined_relative_errors_are_null_in_json_and_empty_in_csv(tmp_path):
     csv_first_row = (folder / "trajectory.csv").read_text().splitlines()[1].split(",")
     assert csv_first_row[-1] == ""
     assert math.isnan(read_run(folder)["trajectory"]["y_rel_err"][0])
+
+
+def _two_runs(tmp_path):
+    """Exercise 1's ode23 case at the lab's tolerance and at a tighter one (different trajectories)."""
+    text = (ROOT / "experiments" / "exercise1.toml").read_text()
+    path = tmp_path / "exercise1.toml"
+    path.write_text(text)
+    first = run_case(load_experiment(path).cases[0])
+    path.write_text(text.replace('method = "ode23"', 'method = "ode23"\nrtol = 1e-6', 1))
+    second = run_case(load_experiment(path).cases[0])
+    assert first.t.size != second.t.size
+    return first, second
+
+
+def test_a_case_folder_holds_only_the_documented_files(tmp_path):
+    first, _ = _two_runs(tmp_path)
+    folder = write_case(first, tmp_path / "runs")
+    write_case(first, tmp_path / "runs")
+    assert sorted(p.name for p in folder.iterdir()) == ["resolved.toml", "result.json", "trajectory.csv"]
+    assert sorted(p.name for p in folder.parent.iterdir()) == ["ode23"]  # no .lock, no temporary folders
+
+
+@pytest.mark.parametrize("fail_at", ["resolved.toml", "result.mat", "result.json"])
+def test_a_failed_write_leaves_the_previous_case_whole(tmp_path, monkeypatch, fail_at):
+    """Disk full after trajectory.csv was written: the stored case is still entirely the previous run."""
+    import os
+
+    import odelab.experiment.store as store
+
+    first, second = _two_runs(tmp_path)
+    folder = write_case(first, tmp_path / "runs")
+    before = {p.name: p.read_bytes() for p in folder.iterdir()}
+    real_open = os.open
+
+    def failing_open(path, *args, **kwargs):
+        if str(path).endswith(fail_at):
+            raise OSError(28, "No space left on device")
+        return real_open(path, *args, **kwargs)
+
+    monkeypatch.setattr(store.os, "open", failing_open)
+    with pytest.raises(OSError, match="No space left"):
+        write_case(second, tmp_path / "runs", mat=True)
+    monkeypatch.undo()
+    assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
+    record = read_run(folder)
+    assert record["points"] == first.t.size == len(record["trajectory"]["t"])
+    assert sorted(p.name for p in folder.parent.iterdir()) == ["ode23"]
+
+
+def test_a_failed_swap_puts_the_previous_case_back(tmp_path, monkeypatch):
+    import odelab.experiment.store as store
+
+    first, second = _two_runs(tmp_path)
+    folder = write_case(first, tmp_path / "runs")
+    before = {p.name: p.read_bytes() for p in folder.iterdir()}
+
+    real_rename = store.os.rename
+
+    def failing_rename(src, dst):  # the swap of the new folder in fails; putting the old one back works
+        if ".old." not in str(src):
+            raise PermissionError(13, "Permission denied")
+        real_rename(src, dst)
+
+    monkeypatch.setattr(store.os, "rename", failing_rename)
+    with pytest.raises(PermissionError):
+        write_case(second, tmp_path / "runs")
+    monkeypatch.undo()
+    assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
+    assert sorted(p.name for p in folder.parent.iterdir()) == ["ode23"]
+
+
+def test_a_new_run_without_mat_does_not_keep_the_old_result_mat(tmp_path):
+    first, second = _two_runs(tmp_path)
+    folder = write_case(first, tmp_path / "runs", mat=True)
+    assert (folder / "result.mat").exists()
+    write_case(second, tmp_path / "runs")
+    assert not (folder / "result.mat").exists()
+    assert read_run(folder)["points"] == second.t.size
+
+
+def test_version_lookups_happen_once_per_process(tmp_path, monkeypatch):
+    import odelab.experiment.store as store
+
+    first, _ = _two_runs(tmp_path)
+    write_case(first, tmp_path / "runs")
+    calls = []
+    monkeypatch.setattr(store.metadata, "version", lambda dist: calls.append(dist) or "0")
+    write_case(first, tmp_path / "runs")
+    write_case(first, tmp_path / "runs2", durable=False)
+    assert calls == []
+
+
+def test_infinity_in_result_json_is_a_broken_record(tmp_path):
+    first, _ = _two_runs(tmp_path)
+    folder = write_case(first, tmp_path / "runs")
+    path = folder / "result.json"
+    path.write_text(re.sub(r'"points": \d+', '"points": Infinity', path.read_text()))
+    assert "Infinity" in path.read_text()
+    with pytest.raises(ValueError, match="result.json holds Infinity, which odelab never writes"):
+        read_run(folder)
+
+
+def test_hidden_temporary_folders_are_not_runs(tmp_path):
+    first, _ = _two_runs(tmp_path)
+    folder = write_case(first, tmp_path / "runs")
+    left = folder.parent / ".ode23.abc123.tmp"  # what a run killed with SIGKILL mid-write leaves
+    left.mkdir()
+    for p in folder.iterdir():
+        (left / p.name).write_bytes(p.read_bytes())
+    assert list_runs(tmp_path / "runs") == [folder]

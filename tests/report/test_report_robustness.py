@@ -181,3 +181,15 @@ def test_markdown_renders_every_table(lab_report):
     html = rendered_markdown(lab_report.md)
     assert html.count("<table>") == len(markdown_tables(lab_report.md))
     assert html.count("<img ") == len(re.findall(r"!\[", lab_report.md))
+
+
+def test_infinity_in_one_result_json_skips_that_run_only(lab_runs, tmp_path):
+    runs = tmp_path / "runs"
+    shutil.copytree(lab_runs, runs)
+    path = runs / "exercise1" / "ode23" / "result.json"
+    path.write_text(re.sub(r'"points": \d+', '"points": Infinity', path.read_text()))
+    report = build(runs, tmp_path / "out", experiments=["exercise1"])
+    assert [w for w in report.result.warnings if "Infinity" in w] == [
+        f"skipped {runs / 'exercise1' / 'ode23'}: result.json holds Infinity, which odelab never writes "
+        "(it stores null)"]
+    assert "ode45" in report.md  # the other case of the experiment is still reported

@@ -1,17 +1,26 @@
 """The results store: ``runs/<experiment>/<case>/`` with result.json, resolved.toml, trajectory.csv.
 
-Every file is written atomically (a temporary file in the same folder, flushed, then renamed
-over the target), and a case's files are written under an exclusive lock on the case folder,
-so an interrupted or concurrent run never leaves a half-written or mixed case. ``result.json``
-is written last: a case folder without it is incomplete and readers skip it.
+A case changes all at once or not at all. Its files are written into a hidden temporary
+sibling folder (``runs/<experiment>/.<case>.XXXX.tmp``), flushed to disk, and the folder is
+then swapped in place of the old case folder with renames, under an exclusive lock on the
+experiment folder; readers take the same lock shared. So a failed write (disk full, I/O error,
+a permission change, Ctrl-C) leaves the previous case whole, a reader never pairs a
+trajectory from one run with a result.json from another, and a file that the new run does
+not write (an old ``result.mat``) cannot survive next to the new ones. The commit is one
+rename per case (two when a previous run is replaced), and no lock file is left behind: the
+lock is taken on the experiment folder itself.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import math
+import os
 import platform
+import shutil
+import tempfile
 from datetime import datetime, timezone
 from importlib import metadata
 from pathlib import Path
@@ -20,36 +29,35 @@ from typing import Any
 import numpy as np
 
 from odelab.analysis.errors import error_columns
-from odelab.fileio import atomic_write
+from odelab.fileio import atomic_write, umask
 from odelab.experiment.loader import slug
 from odelab.experiment.result import CaseResult
 
 __all__ = ["RESULT_FORMAT", "atomic_write", "case_dir", "summary", "write_case", "read_run", "list_runs"]
 
 RESULT_FORMAT = "odelab-result/1"
+_TMP_SUFFIX = ".tmp"
 
 
 @contextlib.contextmanager
 def _locked(folder: Path, *, shared: bool = False):
-    """An advisory lock on a case folder: exclusive to write its files, shared to read them."""
-    if not shared:
-        folder.mkdir(parents=True, exist_ok=True)
+    """An advisory lock on a folder itself (no lock file): exclusive to swap a case, shared to read one."""
     try:
-        fh = open(folder / ".lock", "a+b") if not shared or (folder / ".lock").exists() else None
-    except OSError:  # a read-only results folder can still be read
-        fh = None
+        fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+    except OSError:  # a folder that cannot be opened (or a platform without directory fds)
+        fd = None
     try:
-        if fh is not None:
+        if fd is not None:
             try:
                 import fcntl
 
-                fcntl.flock(fh.fileno(), fcntl.LOCK_SH if shared else fcntl.LOCK_EX)
-            except ImportError:  # pragma: no cover - non-POSIX: atomic renames still hold
+                fcntl.flock(fd, fcntl.LOCK_SH if shared else fcntl.LOCK_EX)
+            except (ImportError, OSError):  # pragma: no cover - non-POSIX: the renames still hold
                 pass
         yield
     finally:
-        if fh is not None:
-            fh.close()
+        if fd is not None:
+            os.close(fd)
 
 
 def case_dir(runs: Path, experiment: str, case: str) -> Path:
@@ -72,11 +80,18 @@ def _clean(value: Any) -> Any:
     return value
 
 
-def _version(dist: str) -> str | None:
-    try:
-        return metadata.version(dist)
-    except metadata.PackageNotFoundError:
-        return None
+@functools.cache
+def versions() -> dict[str, str | None]:
+    """The versions stored with every case, looked up once per process (metadata lookups are slow)."""
+
+    def version(dist: str) -> str | None:
+        try:
+            return metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            return None
+
+    return {"odelab": version("odelab"), "numpy": np.__version__, "scipy": version("scipy"),
+            "python": platform.python_version()}
 
 
 def summary(result: CaseResult) -> dict[str, Any]:
@@ -120,8 +135,12 @@ def _trajectory_csv(result: CaseResult) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_case(result: CaseResult, runs: Path, *, mat: bool = False) -> Path:
-    """Store one case's results atomically; returns its folder."""
+def write_case(result: CaseResult, runs: Path, *, mat: bool = False, durable: bool = True) -> Path:
+    """Store one case's results, all at once or not at all; returns its folder.
+
+    ``durable=False`` skips flushing the files to disk before the swap (the swap stays atomic
+    for readers, but a power cut may lose the case): for throw-away results folders.
+    """
     import tomli_w
 
     case = result.case
@@ -131,17 +150,75 @@ def write_case(result: CaseResult, runs: Path, *, mat: bool = False) -> Path:
         "source": str(case.source),
         "file_sha256": case.file_hash,
         "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-        "versions": {"odelab": _version("odelab"), "numpy": np.__version__, "scipy": _version("scipy"),
-                     "python": platform.python_version()},
+        "versions": dict(versions()),
         "config": case.config,
     })
-    with _locked(folder):
-        atomic_write(folder / "trajectory.csv", _trajectory_csv(result))
-        atomic_write(folder / "resolved.toml", _resolved_toml(result, tomli_w))
-        if mat:
-            atomic_write(folder / "result.mat", _mat_bytes(result))
-        atomic_write(folder / "result.json", json.dumps(record, indent=2, allow_nan=False) + "\n")
+    files = {"trajectory.csv": _trajectory_csv(result), "resolved.toml": _resolved_toml(result, tomli_w)}
+    if mat:
+        files["result.mat"] = _mat_bytes(result)
+    files["result.json"] = json.dumps(record, indent=2, allow_nan=False) + "\n"
+    commit_folder(folder, files, durable=durable)
     return folder
+
+
+def commit_folder(folder: Path, files: dict[str, str | bytes], *, durable: bool = True) -> None:
+    """Replace ``folder`` by a folder holding exactly ``files``, atomically for readers.
+
+    The files go into a hidden temporary sibling folder; once all are written (and, if
+    ``durable``, flushed to disk), the old folder is renamed away, the new one renamed into its
+    place and the old one removed, under the exclusive lock of the parent folder. Any failure
+    before the swap removes the temporary folder and leaves the old folder untouched.
+    """
+    folder = Path(folder)
+    parent = folder.parent
+    parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(dir=parent, prefix=f".{folder.name}.", suffix=_TMP_SUFFIX))
+    old: Path | None = None
+    try:
+        os.chmod(tmp, 0o777 & ~umask())
+        mode = 0o666 & ~umask()
+        for name, data in files.items():
+            fd = os.open(tmp / name, os.O_WRONLY | os.O_CREAT | os.O_EXCL, mode)
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(data.encode("utf-8") if isinstance(data, str) else data)
+                if durable:
+                    fh.flush()
+                    os.fsync(fh.fileno())
+        with _locked(parent):
+            if folder.exists():
+                old = Path(tempfile.mkdtemp(dir=parent, prefix=f".{folder.name}.old.", suffix=_TMP_SUFFIX))
+                os.replace(folder, old)  # an empty folder may be replaced by a rename
+            try:
+                os.rename(tmp, folder)
+            except BaseException:
+                if old is not None:  # put the previous case back
+                    os.rename(old, folder)
+                    old = None
+                raise
+            tmp = None
+            if durable:
+                _fsync_folder(parent)
+            if old is not None:
+                shutil.rmtree(old, ignore_errors=True)
+                old = None
+    finally:
+        for leftover in (tmp, old):
+            if leftover is not None:
+                shutil.rmtree(leftover, ignore_errors=True)
+
+
+def _fsync_folder(folder: Path) -> None:
+    """Make the renames in ``folder`` durable (POSIX; a no-op where folders cannot be opened)."""
+    try:
+        fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+    except OSError:  # pragma: no cover
+        return
+    try:
+        os.fsync(fd)
+    except OSError:  # pragma: no cover - some filesystems refuse fsync on folders
+        pass
+    finally:
+        os.close(fd)
 
 
 def _resolved_toml(result: CaseResult, tomli_w) -> str:
@@ -170,8 +247,9 @@ def _mat_bytes(result: CaseResult) -> bytes:
 
 def read_run(folder: Path) -> dict[str, Any]:
     """Read a stored case: result.json plus the trajectory columns (raises ValueError if broken)."""
-    with _locked(folder, shared=True):  # never read a case while another run rewrites it
-        record = json.loads((folder / "result.json").read_text(encoding="utf-8"))
+    folder = Path(folder)
+    with _locked(folder.parent, shared=True):  # never read a case while another run swaps it
+        record = json.loads((folder / "result.json").read_text(encoding="utf-8"), parse_constant=_no_constant)
         text = (folder / "trajectory.csv").read_text(encoding="utf-8").splitlines()
     if not isinstance(record, dict) or record.get("format") != RESULT_FORMAT:
         raise ValueError(f"{folder / 'result.json'} is not an odelab result (format {RESULT_FORMAT})")
@@ -188,9 +266,15 @@ def read_run(folder: Path) -> dict[str, Any]:
     return record
 
 
+def _no_constant(name: str):
+    """result.json is strict JSON: NaN and Infinity are stored as null, so one of them means a foreign file."""
+    raise ValueError(f"result.json holds {name}, which odelab never writes (it stores null)")
+
+
 def list_runs(runs: Path) -> list[Path]:
-    """Case folders under ``runs`` holding a result.json, in a stable order."""
+    """Case folders under ``runs`` holding a result.json, in a stable order (temporary folders skipped)."""
     runs = Path(runs)
     if not runs.is_dir():
         return []
-    return sorted(p.parent for p in runs.glob("*/*/result.json"))
+    return sorted(p.parent for p in runs.glob("*/*/result.json")
+                  if not p.parent.name.startswith(".") and not p.parent.parent.name.startswith("."))
