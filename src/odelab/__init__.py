@@ -16,6 +16,10 @@ _LAZY = {
     "ode23": "odelab.solvers.api",
     "ode45": "odelab.solvers.api",
     "solve": "odelab.solvers.api",
+    "deval": "odelab.solvers.dense",
+    "odextend": "odelab.solvers.dense",
+    "OdelabWarning": "odelab.exceptions",
+    "SolverWarning": "odelab.exceptions",
     "METHODS": "odelab.solvers.registry",
     "Solution": "odelab.solution",
     "Stats": "odelab.solution",
@@ -59,11 +63,13 @@ def __dir__():
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from odelab.analysis.linearize import linearize, operating_point
-    from odelab.exceptions import ExperimentError, ExpressionError, InputError, OdelabError
+    from odelab.exceptions import (ExperimentError, ExpressionError, InputError, OdelabError, OdelabWarning,
+                                   SolverWarning)
     from odelab.experiment.loader import load_experiment
     from odelab.experiment.runner import run_experiment
     from odelab.solution import Solution, Stats
     from odelab.solvers.api import ode23, ode45, solve
+    from odelab.solvers.dense import deval, odextend
     from odelab.solvers.registry import METHODS
     from odelab.systems.nonlinear import NonlinearSystem
     from odelab.systems.simulate import Response, simulate

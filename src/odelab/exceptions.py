@@ -16,6 +16,8 @@ __all__ = [
     "InputError",
     "ExpressionError",
     "ExperimentError",
+    "OdelabWarning",
+    "SolverWarning",
 ]
 
 
@@ -102,3 +104,15 @@ class ExpressionError(InputError):
             head = head.replace(self.message, f"`{self.key}`: {self.message}", 1)
         tail = self.caret()
         return f"{head}\n{tail}" if tail else head
+
+
+class OdelabWarning(UserWarning):
+    """Base class of the warnings odelab issues."""
+
+
+class SolverWarning(OdelabWarning):
+    """An integration failed (MATLAB prints "Warning: Failure at t=..."); the partial solution is returned.
+
+    Library users who check ``sol.status`` can silence it:
+    ``warnings.simplefilter("ignore", odelab.SolverWarning)``.
+    """

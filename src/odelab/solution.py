@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -51,6 +52,16 @@ class Solution:
         Why it stopped, where and what to do about it.
     method
         The method's registry name (``"ode45"``, ``"rk4"``, ``"Radau"``...).
+    warnings
+        Notes about the options (e.g. a RelTol raised to MATLAB's minimum).
+    te, ye, ie
+        Located events (MATLAB's ``[t, y, te, ye, ie] = ode45(...)``): times (k,), states
+        (k, n) and 0-based indices (k,) into the events function's values, in the order found.
+    interpolant
+        The solution's dense output (:class:`odelab.solvers.dense.DenseOutput`), used by
+        :meth:`deval`; None for methods without one.
+    setup
+        What :func:`odelab.odextend` needs to continue the solution (function and options).
     """
 
     t: np.ndarray
@@ -60,6 +71,24 @@ class Solution:
     message: str = "The solver reached the end of the time span."
     method: str = ""
     warnings: tuple[str, ...] = field(default_factory=tuple)
+    te: np.ndarray = field(default_factory=lambda: np.empty(0))
+    ye: np.ndarray = field(default_factory=lambda: np.empty((0, 0)))
+    ie: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=int))
+    interpolant: Any = field(default=None, repr=False)
+    setup: Any = field(default=None, repr=False)
+
+    def deval(self, t) -> np.ndarray:
+        """The solution at ``t`` (a time or a sequence) from the method's interpolant (MATLAB's ``deval``).
+
+        Returns shape (n,) for one time, (k, n) for k times. See :func:`odelab.deval`.
+        """
+        from odelab.solvers.dense import deval
+
+        return deval(self, t)
+
+    def __call__(self, t) -> np.ndarray:
+        """``sol(t)`` is ``sol.deval(t)``."""
+        return self.deval(t)
 
     @property
     def success(self) -> bool:

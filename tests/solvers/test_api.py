@@ -87,7 +87,8 @@ def test_methods_are_case_insensitive_and_listed():
 
 
 def test_finite_time_blow_up_fails_with_a_message():
-    sol = odelab.ode45(lambda t, y: y**2, [0, 2], 1.0)
+    with pytest.warns(odelab.SolverWarning, match="step size fell below"):
+        sol = odelab.ode45(lambda t, y: y**2, [0, 2], 1.0)
     assert sol.status == "failed" and not sol.success
     assert 0.9999 < sol.t[-1] < 1.0  # the exact solution 1/(1-t) blows up at t = 1
     assert "step size fell below 1.8e-15" in sol.message
@@ -95,14 +96,15 @@ def test_finite_time_blow_up_fails_with_a_message():
 
 
 def test_nan_derivative_stops_with_the_solution_so_far():
-    sol = odelab.ode45(lambda t, y: np.nan if t > 1 else -y, [0, 2], 1.0)
+    with pytest.warns(odelab.SolverWarning, match="NaN or infinite"):
+        sol = odelab.ode45(lambda t, y: np.nan if t > 1 else -y, [0, 2], 1.0)
     assert sol.status == "failed" and "NaN or infinite" in sol.message
     assert sol.t[-1] <= 1 and np.all(np.isfinite(sol.y))
     np.testing.assert_allclose(sol.y[-1, 0], np.exp(-sol.t[-1]), rtol=1e-3)
 
 
 def test_nan_at_the_start():
-    with np.errstate(invalid="ignore"):
+    with np.errstate(invalid="ignore"), pytest.warns(odelab.SolverWarning, match="could not start"):
         sol = odelab.ode23(lambda t, y: np.log(y), [0, 1], -1.0)
     assert sol.status == "failed" and "could not start" in sol.message and sol.t.size == 1
 
@@ -114,7 +116,8 @@ def test_a_raising_right_hand_side_is_reported():
         return -y
 
     for method, extra in (("ode45", {}), ("RK45", {}), ("rk4", {"h": 0.1})):
-        sol = odelab.solve(fun, [0, 1], 1.0, method=method, **extra)
+        with pytest.warns(odelab.SolverWarning, match="ZeroDivisionError"):
+            sol = odelab.solve(fun, [0, 1], 1.0, method=method, **extra)
         assert sol.status == "failed", method
         assert "raised ZeroDivisionError: division by zero" in sol.message
         assert sol.t[-1] <= 0.5
@@ -122,13 +125,14 @@ def test_a_raising_right_hand_side_is_reported():
 
 def test_max_steps_guard():
     vdp = lambda t, y: [y[1], 1000 * (1 - y[0] ** 2) * y[1] - y[0]]  # stiff
-    sol = odelab.ode45(vdp, [0, 3000], [2, 0], max_steps=500)
+    with pytest.warns(odelab.SolverWarning, match="max_steps = 500"):
+        sol = odelab.ode45(vdp, [0, 3000], [2, 0], max_steps=500)
     assert sol.status == "failed" and sol.stats.nsteps == 500
     assert "max_steps = 500" in sol.message and "Radau" in sol.message
 
 
 def test_fixed_step_overflow_is_reported():
-    with np.errstate(over="ignore"):
+    with np.errstate(over="ignore"), pytest.warns(odelab.SolverWarning, match="NaN or infinite"):
         sol = odelab.solve(lambda t, y: y**2, [0, 3], 1.0, method="euler", h=0.1)  # overflows at t = 2.2
     assert sol.status == "failed" and "NaN or infinite" in sol.message
 

@@ -16,7 +16,21 @@ __all__ = ["CaseResult", "run_case", "run_experiment"]
 
 
 def _integrate(problem, tspan, method, options):
-    """Solve (no inputs) or simulate (inputs, restarting at their discontinuities)."""
+    """Solve (no inputs) or simulate (inputs, restarting at their discontinuities).
+
+    A failed integration is reported in the case's result, so the solvers' SolverWarning is
+    not repeated here.
+    """
+    import warnings
+
+    from odelab.exceptions import SolverWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SolverWarning)
+        return _integrate_quietly(problem, tspan, method, options)
+
+
+def _integrate_quietly(problem, tspan, method, options):
     if problem.signals:
         from odelab.systems.simulate import simulate
 

@@ -6,7 +6,9 @@ import math
 
 import numpy as np
 
-from odelab.exceptions import InputError
+import warnings
+
+from odelab.exceptions import InputError, SolverWarning
 from odelab.solution import Solution, Stats
 from odelab.solvers import engine
 from odelab.solvers.options import SolverOptions, as_tspan, as_y0, normalize_options, resolve_options
@@ -44,13 +46,29 @@ def ode23(fun, tspan, y0, *, rtol=1e-3, atol=1e-6, max_step=None, initial_step=N
         Control the Euclidean norm of the error (MATLAB's ``NormControl``).
     **matlab_options
         MATLAB's option names (``RelTol``, ``AbsTol``, ``MaxStep``, ``InitialStep``,
-        ``Refine``, ``NormControl``) and ``max_steps`` (stop after that many steps).
+        ``Refine``, ``NormControl``, ``Events``, ``NonNegative``, ``Mass``, ``MStateDependence``,
+        ``OutputFcn``, ``OutputSel``), ``max_steps`` (stop after that many steps) and:
+
+        - ``events``: ``ev(t, y) -> (value, isterminal, direction)`` as MATLAB's events
+          function (or SciPy's list of functions with ``terminal``/``direction`` attributes).
+        - ``nonnegative``: 0-based indices of components kept >= 0. MATLAB's spelling
+          ``NonNegative`` takes MATLAB's 1-based indices, since that is what a MATLAB user types.
+        - ``mass``: ``M``, ``M(t)`` or ``M(t, y)`` for ``M y' = f``; ``mstate_dependence``
+          "none" (``M(t)``), "weak" or "strong" (``M(t, y)``).
+        - ``output_fcn``: ``f(t, y, flag)`` with flags "init", "" and "done"; returning True
+          stops. ``output_sel``: 0-based components passed to it (``OutputSel``: 1-based).
+        - ``args``: a tuple of extra arguments for ``fun`` (and events, mass).
+
+        ``y0`` may be complex (complex arithmetic, error norm on ``|y|``, as MATLAB).
 
     Returns
     -------
     Solution
-        ``t`` (N,), ``y`` (N, n), ``stats``, ``status`` and ``message``. A failed integration
-        returns the solution up to where it stopped with ``status == "failed"``.
+        ``t`` (N,), ``y`` (N, n), ``stats``, ``status`` and ``message``; ``te``, ``ye``, ``ie``
+        (events, 0-based indices); ``deval``/``sol(t)`` (the method's interpolant). A failed
+        integration returns the solution up to where it stopped with ``status == "failed"``
+        and issues an :class:`~odelab.exceptions.SolverWarning` with the message. A terminal
+        event or an output function's stop is not a failure.
 
     Raises
     ------
@@ -101,7 +119,9 @@ def _matlab_solver(name, fun, tspan, y0, rtol, atol, max_step, initial_step, ref
         if value is not None and not (np.isscalar(value) and np.isscalar(default) and value == default
                                       and type(value) is type(default)):
             options[key] = value
-    return solve(fun, tspan, y0, method=name, **options)
+    sol = _solve(fun, tspan, y0, name, options)
+    _warn_if_failed(sol, 4)
+    return sol
 
 
 def solve(fun, tspan, y0, method: str = "ode45", **options) -> Solution:
@@ -117,18 +137,44 @@ def solve(fun, tspan, y0, method: str = "ode45", **options) -> Solution:
         ``"DOP853"``, ``"Radau"``, ``"BDF"``, ``"LSODA"`` (SciPy). See ``odelab.METHODS``.
     **options
         ``rtol``, ``atol``, ``max_step``, ``initial_step``, ``refine``, ``norm_control``,
-        ``max_steps`` (adaptive methods), ``h`` (fixed-step methods); MATLAB's names too.
+        ``max_steps`` (adaptive methods), ``h`` (fixed-step methods), ``args`` (all methods);
+        ``events``, ``nonnegative``, ``mass``, ``mstate_dependence``, ``output_fcn``,
+        ``output_sel`` (ode23/ode45); MATLAB's names too. See :func:`ode45`.
 
     Returns
     -------
     Solution
+        A failed integration returns the partial solution and issues a
+        :class:`~odelab.exceptions.SolverWarning` with its message.
     """
+    sol = _solve(fun, tspan, y0, method, options)
+    _warn_if_failed(sol, 3)
+    return sol
+
+
+def _warn_if_failed(sol: Solution, stacklevel: int) -> None:
+    if sol.status == "failed":
+        warnings.warn(sol.message, SolverWarning, stacklevel=stacklevel)
+
+
+def _solve(fun, tspan, y0, method: str, options: dict) -> Solution:
     m = get_method(method)
     if not callable(fun):
         raise InputError(f"`fun` must be a callable fun(t, y); got {fun!r}.", key="fun")
     tspan_arr = as_tspan(tspan)
-    y0_arr = as_y0(y0)
-    opts = resolve_options(m, normalize_options(options, m), tspan_arr, y0_arr.size)
+    y0_arr = as_y0(y0, allow_complex=True)
+    if np.iscomplexobj(y0_arr) and m.kind != "adaptive":
+        raise InputError(f"a complex `y0` is integrated by ode23/ode45 (as MATLAB's); {m.name} takes real y0: "
+                         "split it into real and imaginary parts.", key="y0")
+    given = normalize_options(options, m)
+    opts = resolve_options(m, given, tspan_arr, y0_arr.size)
+    user_fun = fun
+    if opts.args:
+        args = opts.args
+
+        def fun(t, y, _f=user_fun):
+            return _f(t, y, *args)
+
     if m.kind == "scipy":
         from odelab.solvers.scipy_adapter import solve_scipy
 
@@ -140,28 +186,37 @@ def solve(fun, tspan, y0, method: str = "ode45", **options) -> Solution:
     except Exception as exc:
         return _failed_at_start(m, tspan_arr, y0_arr, opts, f"the right-hand side raised {_describe(exc)} "
                                 f"at t = {t0:g} (the first call)")
-    rhs, f0 = _checked_rhs(fun, f0_raw, y0_arr.size)
+    rhs, f0 = _checked_rhs(fun, f0_raw, y0_arr)
     if not np.all(np.isfinite(f0)):
         return _failed_at_start(m, tspan_arr, y0_arr, opts, f"the derivative at t = {t0:g} is not finite "
                                 f"({_fmt_vec(f0)}): check the right-hand side at the initial state")
     if m.kind == "adaptive":
-        return _solve_adaptive(rhs, tspan_arr, y0_arr, f0, m, opts)
+        return _solve_adaptive(rhs, tspan_arr, y0_arr, f0, m, opts, {"fun": user_fun, "options": given})
     return _solve_fixed(rhs, tspan_arr, y0_arr, m, opts)
 
 
-def _checked_rhs(fun, raw, n: int):
+def _checked_rhs(fun, raw, y0: np.ndarray):
     """Check the first derivative's shape; wrap ``fun`` only if its results need reshaping."""
-    if np.iscomplexobj(raw):
-        raise InputError(f"`fun` returned complex values {raw!r}; odelab integrates real ODEs.", key="fun")
+    n = y0.size
+    is_complex = np.iscomplexobj(y0)
+    if np.iscomplexobj(raw) and not is_complex:
+        raise InputError(f"`fun` returned complex values {raw!r} for a real y0: give a complex y0 to integrate "
+                         "a complex ODE (as in MATLAB).", key="fun")
+    dtype = complex if is_complex else float
     try:
-        f0 = np.asarray(raw, dtype=float)
+        f0 = np.asarray(raw, dtype=dtype)
     except (TypeError, ValueError):
         raise InputError(f"`fun` must return numbers (one per state); it returned {raw!r}.", key="fun") from None
     if f0.shape in ((n,),) or (n == 1 and f0.ndim == 0):
+        if is_complex and not np.iscomplexobj(raw):
+            def rhs(t, y):
+                return np.asarray(fun(t, y), dtype=complex).reshape(n)
+
+            return rhs, f0.reshape(n)
         return fun, f0.reshape(n)
     if f0.size == n and f0.ndim == 2 and 1 in f0.shape:  # a MATLAB-style column or row vector
         def rhs(t, y):
-            return np.asarray(fun(t, y), dtype=float).reshape(n)
+            return np.asarray(fun(t, y), dtype=dtype).reshape(n)
 
         return rhs, f0.reshape(n)
     raise InputError(
@@ -171,17 +226,96 @@ def _checked_rhs(fun, raw, n: int):
     )
 
 
-def _solve_adaptive(fun, tspan, y0, f0, m: Method, opts: SolverOptions) -> Solution:
+def _solve_adaptive(fun, tspan, y0, f0, m: Method, opts: SolverOptions, setup: dict) -> Solution:
     tab = m.tableau
+    t0 = float(tspan[0])
+    extra_fevals = 0
+    if opts.mass is not None:
+        # As MATLAB's ode45: fold M into the derivative, then evaluate f0 again (counted).
+        from odelab.solvers.mass import with_mass
+
+        fun, _ = with_mass(fun, opts.mass, opts.mstate_dependence, opts.args, t0, y0)
+        f0 = np.asarray(fun(t0, y0.copy()), dtype=y0.dtype)
+        extra_fevals += 1
+    nonnegative = opts.nonnegative
+    if nonnegative is not None:
+        if np.iscomplexobj(y0):
+            raise InputError("`nonnegative` applies to real states; y0 is complex.", key="nonnegative")
+        if np.any(y0[nonnegative] < 0):
+            bad = int(nonnegative[np.argmax(y0[nonnegative] < 0)])
+            raise InputError(f"`nonnegative` asks state {bad} to stay >= 0 but y0[{bad}] = {y0[bad]:g} "
+                             "(MATLAB: 'NonNegative' violated at t0).", key="nonnegative")
+        fun = _nonnegative_rhs(fun, nonnegative)
+        f0 = fun(t0, y0.copy())
+        extra_fevals += 1
+    events = v0 = None
+    if opts.events is not None:
+        from odelab.solvers.events import as_event_function
+
+        events, v0 = as_event_function(opts.events, opts.args, t0, y0)
+    output = None
+    if opts.output_fcn is not None:
+        output = _output_function(opts, tspan, y0)
     threshold = opts.atol / opts.rtol
-    (t, y, nsteps, nfailed, nfevals, status, t_stop, h_stop, exc) = engine.integrate_adaptive(
+    (t, y, nsteps, nfailed, nfevals, status, t_stop, h_stop, exc, found, steps) = engine.integrate_adaptive(
         fun, tspan, y0, f0, tab.A, tab.c, tab.error_weights, tab.dense, m.power, m.shrink_min,
         opts.rtol, threshold, opts.max_step, opts.initial_step, opts.refine, opts.norm_control, opts.max_steps,
+        events, v0, nonnegative, output,
     )
-    stats = Stats(nsteps=nsteps, nfailed=nfailed, nfevals=nfevals + 1)
-    message = _status_message(status, m, t_stop, h_stop, y, y0, opts, exc, tspan)
-    return Solution(t=t, y=y, stats=stats, status="success" if status == 0 else "failed", message=message,
-                    method=m.name, warnings=opts.warnings)
+    if opts.output_fcn is not None:
+        sel = slice(None) if opts.output_sel is None else opts.output_sel
+        opts.output_fcn(np.empty(0), np.empty((0, y0[sel].size), dtype=y0.dtype), "done")
+    stats = Stats(nsteps=nsteps, nfailed=nfailed, nfevals=nfevals + 1 + extra_fevals)
+    te, ye, ie = found
+    message = _status_message(status, m, t_stop, h_stop, y, y0, opts, exc, tspan, te, ie)
+    interpolant = None
+    if steps is not None:
+        from odelab.solvers.dense import DenseOutput
+
+        interpolant = DenseOutput(*steps, coefficients=tab.dense, y_final=y[-1].copy(), nonnegative=nonnegative)
+    return Solution(
+        t=t, y=y, stats=stats, status="failed" if status in _FAILURES else "success", message=message,
+        method=m.name, warnings=opts.warnings,
+        te=np.array(te, dtype=float), ye=np.array(ye, dtype=y0.dtype).reshape(len(ye), y0.size),
+        ie=np.array(ie, dtype=int), interpolant=interpolant, setup=setup,
+    )
+
+
+_FAILURES = (engine.STATUS_STEP_UNDERFLOW, engine.STATUS_NONFINITE, engine.STATUS_MAX_STEPS,
+             engine.STATUS_FUN_RAISED)
+
+
+def _nonnegative_rhs(fun, idx: np.ndarray):
+    """MATLAB's ``odenonnegative``: at or below zero, a non-negative component may not decrease."""
+    def rhs(t, y):
+        yp = np.array(fun(t, y), dtype=float)
+        at_zero = idx[y[idx] <= 0]
+        if at_zero.size:
+            yp[at_zero] = np.maximum(yp[at_zero], 0.0)
+        return yp
+
+    return rhs
+
+
+def _output_function(opts: SolverOptions, tspan: np.ndarray, y0: np.ndarray):
+    """MATLAB's OutputFcn protocol: ``'init'`` now, ``''`` after each step (True stops), ``'done'`` at the end."""
+    from odelab.solvers.events import CallbackError
+
+    user = opts.output_fcn
+    sel = slice(None) if opts.output_sel is None else opts.output_sel
+    try:
+        user(tspan[[0, -1]].copy(), y0[sel].copy(), "init")
+    except Exception as exc:
+        raise InputError(f"the output function raised {_describe(exc)} on its 'init' call.",
+                         key="output_fcn") from None
+
+    def out(t_new, y_new):
+        try:
+            return bool(user(t_new, y_new[:, sel], ""))
+        except Exception as exc:
+            raise CallbackError("output function", float(t_new[-1]), exc) from exc
+
+    return out
 
 
 def fixed_grid(tspan: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
@@ -231,10 +365,14 @@ def _fmt_vec(v: np.ndarray) -> str:
     return "[" + ", ".join(f"{x:g}" for x in v[:6]) + (", ..." if v.size > 6 else "") + "]"
 
 
-def _status_message(status, m: Method, t_stop, h_stop, y, y0, opts: SolverOptions, exc, tspan) -> str:
+def _status_message(status, m: Method, t_stop, h_stop, y, y0, opts: SolverOptions, exc, tspan, te=(), ie=()) -> str:
     tf = float(tspan[-1])
     if status == engine.STATUS_SUCCESS:
         return f"{m.name} reached t = {tf:g}."
+    if status == engine.STATUS_TERMINAL_EVENT:
+        return f"{m.name} stopped at t = {te[-1]:.10g}: terminal event {ie[-1]} occurred."
+    if status == engine.STATUS_OUTPUT_STOP:
+        return f"{m.name} stopped at t = {t_stop:.10g}: the output function asked to stop."
     where = f"at t = {t_stop:.10g}"
     if status == engine.STATUS_STEP_UNDERFLOW:
         hmin = engine._hmin(t_stop)
@@ -261,4 +399,8 @@ def _status_message(status, m: Method, t_stop, h_stop, y, y0, opts: SolverOption
             f"{m.name} stopped {where} of {tf:g} after max_steps = {opts.max_steps} steps: the problem "
             "may be stiff (try method 'Radau' or 'BDF') or need a larger max_steps."
         )
+    from odelab.solvers.events import CallbackError
+
+    if isinstance(exc, CallbackError):
+        return f"{m.name} failed at t = {exc.t:.10g}: the {exc.what} raised {_describe(exc.original)}."
     return f"{m.name} failed {where}: the right-hand side raised {_describe(exc)}."

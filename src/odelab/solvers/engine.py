@@ -28,6 +28,8 @@ __all__ = [
     "STATUS_NONFINITE",
     "STATUS_MAX_STEPS",
     "STATUS_FUN_RAISED",
+    "STATUS_TERMINAL_EVENT",
+    "STATUS_OUTPUT_STOP",
     "integrate_adaptive",
     "integrate_fixed",
 ]
@@ -37,6 +39,8 @@ STATUS_STEP_UNDERFLOW = 1  # the step size fell to hmin and the error test still
 STATUS_NONFINITE = 2  # a derivative (or the solution) became NaN or infinite
 STATUS_MAX_STEPS = 3  # the max_steps guard stopped the integration
 STATUS_FUN_RAISED = 4  # the right-hand side raised an exception
+STATUS_TERMINAL_EVENT = 5  # a terminal event stopped the integration (not a failure)
+STATUS_OUTPUT_STOP = 6  # the output function asked to stop (not a failure)
 
 
 def _hmin(t: float) -> float:
@@ -62,18 +66,23 @@ def integrate_adaptive(
     refine: int,
     norm_control: bool,
     max_steps: int,
+    events=None,
+    v0=None,
+    nonnegative=None,
+    output_fcn=None,
 ):
     """Integrate with an embedded FSAL Runge-Kutta pair and MATLAB's controller.
 
     Parameters
     ----------
     fun
-        ``fun(t, y)`` returning the derivative (anything assignable to a float row of length n).
+        ``fun(t, y)`` returning the derivative (anything assignable to a row of length n).
     tspan
         Output specification, MATLAB semantics: 2 entries ``[t0, tf]`` give ``refine`` points
         per step; more entries give output exactly at those times.
     y0, f0
-        Initial state and ``fun(t0, y0)`` (counted by the caller).
+        Initial state and ``fun(t0, y0)`` (counted by the caller). A complex ``y0`` integrates
+        in complex arithmetic, the error measured on ``|y|``, as MATLAB does.
     A, c, E, dense
         Tableau arrays (the last stage must be FSAL: ``A[-1]`` are the solution weights).
     power
@@ -92,13 +101,25 @@ def integrate_adaptive(
         Control the Euclidean norm of the error relative to the norm of the solution.
     max_steps
         Stop after this many successful steps (0: no limit).
+    events, v0
+        ``events(t, y) -> (value, isterminal, direction)`` arrays and its value at ``t0``, or
+        None: after each accepted step :func:`odelab.solvers.events.locate_events` finds the
+        zeros on the step's continuous extension (MATLAB's ``odezero``).
+    nonnegative
+        Integer indices of components kept non-negative (MATLAB's ``NonNegative``; ``fun``
+        must already zero their negative slopes at zero), or None.
+    output_fcn
+        ``output_fcn(t_new, y_new) -> bool`` called after each step with that step's new output
+        rows; True stops the integration (MATLAB's ``OutputFcn`` with flag ``''``), or None.
 
     Returns
     -------
     tuple
-        ``(t_out, y_out, nsteps, nfailed, nfevals, status, t_stop, h_stop, exception)`` where
-        ``t_stop`` is the time where integration stopped, ``h_stop`` the last step size tried,
-        and ``exception`` the exception ``fun`` raised (or None).
+        ``(t_out, y_out, nsteps, nfailed, nfevals, status, t_stop, h_stop, exception, found, steps)``
+        where ``t_stop`` is the time where integration stopped, ``h_stop`` the last step size
+        tried, ``exception`` the exception ``fun`` (or ``events``) raised (or None),
+        ``found = (te, ye, ie)`` lists of located events and ``steps = (t, h, y, K)`` arrays of
+        every accepted step for dense output.
     """
     s = c.size
     n = y0.size
@@ -108,16 +129,21 @@ def integrate_adaptive(
     tdir = 1.0 if tfinal > t0 else -1.0
     last = s - 1
     nodes = [float(ci) for ci in c]
+    is_complex = np.iscomplexobj(y0)
     # Preallocated work arrays and fixed views into them: per attempt the engine fills
     # hA = h*A in place, and stage i reads row i of hA against the first i stages.
-    K = np.empty((s, n))
+    K = np.empty((s, n), dtype=y0.dtype)
     K[0] = f0
     hA = np.empty_like(A)
     hA_rows = [hA[i, :i] for i in range(s)]
     K_heads = [K[:i] for i in range(s)]
     scale = np.empty(n)
     absy = np.abs(y0)
+    have_nonneg = nonnegative is not None
+    if have_nonneg:
+        threshold_nn = threshold if norm_control else threshold[nonnegative]
 
+    ulp = math.ulp
     t = t0
     y = y0
     normy = float(np.linalg.norm(y0)) if norm_control else 0.0
@@ -146,6 +172,21 @@ def integrate_adaptive(
         weights_T = (dense @ np.cumprod(np.broadcast_to(fractions, (dense.shape[1], refine - 1)), axis=0)).T
     nxt = 1  # next tspan entry to output (vector tspan)
 
+    # Dense output: every accepted step's start, size, state and stages, in buffers that
+    # double when full (one slice assignment per step, no stacking at the end).
+    step_t: list[float] = []
+    step_h: list[float] = []
+    capacity = 64
+    step_y = np.empty((capacity, n), dtype=y0.dtype)
+    step_K = np.empty((capacity, s, n), dtype=y0.dtype)
+    te: list[float] = []
+    ye: list[np.ndarray] = []
+    ie: list[int] = []
+    v_left = v0
+    if events is not None:
+        from odelab.solvers.dense import step_slopes, step_value
+        from odelab.solvers.events import locate_events
+
     nsteps = 0
     nfailed = 0
     nfevals = 0
@@ -154,7 +195,7 @@ def integrate_adaptive(
     h = tdir * absh
     try:
         while True:
-            hmin = _hmin(t)
+            hmin = 16.0 * ulp(t)  # _hmin(t), inlined: this runs every step
             absh = min(hmax, max(hmin, absh))
             h = tdir * absh
             done = False
@@ -178,16 +219,31 @@ def integrate_adaptive(
                 nfevals += last
 
                 fE = E.dot(K)
+                nn_reject = False
                 if norm_control:
                     normynew = float(np.linalg.norm(ynew))
                     err = absh * (float(np.linalg.norm(fE)) / max(normy, normynew, float(threshold)))
+                    if have_nonneg and err <= rtol and (ynew[nonnegative] < 0).any():
+                        err_nn = float(np.linalg.norm(np.maximum(0.0, -ynew[nonnegative]))) / max(
+                            normy, normynew, float(threshold))
+                        if err_nn > rtol:
+                            err, nn_reject = err_nn, True
                 else:
                     absynew = np.abs(ynew)
                     np.maximum(absy, absynew, out=scale)
                     np.maximum(scale, threshold, out=scale)
-                    np.abs(fE, out=fE)
+                    if is_complex:
+                        fE = np.abs(fE)
+                    else:
+                        np.abs(fE, out=fE)
                     fE /= scale
                     err = absh * float(fE.max())
+                    if have_nonneg and err <= rtol and (ynew[nonnegative] < 0).any():
+                        # Shampine, Thompson, Kierzenka & Byrne (2005): a negative value of a
+                        # non-negative component counts as error.
+                        err_nn = float((np.maximum(0.0, -ynew[nonnegative]) / threshold_nn).max())
+                        if err_nn > rtol:
+                            err, nn_reject = err_nn, True
 
                 if err > rtol:  # failed attempt
                     nfailed += 1
@@ -196,7 +252,10 @@ def integrate_adaptive(
                         break
                     if nofailed:
                         nofailed = False
-                        absh = max(hmin, absh * max(shrink_min, 0.8 * (rtol / err) ** power))
+                        if nn_reject:
+                            absh = max(hmin, 0.5 * absh)
+                        else:
+                            absh = max(hmin, absh * max(shrink_min, 0.8 * (rtol / err) ** power))
                     else:
                         absh = max(hmin, 0.5 * absh)
                     h = tdir * absh
@@ -209,27 +268,87 @@ def integrate_adaptive(
             if status != STATUS_SUCCESS:
                 break
             nsteps += 1
+            nn_reset = False
+            if have_nonneg and (ynew[nonnegative] < 0).any():
+                # Accepted: clip to the constraint; the interpolant keeps the unclipped stages.
+                ynew[nonnegative] = np.maximum(ynew[nonnegative], 0.0)
+                if norm_control:
+                    normynew = float(np.linalg.norm(ynew))
+                else:
+                    absynew = np.abs(ynew)
+                nn_reset = True
 
+            stop = False
+            if events is not None:
+                step_t0, step_y0, step_h0 = t, y, h
+
+                def interpolate(tq):
+                    return step_value(tq, step_t0, step_y0, step_h0, K, dense, nonnegative)
+
+                found_t, found_y, found_i, v_left, stop = locate_events(
+                    interpolate, events, v_left, t, y, tnew, ynew, t0)
+                if found_t:
+                    te.extend(found_t)
+                    ye.extend(found_y)
+                    ie.extend(found_i)
+                    if stop:
+                        # A terminal event cuts the step at te: the stages of [t, te] become the
+                        # extension's slopes at its nodes, as MATLAB does, so output on the
+                        # shortened step follows the same curve.
+                        t_event = found_t[-1]
+                        K[1:] = step_slopes(t + (t_event - t) * c[1:], t, y, h, K, dense, nonnegative)
+                        tnew = t_event
+                        ynew = found_y[-1]
+                        h = tnew - t
+                        done = True
+                        status = STATUS_TERMINAL_EVENT
+
+            if nsteps > capacity:
+                capacity *= 2
+                step_y = np.concatenate([step_y, np.empty_like(step_y)])
+                step_K = np.concatenate([step_K, np.empty_like(step_K)])
+            step_t.append(t)
+            step_h.append(h)
+            step_y[nsteps - 1] = y
+            step_K[nsteps - 1] = K
+            if output_fcn is not None:
+                n_before = len(t_out)
+                k_before = len(y_out)
             if refine_output:
                 if refine > 1:
                     t_out.extend((t + h * fractions).tolist())
-                    y_out.append(h * weights_T.dot(K) + y)
+                    block = h * weights_T.dot(K) + y
+                    if have_nonneg:
+                        block[:, nonnegative] = np.maximum(block[:, nonnegative], 0.0)
+                    y_out.append(block)
                 t_out.append(tnew)
                 y_out.append(ynew)
             else:
                 while nxt < ntspan:
                     tn = float(tspan[nxt])
                     if tdir * (tnew - tn) < 0:
+                        if stop:  # MATLAB outputs the terminal event's point too
+                            t_out.append(tnew)
+                            y_out.append(ynew)
                         break
                     t_out.append(tn)
                     if tn == tnew:
                         y_out.append(ynew)
                     else:
                         powers = np.cumprod(np.full(dense.shape[1], (tn - t) / h))
-                        y_out.append(y + (K.T @ (h * dense)) @ powers)
+                        yi = y + (K.T @ (h * dense)) @ powers
+                        if have_nonneg:
+                            yi[nonnegative] = np.maximum(yi[nonnegative], 0.0)
+                        y_out.append(yi)
                     nxt += 1
+            if output_fcn is not None and len(t_out) > n_before:
+                if output_fcn(np.array(t_out[n_before:]), np.vstack(y_out[k_before:])):
+                    status = STATUS_OUTPUT_STOP
+                    t = tnew
+                    break
 
             if done:
+                t = tnew
                 break
             if max_steps and nsteps >= max_steps:
                 status = STATUS_MAX_STEPS
@@ -250,13 +369,20 @@ def integrate_adaptive(
                 normy = normynew
             else:
                 absy = absynew
+            if nn_reset:
+                # The stages interpolated the unclipped solution; move on along the clipped one.
+                K[last] = fun(tnew, ynew)
+                nfevals += 1
             K[0] = K[last]
-    except Exception as exc:  # the user's right-hand side failed: keep what was computed
+    except Exception as exc:  # the user's right-hand side (or events function) failed
         status = STATUS_FUN_RAISED
         exception = exc
 
     y_arr = np.vstack(y_out) if len(y_out) > 1 else y0.reshape(1, n).copy()
-    return (np.array(t_out), y_arr, nsteps, nfailed, nfevals, status, t, abs(h), exception)
+    done_steps = len(step_t)
+    steps = (np.array(step_t), np.array(step_h), step_y[:done_steps], step_K[:done_steps]) if done_steps else None
+    return (np.array(t_out), y_arr, nsteps, nfailed, nfevals, status, t, abs(h), exception, (te, ye, ie), steps)
+
 
 
 def integrate_fixed(fun, grid: np.ndarray, keep: np.ndarray, y0: np.ndarray, A: np.ndarray, b: np.ndarray, c: np.ndarray):

@@ -36,8 +36,18 @@ _ALIASES = {
     "h": "h",
     "step": "h",
     "maxsteps": "max_steps",
+    "events": "events",
+    "nonnegative": "nonnegative",
+    "mass": "mass",
+    "mstatedependence": "mstate_dependence",
+    "outputfcn": "output_fcn",
+    "outputsel": "output_sel",
+    "args": "args",
 }
-OPTION_NAMES = ("rtol", "atol", "max_step", "initial_step", "refine", "norm_control", "h", "max_steps")
+OPTION_NAMES = ("rtol", "atol", "max_step", "initial_step", "refine", "norm_control", "h", "max_steps",
+                "events", "nonnegative", "mass", "mstate_dependence", "output_fcn", "output_sel", "args")
+# MATLAB's spellings of index options count from 1 (what a MATLAB user types); odelab's from 0.
+_ONE_BASED = {"NonNegative": "nonnegative", "OutputSel": "output_sel"}
 
 
 def _fmt(value) -> str:
@@ -57,7 +67,8 @@ def normalize_options(options: Mapping[str, object], method: Method) -> dict[str
             hint = f" Did you mean `{close[0]}`?" if close else ""
             raise InputError(
                 f"unknown solver option `{name}`.{hint} Options: {', '.join(OPTION_NAMES)} "
-                "(MATLAB's RelTol, AbsTol, MaxStep, InitialStep, Refine, NormControl also work).",
+                "(MATLAB's RelTol, AbsTol, MaxStep, InitialStep, Refine, NormControl, Events, NonNegative, "
+                "Mass, MStateDependence, OutputFcn, OutputSel also work).",
                 key=name,
             )
         if value is None:
@@ -69,8 +80,46 @@ def normalize_options(options: Mapping[str, object], method: Method) -> dict[str
         if canonical not in method.options:
             raise InputError(_not_for_method(canonical, name, method), key=name)
         given[canonical] = name
+        if name in _ONE_BASED:
+            value = _from_one_based(name, value)
         out[canonical] = value
     return out
+
+
+def _index_list(name: str, value) -> list[int]:
+    items = [value] if isinstance(value, (int, np.integer)) and not isinstance(value, bool) else value
+    try:
+        out = list(items)
+    except TypeError:
+        out = None
+    if out is None or not all(isinstance(i, (int, np.integer)) and not isinstance(i, bool) for i in out):
+        raise InputError(f"`{name}` must be a list of state indices (whole numbers); got {_fmt(value)}.", key=name)
+    return [int(i) for i in out]
+
+
+def _from_one_based(name: str, value) -> list[int]:
+    indices = _index_list(name, value)
+    if any(i < 1 for i in indices):
+        raise InputError(
+            f"`{name}` holds MATLAB's 1-based state indices; got {_fmt(value)}. Use "
+            f"`{_ONE_BASED[name]}` for 0-based (Python) indices.",
+            key=name,
+        )
+    return [i - 1 for i in indices]
+
+
+def _state_indices(name: str, value, n: int) -> np.ndarray:
+    indices = _index_list(name, value)
+    for i in indices:
+        if not 0 <= i < n:
+            raise InputError(
+                f"`{name}` index {i} is out of range: the state has {n} component{'s' if n != 1 else ''} "
+                f"(indices 0..{n - 1}; MATLAB's NonNegative/OutputSel spellings count from 1).",
+                key=name,
+            )
+    if len(set(indices)) != len(indices):
+        raise InputError(f"`{name}` lists an index twice: {_fmt(value)}.", key=name)
+    return np.array(sorted(indices) if name == "nonnegative" else indices, dtype=np.intp)
 
 
 def _not_for_method(canonical: str, name: str, method: Method) -> str:
@@ -117,12 +166,12 @@ def as_tspan(tspan) -> np.ndarray:
     return arr
 
 
-def as_y0(y0) -> np.ndarray:
-    """Check the initial state: a scalar or 1-D sequence of finite real numbers."""
-    if np.iscomplexobj(y0):
+def as_y0(y0, *, allow_complex: bool = False) -> np.ndarray:
+    """Check the initial state: a scalar or 1-D sequence of finite numbers (complex if allowed)."""
+    if np.iscomplexobj(y0) and not allow_complex:
         raise InputError(f"`y0` must be real; got {y0!r}.", key="y0")
     try:
-        arr = np.array(y0, dtype=float)
+        arr = np.array(y0, dtype=complex if np.iscomplexobj(y0) else float)
     except (TypeError, ValueError):
         raise InputError(f"`y0` must be a number or a sequence of numbers; got {y0!r}.", key="y0") from None
     if arr.ndim == 0:
@@ -134,7 +183,7 @@ def as_y0(y0) -> np.ndarray:
     bad = ~np.isfinite(arr)
     if bad.any():
         i = int(np.argmax(bad))
-        raise InputError(f"`y0` must be finite; entry {i} is {float(arr[i])!r}.", key="y0")
+        raise InputError(f"`y0` must be finite; entry {i} is {arr[i].item()!r}.", key="y0")
     return arr
 
 
@@ -160,6 +209,20 @@ class SolverOptions:
     h: float = math.nan
     max_steps: int = 0
     warnings: tuple[str, ...] = ()
+    events: object = None
+    nonnegative: np.ndarray | None = None
+    mass: object = None
+    mstate_dependence: str | None = None
+    output_fcn: object = None
+    output_sel: np.ndarray | None = None
+    args: tuple = ()
+
+
+def _as_args(value) -> tuple:
+    if not isinstance(value, (tuple, list)):
+        raise InputError(f"`args` must be a tuple of extra arguments for fun(t, y, *args), e.g. args=(k,); "
+                         f"got {value!r}.", key="args")
+    return tuple(value)
 
 
 def _as_bool(name, value) -> bool:
@@ -181,7 +244,7 @@ def resolve_options(method: Method, opts: Mapping[str, object], tspan: np.ndarra
                 "for 100 steps).",
                 key="h",
             )
-        return SolverOptions(h=_positive("h", opts["h"]))
+        return SolverOptions(h=_positive("h", opts["h"]), args=_as_args(opts.get("args", ())))
 
     rtol = _positive("rtol", opts.get("rtol", 1e-3))
     if rtol < 100 * EPS:
@@ -222,7 +285,27 @@ def resolve_options(method: Method, opts: Mapping[str, object], tspan: np.ndarra
     max_steps = opts.get("max_steps", 0)
     if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 0:
         raise InputError(f"`max_steps` must be a whole number >= 1 (or 0 for no limit); got {max_steps!r}.", key="max_steps")
+    nonnegative = _state_indices("nonnegative", opts["nonnegative"], n) if "nonnegative" in opts else None
+    if nonnegative is not None and nonnegative.size == 0:
+        nonnegative = None
+    output_sel = _state_indices("output_sel", opts["output_sel"], n) if "output_sel" in opts else None
+    output_fcn = opts.get("output_fcn")
+    if output_fcn is not None and not callable(output_fcn):
+        raise InputError(f"`output_fcn` must be a function output_fcn(t, y, flag); got {output_fcn!r}.",
+                         key="output_fcn")
+    dependence = opts.get("mstate_dependence")
+    if dependence is not None and (not isinstance(dependence, str)
+                                   or dependence.lower() not in ("none", "weak", "strong")):
+        raise InputError(f"`mstate_dependence` must be 'none', 'weak' or 'strong' (MATLAB's MStateDependence); "
+                         f"got {dependence!r}.", key="mstate_dependence")
     return SolverOptions(
+        events=opts.get("events"),
+        nonnegative=nonnegative,
+        mass=opts.get("mass"),
+        mstate_dependence=dependence.lower() if dependence is not None else None,
+        output_fcn=output_fcn,
+        output_sel=output_sel,
+        args=_as_args(opts.get("args", ())),
         rtol=rtol,
         atol=atol_value,
         max_step=max_step,

@@ -50,10 +50,11 @@ class Method:
     def options(self) -> tuple[str, ...]:
         """Option names the method accepts."""
         if self.kind == "adaptive":
-            return ("rtol", "atol", "max_step", "initial_step", "refine", "norm_control", "max_steps")
+            return ("rtol", "atol", "max_step", "initial_step", "refine", "norm_control", "max_steps",
+                    "events", "nonnegative", "mass", "mstate_dependence", "output_fcn", "output_sel", "args")
         if self.kind == "fixed":
-            return ("h",)
-        return ("rtol", "atol", "max_step", "initial_step", "max_steps")
+            return ("h", "args")
+        return ("rtol", "atol", "max_step", "initial_step", "max_steps", "args")
 
 
 def _adaptive(name, tableau, shrink_min, refine, description):

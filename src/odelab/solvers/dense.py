@@ -1,0 +1,219 @@
+"""Dense output: each step's continuous extension, ``deval`` and ``odextend``.
+
+An embedded Runge-Kutta step from ``(t, y)`` with step ``h`` and stage derivatives ``K`` (s, n)
+has a continuous extension (MATLAB's ``ntrp23``/``ntrp45``; Shampine & Reichelt, *The MATLAB
+ODE Suite*, SIAM J. Sci. Comput. 18(1), 1997, Sec. 4)
+
+    y(t + s h) = y + h * sum_j K_j * sum_m D[j, m] * s**(m+1),      0 <= s <= 1,
+
+with ``D`` the tableau's ``dense`` array. The same formula serves the solver's ``Refine``
+output, MATLAB's vector-``tspan`` output, event location (:mod:`odelab.solvers.events`) and
+``deval``; a new method plugs in by giving its tableau a ``dense`` array.
+
+With ``NonNegative`` components the interpolated values of those components are clipped at
+zero (and their slopes zeroed where clipped), as MATLAB's ``ntrp45`` does.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from odelab.exceptions import InputError
+
+__all__ = ["step_value", "step_slopes", "DenseOutput", "deval", "odextend"]
+
+
+def _clip(values: np.ndarray, nonnegative) -> np.ndarray:
+    if nonnegative is not None:
+        part = values[..., nonnegative]
+        values[..., nonnegative] = np.where(part < 0, 0.0, part)
+    return values
+
+
+def step_value(tq: float, t: float, y: np.ndarray, h: float, K: np.ndarray, dense: np.ndarray,
+               nonnegative=None) -> np.ndarray:
+    """The step's continuous extension at one time ``tq`` (MATLAB's ``ntrp45(tq, t, y, ..., h, f)``)."""
+    powers = np.cumprod(np.full(dense.shape[1], (tq - t) / h))
+    value = y + (K.T @ (h * dense)) @ powers
+    return _clip(value, nonnegative) if nonnegative is not None else value
+
+
+def step_slopes(tq: np.ndarray, t: float, y: np.ndarray, h: float, K: np.ndarray, dense: np.ndarray,
+                nonnegative=None) -> np.ndarray:
+    """Derivatives of the continuous extension at the times ``tq`` (k,), shape (k, n).
+
+    MATLAB uses these when a terminal event shortens the last step to ``[t, te]``: the stage
+    derivatives of the shortened step are replaced by the extension's slopes at its nodes, so
+    that output on the shortened step interpolates the same curve.
+    """
+    s = (np.asarray(tq, dtype=float) - t) / h
+    q = dense.shape[1]
+    # d/ds of s^(m+1) is (m+1) s^m; divided by h for d/dt, times the h in front: cancels.
+    dpow = (np.arange(1, q + 1)[:, None] * s[None, :] ** np.arange(q)[:, None])  # (q, k)
+    slopes = (K.T @ dense @ dpow).T
+    if nonnegative is not None:
+        powers = np.cumprod(np.broadcast_to(s, (q, s.size)), axis=0)
+        values = y[None, :] + (K.T @ (h * dense) @ powers).T
+        part = slopes[:, nonnegative]
+        slopes[:, nonnegative] = np.where(values[:, nonnegative] < 0, 0.0, part)
+    return slopes
+
+
+@dataclass(frozen=True, eq=False)
+class DenseOutput:
+    """The piecewise continuous extension of a whole solution (MATLAB's ``sol.idata``).
+
+    Attributes
+    ----------
+    t, h
+        Start and size of each accepted step, shape (N,).
+    y
+        State at the start of each step, shape (N, n).
+    K
+        Stage derivatives of each step, shape (N, s, n).
+    coefficients
+        The method's continuous-extension array ``D`` (s, q).
+    y_final
+        The state at the end of the last step (returned exactly at that time).
+    nonnegative
+        Indices of components clipped at zero, or None.
+    """
+
+    t: np.ndarray
+    h: np.ndarray
+    y: np.ndarray
+    K: np.ndarray
+    coefficients: np.ndarray
+    y_final: np.ndarray
+    nonnegative: np.ndarray | None = None
+
+    @property
+    def t_start(self) -> float:
+        return float(self.t[0])
+
+    @property
+    def t_end(self) -> float:
+        return float(self.t[-1] + self.h[-1])
+
+    def __call__(self, tq) -> np.ndarray:
+        """States at the times ``tq``: shape (n,) for a scalar, (k, n) for a sequence."""
+        tq_arr = np.asarray(tq)
+        scalar = tq_arr.ndim == 0
+        if np.iscomplexobj(tq_arr) or not np.issubdtype(tq_arr.dtype, np.number) or tq_arr.dtype == bool:
+            raise InputError(f"`t` must be a time or a sequence of times; got {tq!r}.", key="t")
+        times = np.atleast_1d(tq_arr).astype(float).ravel()
+        lo, hi = sorted((self.t_start, self.t_end))
+        outside = (times < lo) | (times > hi) | ~np.isfinite(times)
+        if outside.any():
+            bad = float(times[int(np.argmax(outside))])
+            raise InputError(
+                f"cannot evaluate the solution at t = {bad:g}: it covers [{lo:g}, {hi:g}] only "
+                "(MATLAB's deval refuses to extrapolate too). Use odextend to continue the solution.",
+                key="t",
+            )
+        tdir = 1.0 if self.h[0] > 0 else -1.0
+        # Step i covers [t_i, t_i + h_i); a time on a step boundary takes the later step at s = 0,
+        # which is that step's stored start state exactly.
+        idx = np.searchsorted(tdir * self.t, tdir * times, side="right") - 1
+        idx = np.clip(idx, 0, self.t.size - 1)
+        h = self.h[idx]
+        s = (times - self.t[idx]) / h
+        q = self.coefficients.shape[1]
+        powers = np.cumprod(np.broadcast_to(s, (q, s.size)), axis=0).T  # (k, q)
+        coef = np.einsum("jm,kjn->kmn", self.coefficients, self.K[idx]) * h[:, None, None]
+        values = self.y[idx] + np.einsum("km,kmn->kn", powers, coef)
+        values[times == self.t_end] = self.y_final
+        if self.nonnegative is not None:
+            _clip(values, self.nonnegative)
+        return values[0] if scalar else values
+
+    def extended(self, other: "DenseOutput") -> "DenseOutput":
+        """This extension followed by ``other`` (which must start where this one ends)."""
+        return DenseOutput(
+            t=np.concatenate([self.t, other.t]),
+            h=np.concatenate([self.h, other.h]),
+            y=np.concatenate([self.y, other.y]),
+            K=np.concatenate([self.K, other.K]),
+            coefficients=self.coefficients,
+            y_final=other.y_final,
+            nonnegative=self.nonnegative,
+        )
+
+
+def deval(sol, t) -> np.ndarray:
+    """Evaluate a solution anywhere in its span with the method's own interpolant (MATLAB's ``deval``).
+
+    Parameters
+    ----------
+    sol : Solution
+        A solution of ``ode23`` or ``ode45`` (or anything :func:`odelab.solve` ran with them).
+    t : float or sequence of float
+        Times inside ``[sol.t[0], sol.t[-1]]``.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (n,) for a scalar ``t``, (k, n) for k times (rows are states, as in ``sol.y``;
+        MATLAB's ``deval`` returns the transpose).
+
+    Examples
+    --------
+    >>> import numpy as np, odelab
+    >>> sol = odelab.ode45(lambda t, y: -y, [0, 1], 1.0)
+    >>> bool(abs(odelab.deval(sol, 0.5)[0] - np.exp(-0.5)) < 1e-4)
+    True
+    """
+    interpolant = getattr(sol, "interpolant", None)
+    if interpolant is None:
+        method = getattr(sol, "method", "") or "this method"
+        raise InputError(
+            f"this solution has no dense output: {method} does not provide one. Solve with ode23 or "
+            "ode45 (their ntrp23/ntrp45 interpolants), or with a vector tspan of the times you need.",
+            key="sol",
+        )
+    return interpolant(t)
+
+
+def odextend(sol, fun, tfinal: float, y0=None, **options):
+    """Continue a solution to ``tfinal`` (MATLAB's ``solext = odextend(sol, odefun, tfinal)``).
+
+    The integration restarts at ``sol.t[-1]`` from ``sol.y[-1]`` (or ``y0``) with the same method
+    and options (override any with ``**options``; ``fun=None`` keeps the original function) and
+    the result is joined to ``sol``: times, states, events, statistics and dense output.
+    """
+    from odelab.solution import Solution, Stats
+    from odelab.solvers.api import solve
+
+    setup = getattr(sol, "setup", None)
+    if setup is None:
+        raise InputError(
+            "odextend needs a solution returned by ode23, ode45 or odelab.solve with one of them.", key="sol"
+        )
+    if fun is None:
+        fun = setup["fun"]
+    merged = {**setup["options"], **options}
+    start = sol.y[-1] if y0 is None else y0
+    more = solve(fun, [float(sol.t[-1]), float(tfinal)], start, method=sol.method, **merged)
+    interpolant = None
+    if sol.interpolant is not None and more.interpolant is not None:
+        interpolant = sol.interpolant.extended(more.interpolant)
+    n = sol.y.shape[1]
+    ye = np.concatenate([sol.ye.reshape(-1, n), more.ye.reshape(-1, n)])
+    return Solution(
+        t=np.concatenate([sol.t, more.t[1:]]),
+        y=np.concatenate([sol.y, more.y[1:]]),
+        stats=Stats(nsteps=sol.stats.nsteps + more.stats.nsteps,
+                    nfailed=sol.stats.nfailed + more.stats.nfailed,
+                    nfevals=sol.stats.nfevals + more.stats.nfevals),
+        status=more.status,
+        message=more.message,
+        method=sol.method,
+        warnings=sol.warnings + more.warnings,
+        te=np.concatenate([sol.te, more.te]),
+        ye=ye,
+        ie=np.concatenate([sol.ie, more.ie]),
+        interpolant=interpolant,
+        setup={"fun": fun, "options": merged},
+    )

@@ -1,0 +1,148 @@
+"""Event location (MATLAB's odezero): exact event times, directions, several events per step, terminal events."""
+
+import math
+
+import numpy as np
+import pytest
+
+import odelab
+
+G = 9.81
+
+
+def free_fall(t, y):
+    return [y[1], -G]
+
+
+def floor(t, y):
+    return [y[0]], [1], [-1]
+
+
+def oscillator(t, y):  # x = sin t with y0 = [0, 1]
+    return [y[1], -y[0]]
+
+
+@pytest.mark.parametrize("method", ["ode23", "ode45"])
+def test_free_fall_hits_the_floor_at_the_exact_time(method):
+    # h = 10 - g t^2/2 is a quadratic: both methods and their interpolants are exact on it, so
+    # the located time is exact up to the location tolerance 128 eps(t).
+    sol = odelab.solve(free_fall, [0, 5], [10, 0], method=method, Events=floor)
+    exact = math.sqrt(20 / G)
+    assert sol.te.shape == (1,) and sol.ye.shape == (1, 2) and sol.ie.tolist() == [0]
+    assert abs(sol.te[0] - exact) <= 128 * math.ulp(exact)
+    assert abs(sol.ye[0, 0]) <= 1e-13 and abs(sol.ye[0, 1] + G * exact) <= 1e-12
+    # A terminal event ends the solution at te, that point included (as MATLAB's output).
+    assert sol.t[-1] == sol.te[0] and np.array_equal(sol.y[-1], sol.ye[0])
+    assert sol.status == "success" and sol.message == f"{method} stopped at t = {sol.te[0]:.10g}: terminal event 0 occurred."
+
+
+def test_harmonic_oscillator_zero_crossings_at_k_pi():
+    sol = odelab.ode45(oscillator, [0, 20], [0, 1], events=lambda t, y: ([y[0]], [0], [0]), rtol=1e-8, atol=1e-10)
+    # The initial zero is registered just after t0 (MATLAB: an event at the initial point is
+    # never terminal), then every crossing k*pi up to 20.
+    assert sol.te.size == 7 and sol.ie.tolist() == [0] * 7
+    assert 0 < sol.te[0] <= 128 * math.ulp(sol.t[4])  # the location tolerance of the first step
+    errors = np.abs(sol.te[1:] - np.pi * np.arange(1, 7))
+    assert errors.max() < 0.2 * 1e-8  # global error of the solution, well inside rtol
+    # Events never change the steps: the same run without events takes exactly the same mesh.
+    plain = odelab.ode45(oscillator, [0, 20], [0, 1], rtol=1e-8, atol=1e-10)
+    np.testing.assert_array_equal(sol.t, plain.t)
+    assert sol.stats == plain.stats
+
+
+@pytest.mark.parametrize("direction, expected", [(1, [2 * np.pi, 4 * np.pi]), (-1, [np.pi, 3 * np.pi, 5 * np.pi])])
+def test_direction_filter(direction, expected):
+    sol = odelab.ode45(oscillator, [0, 17], [0, 1], events=lambda t, y: ([y[0]], [0], [direction]),
+                       rtol=1e-8, atol=1e-10)
+    # the zero at t0 goes up, so the rising filter registers it just after t0
+    got = sol.te[1:] if direction == 1 else sol.te
+    np.testing.assert_allclose(got, expected, atol=2e-9)
+
+
+def test_several_events_in_one_step_in_time_order():
+    # y = t exactly; MaxStep 1 puts 1.5, 1.6 and 1.7 in the step [1, 2] (and 1.5 twice).
+    def events(t, y):
+        return [y[0] - 1.5, y[0] - 1.7, y[0] - 1.6, 1.5 - y[0]], [0, 0, 0, 0], [0, 0, 0, 0]
+
+    sol = odelab.ode45(lambda t, y: 1.0, [0, 10], 0.0, events=events, initial_step=1)
+    assert sol.t[4] == 1 and sol.t[8] == 2  # refine 4: one step per unit
+    assert sol.ie.tolist() == [0, 3, 2, 1]  # two events at 1.5 are reported together
+    np.testing.assert_allclose(sol.te, [1.5, 1.5, 1.6, 1.7], rtol=0, atol=1e-14)
+    np.testing.assert_allclose(sol.ye[:, 0], sol.te, rtol=0, atol=1e-14)
+    assert sol.t[-1] == 10
+
+
+def test_terminal_event_at_the_last_point():
+    sol = odelab.ode45(lambda t, y: 1.0, [0, 5], 0.0, events=lambda t, y: ([y[0] - 5], [1], [0]))
+    assert sol.te.tolist() == [5.0] and sol.ye[0, 0] == sol.y[-1, 0]
+    assert sol.t[-1] == 5.0 and np.all(np.diff(sol.t) > 0)  # no duplicated last point
+    assert "terminal event 0" in sol.message
+
+
+def test_event_at_t0_is_not_terminal():
+    sol = odelab.ode45(lambda t, y: 1.0, [0, 3], 0.0, events=lambda t, y: ([y[0]], [1], [0]))
+    assert sol.status == "success" and sol.t[-1] == 3 and sol.message == "ode45 reached t = 3."
+    assert sol.te.size == 1 and 0 < sol.te[0] <= 64 * math.ulp(1.0)
+    # falling only: the zero at t0 moves up, so nothing is registered at all
+    sol = odelab.ode45(lambda t, y: 1.0, [0, 3], 0.0, events=lambda t, y: ([y[0]], [1], [-1]))
+    assert sol.te.size == 0 and sol.ye.shape == (0, 1) and sol.t[-1] == 3
+
+
+def test_terminal_event_cuts_the_refined_output_of_the_last_step():
+    sol = odelab.ode45(free_fall, [0, 5], [10, 0], events=floor)
+    last4 = sol.t[-5:]
+    # Refine output on the shortened step [t, te]: four equal parts
+    np.testing.assert_allclose(np.diff(last4), (last4[-1] - last4[0]) / 4, rtol=1e-12)
+    exact_h = 10 - G * sol.t**2 / 2
+    np.testing.assert_allclose(sol.y[:, 0], exact_h, atol=1e-12)
+
+
+def test_terminal_event_with_a_vector_tspan_outputs_te():
+    sol = odelab.ode45(free_fall, np.linspace(0, 5, 11), [10, 0], events=floor)
+    np.testing.assert_array_equal(sol.t[:-1], [0, 0.5, 1.0])
+    assert sol.t[-1] == sol.te[0]
+
+
+def test_scipy_style_event_functions():
+    def ground(t, y):
+        return y[0]
+
+    ground.terminal = True
+    ground.direction = -1
+
+    def apex(t, y):
+        return y[1]
+
+    ours = odelab.ode45(free_fall, [0, 5], [10, 5], events=[ground, apex])
+    matlab = odelab.ode45(free_fall, [0, 5], [10, 5], events=lambda t, y: ([y[0], y[1]], [1, 0], [-1, 0]))
+    np.testing.assert_array_equal(ours.te, matlab.te)
+    assert ours.ie.tolist() == [1, 0]
+    np.testing.assert_allclose(ours.te, [5 / G, 5 / G + math.sqrt(2 * (10 + 25 / (2 * G)) / G)], atol=1e-13)
+
+
+def test_extra_args_reach_events():
+    sol = odelab.ode45(lambda t, y, g: [y[1], -g], [0, 5], [10, 0], args=(G,),
+                       events=lambda t, y, g: ([y[0]], [1], [-1]))
+    assert abs(sol.te[0] - math.sqrt(20 / G)) < 1e-14
+
+
+def test_bad_events_functions_say_what_to_return():
+    with pytest.raises(odelab.InputError, match=r"must return three arrays \(value, isterminal, direction\)"):
+        odelab.ode45(free_fall, [0, 1], [10, 0], events=lambda t, y: y[0])
+    with pytest.raises(odelab.InputError, match="returned 2 values but 3 isterminal flags"):
+        odelab.ode45(free_fall, [0, 1], [10, 0], events=lambda t, y: ([y[0], y[1]], [1, 0, 0], [0, 0]))
+    with pytest.raises(odelab.InputError, match="`events` must be a function"):
+        odelab.ode45(free_fall, [0, 1], [10, 0], Events=3)
+    with pytest.raises(odelab.InputError, match="`events` does not apply to rk4"):
+        odelab.solve(free_fall, [0, 1], [10, 0], method="rk4", h=0.1, events=floor)
+
+
+def test_an_events_function_that_raises_is_named():
+    def boom(t, y):
+        if t > 0.5:
+            raise KeyError("oops")
+        return [y[0]], [1], [-1]
+
+    with pytest.warns(odelab.SolverWarning, match="the events function raised KeyError"):
+        sol = odelab.ode45(free_fall, [0, 1], [10, 0], events=boom)
+    assert sol.status == "failed" and sol.t[-1] <= 0.5
