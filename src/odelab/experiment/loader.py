@@ -6,12 +6,10 @@ naming the file, the TOML key, the value, and the fix. Nothing here runs a solve
 
 from __future__ import annotations
 
-import copy
 import difflib
 import hashlib
 import math
 import re
-import tomllib
 from pathlib import Path
 from typing import Any, get_args, get_origin
 
@@ -22,43 +20,12 @@ from odelab.exceptions import ExperimentError, InputError
 from odelab.experiment import schema
 from odelab.experiment.cases import Case, LoadedExperiment, Problem
 from odelab.experiment.fields import check_keys, constant, expr
+from odelab.experiment.reading import read_toml
 
 __all__ = ["Case", "LoadedExperiment", "Problem", "load_experiment", "merge", "slug"]
 
-MAX_FILE_BYTES = 1_000_000
-
 
 # --- reading ------------------------------------------------------------------------------
-
-
-def read_toml(path: Path) -> tuple[dict, bytes]:
-    """Read and parse a TOML file, turning every failure into an ExperimentError."""
-    src = str(path)
-    if not path.exists():
-        raise ExperimentError("no such file; check the path.", source=src)
-    if path.is_dir():
-        raise ExperimentError("is a folder, not an experiment file; `odelab run` takes folders and runs the "
-                              "*.toml files in them.", source=src)
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise ExperimentError(f"cannot be read: {exc.strerror}.", source=src) from None
-    if len(raw) > MAX_FILE_BYTES:
-        raise ExperimentError(f"is {len(raw)} bytes; experiment files are limited to {MAX_FILE_BYTES}.", source=src)
-    if not raw.strip():
-        raise ExperimentError("is empty; an experiment needs at least [system], [initial] and [time] "
-                              "(`odelab new FILE` writes a starter).", source=src)
-    if b"\x00" in raw:
-        raise ExperimentError("is a binary file, not a TOML text file.", source=src)
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise ExperimentError(f"is not UTF-8 text (byte {exc.start}); save it as UTF-8.", source=src) from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ExperimentError(f"TOML syntax error: {exc}.", source=src) from None
-    return data, raw
 
 
 def merge(base: dict, override: dict) -> dict:
@@ -66,13 +33,17 @@ def merge(base: dict, override: dict) -> dict:
 
     A table that changes its ``type`` (``inputs.f`` or ``blocks.force`` from a step to a sine)
     replaces the base's table instead, since the base's keys would not apply to the new type.
+
+    Neither argument is modified, and only the tables on the override's paths are copied: the
+    rest of the base is shared, so merging many small cases over a large base costs the size
+    of the cases, not cases x base (the parsed TOML is never modified afterwards).
     """
-    out = copy.deepcopy(base)
+    out = dict(base)
     for key, value in override.items():
         if isinstance(value, dict) and isinstance(out.get(key), dict) and not _retyped(out[key], value):
             out[key] = merge(out[key], value)
         else:
-            out[key] = copy.deepcopy(value)
+            out[key] = value
     return out
 
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -234,9 +233,12 @@ def _source_info(source: str) -> tuple[list[str] | None, str | None]:
     except OSError:
         return None, None
     digest = hashlib.sha256(raw).hexdigest()
+    from odelab.exceptions import InputError
+    from odelab.experiment.reading import parse_toml
+
     try:
-        data = tomllib.loads(raw.decode("utf-8"))
-    except (UnicodeDecodeError, tomllib.TOMLDecodeError):
+        data = parse_toml(raw, source)
+    except InputError:  # not UTF-8, not TOML, nested too deeply...
         return None, digest
     cases = data.get("case")
     if not isinstance(cases, list):
