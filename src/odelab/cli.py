@@ -45,10 +45,12 @@ def _main(
 def _consoles():
     from rich.console import Console
 
-    out = Console(highlight=False)
+    # emoji=False: ":x:" in a user's title or message stays ":x:" (user text reaches Rich only
+    # through odelab.terminal.shown, which escapes markup and makes control characters visible)
+    out = Console(highlight=False, emoji=False)
     if not out.is_terminal:  # piped or redirected: never truncate a table to 80 columns
-        out = Console(highlight=False, width=200)
-    return out, Console(stderr=True, highlight=False, soft_wrap=True)
+        out = Console(highlight=False, emoji=False, width=200)
+    return out, Console(stderr=True, highlight=False, soft_wrap=True, emoji=False)
 
 
 def _error_text(exc) -> str:
@@ -155,13 +157,13 @@ def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, st
         for exp in loaded:
             results = []
             for case in exp.cases:
-                progress.update(task, description=f"{exp.name}/{case.name}")
+                progress.update(task, description=_escape(f"{exp.name}/{case.name}"))
                 try:
                     result = run_case(case, max_steps=max_steps or None)
                 except InputError as exc:  # found only when running, e.g. no equilibrium for an input
                     message = _error_text(exc.located(source=str(case.source)))
                     bad.append(message)
-                    err.print(f"[bold red]error:[/] {_escape(message)} (case {_escape(case.name)!r})")
+                    err.print(f"[bold red]error:[/] {_escape(message)} (case {_escape(repr(case.name))})")
                     progress.advance(task)
                     continue
                 results.append(result)
@@ -172,7 +174,7 @@ def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, st
                     try:
                         write_case(result, runs, mat=mat)
                     except OSError as exc:
-                        err.print(f"[bold red]error:[/] cannot write results to {_escape(str(runs))}: {exc}")
+                        err.print(f"[bold red]error:[/] cannot write results to {_escape(str(runs))}: {_escape(str(exc))}")
                         raise typer.Exit(EXIT_INPUT) from None
                 done[0] += 1
                 progress.advance(task)
@@ -199,9 +201,10 @@ def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, st
 
 
 def _escape(text: str) -> str:
-    from rich.markup import escape
+    """User text (or a message quoting it) for a Rich markup string: see :mod:`odelab.terminal`."""
+    from odelab.terminal import shown
 
-    return escape(text)
+    return shown(text, lines=True)
 
 
 @app.command()
@@ -257,9 +260,11 @@ def validate(
             bad += 1
             err.print(f"[bold red]error:[/] {_escape(_error_text(exc))}")
             continue
-        names = ", ".join(c.name for c in exp.cases)
+        from odelab.terminal import shown
+
+        names = shown(", ".join(c.name for c in exp.cases))
         out.print(f"ok: {_escape(str(file))} ({len(exp.cases)} case{'s' if len(exp.cases) != 1 else ''}: "
-                  f"{_escape(names)})")
+                  f"{names})")
     raise typer.Exit(EXIT_INPUT if bad else EXIT_OK)
 
 
@@ -271,6 +276,7 @@ def new(
 ) -> None:
     """Write a commented starter experiment file."""
     from odelab.experiment.templates import write_template
+    from odelab.terminal import visible
 
     _, err = _consoles()
     try:
@@ -279,8 +285,8 @@ def new(
         err.print(f"[bold red]error:[/] {_escape(str(exc))}")
         raise typer.Exit(EXIT_INPUT) from None
     for path in written:
-        typer.echo(f"wrote {path}")
-    typer.echo(f"run it with: odelab run {file}")
+        typer.echo(f"wrote {visible(str(path))}")
+    typer.echo(f"run it with: odelab run {visible(str(file))}")
 
 
 @app.command()

@@ -4,12 +4,19 @@ from __future__ import annotations
 
 import numpy as np
 from rich.console import Console
-from rich.markup import escape
 from rich.table import Table
+
+from odelab.terminal import shown
 
 __all__ = ["print_experiment", "fmt"]
 
 UNDEFINED_NOTE = "relative error undefined where the reference is zero or tiny"
+
+
+def _shown(text, *, lines: bool = False) -> str:
+    """A user string made safe for the terminal (see :mod:`odelab.terminal`): a name or title on
+    one line; ``lines=True`` for a message, whose own line breaks are kept."""
+    return shown(str(text), lines=lines)
 
 
 def fmt(value, digits: int = 4) -> str:
@@ -20,7 +27,7 @@ def fmt(value, digits: int = 4) -> str:
 
 
 def print_experiment(console: Console, exp, results, *, table: bool = False) -> None:
-    console.print(f"\n[bold]{escape(exp.title)}[/]  [dim]({escape(str(exp.source))})[/]")
+    console.print(f"\n[bold]{_shown(exp.title)}[/]  [dim]({_shown(str(exp.source))})[/]")
     summary = Table(show_edge=False, pad_edge=False, header_style="bold", box=None)
     for col, justify in (("case", "left"), ("method", "left"), ("points", "right"), ("steps", "right"),
                          ("failed", "right"), ("fevals", "right"), ("quantity", "left"), ("max abs error", "right"),
@@ -29,13 +36,13 @@ def print_experiment(console: Console, exp, results, *, table: bool = False) -> 
     for r in results:
         s = r.stats
         status = "[green]ok[/]" if r.status == "success" else "[bold red]FAILED[/]"
-        head = [escape(r.case.name), r.method, str(r.t.size), str(s.nsteps),
+        head = [_shown(r.case.name), r.method, str(r.t.size), str(s.nsteps),
                 "-" if s.nfailed is None else str(s.nfailed), str(s.nfevals)]
         if not r.errors:
             summary.add_row(*head, "-", "-", "-", status)
         for i, (name, e) in enumerate(r.errors.items()):
             cells = head if i == 0 else [""] * len(head)
-            summary.add_row(*cells, escape(name), fmt(e.max_abs), fmt(e.max_rel), status if i == 0 else "")
+            summary.add_row(*cells, _shown(name), fmt(e.max_abs), fmt(e.max_rel), status if i == 0 else "")
     console.print(summary)
     kinds = {r.reference_kind for r in results if r.errors}
     if kinds:
@@ -47,16 +54,16 @@ def print_experiment(console: Console, exp, results, *, table: bool = False) -> 
     undefined = []
     for r in results:
         if r.status != "success":
-            console.print(f"[red]{escape(r.case.name)}: {escape(r.message)}[/]")
+            console.print(f"[red]{_shown(r.case.name)}: {_shown(r.message, lines=True)}[/]")
         for w in r.warnings:
             if w.startswith(UNDEFINED_NOTE):
                 counts = ", ".join(f"{n} {e.undefined}" for n, e in r.errors.items() if e.undefined)
                 undefined.append(f"{r.case.name}: {counts}")
             else:
-                console.print(f"[yellow]{escape(r.case.name)}: note: {escape(w)}[/]")
+                console.print(f"[yellow]{_shown(r.case.name)}: note: {_shown(w, lines=True)}[/]")
     if undefined:
         console.print("[dim]relative error undefined (reference zero or tiny; left out of the maximum) at this many "
-                      f"points: {escape('; '.join(undefined))}[/]")
+                      f"points: {_shown('; '.join(undefined), lines=True)}[/]")
     for r in results:
         if "linearization" in r.extra:
             print_linearization(console, r.case.name, r.extra["linearization"])
@@ -70,10 +77,10 @@ def print_point_table(console: Console, r) -> None:
 
     series = r.series()
     for name, ref in r.reference.items():
-        t = Table(title=f"{r.case.name}: {name} at each output point", title_justify="left", show_edge=False,
+        t = Table(title=f"{_shown(r.case.name)}: {_shown(name)} at each output point", title_justify="left", show_edge=False,
                   header_style="bold")
         for col in ("t", name, "reference", "|f - y|", "|f - y| / |f|"):
-            t.add_column(escape(col), justify="right")
+            t.add_column(_shown(col), justify="right")
         abs_err, rel_err = error_columns(series[name], ref)
         for row in zip(r.t, series[name], ref, abs_err, rel_err):
             t.add_row(f"{row[0]:.6g}", f"{row[1]:.10g}", f"{row[2]:.10g}", fmt(float(row[3])),
@@ -89,15 +96,15 @@ def print_linearization(console: Console, case: str, info: dict) -> None:
     """Operating point, linear model and the amplitude study of a [linearize] case."""
     op = info["operating_point"]
     point = ", ".join(f"{k} = {v:.6g}" for k, v in {**op["x"], **op["u"]}.items())
-    console.print(f"[bold]{escape(case)}[/]: operating point {escape(point)} (residual {op['residual']:.1e})")
+    console.print(f"[bold]{_shown(case)}[/]: operating point {_shown(point)} (residual {op['residual']:.1e})")
     console.print(f"  linear model in deviations: A = {_matrix(info['A'])}, B = {_matrix(info['B'])}, "
                   f"C = {_matrix(info['C'])}, D = {_matrix(info['D'])}")
     if "amplitudes" not in info:
         return
     q = info["quantity"]
     t = Table(show_edge=False, box=None, header_style="bold", pad_edge=False)
-    t.add_column(f"step of {escape(info['drive'])}", justify="right")
-    t.add_column(f"max |{escape(q)} nonlinear - linear|", justify="right")
+    t.add_column(f"step of {_shown(info['drive'])}", justify="right")
+    t.add_column(f"max |{_shown(q)} nonlinear - linear|", justify="right")
     t.add_column("relative to peak response", justify="right")
     t.add_column("within threshold", justify="left")
     for a, e_abs, e_rel in zip(info["amplitudes"], info["abs_errors"][q], info["errors"][q]):
