@@ -631,9 +631,17 @@ class Table(Signal):
         """
         path = Path(path)
         try:
-            text = path.read_text(encoding="utf-8-sig")
+            raw = path.read_bytes()
         except OSError as exc:
             raise InputError(f"Cannot read the table file: {exc.strerror}.", source=str(path)) from None
+        if raw.startswith((b"\xff\xfe", b"\xfe\xff")) or b"\x00" in raw[:200]:
+            raise InputError("The table file is UTF-16 or binary, not text; save it as CSV UTF-8 (in Excel: "
+                             "Save as, CSV UTF-8).", source=str(path))
+        try:
+            text = raw.decode("utf-8-sig")
+        except UnicodeDecodeError as exc:
+            raise InputError(f"The table file is not UTF-8 text (byte {exc.start}); save it as CSV UTF-8 (in "
+                             "Excel: Save as, CSV UTF-8).", source=str(path)) from None
         times: list[float] = []
         vals: list[float] = []
         header: list[str] | None = None

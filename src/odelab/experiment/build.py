@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import difflib
 import hashlib
+import importlib.machinery
 import importlib.util
 import sys
 from pathlib import Path
@@ -15,6 +16,7 @@ from odelab.exceptions import ExperimentError, InputError
 from odelab.experiment import schema
 from odelab.experiment.cases import Built
 from odelab.experiment.fields import check_keys, check_names, constant, expr
+from odelab.experiment.userfiles import check_python_source, resolve_user_file
 
 __all__ = ["build_function_system", "build_ode", "build_state_space", "build_inputs", "build_signal", "load_function",
            "SIGNAL_KEYS"]
@@ -234,11 +236,15 @@ def build_signal(kind: str, given: dict, *, key: str, path: Path, params: dict[s
             signal = sg.Pulse(amplitude=float(values["amplitude"]), period=float(values["period"]),
                               width=float(values["width"]), delay=float(values["delay"]))
         elif kind == "table":
-            csv = (path.parent / values["file"]).resolve()
+            csv = resolve_user_file(values["file"], f"{key}.file", path)
             if not csv.is_file():
                 raise ExperimentError(f"`{key}.file`: {values['file']!r} does not exist (looked for {csv}).",
                                       key=f"{key}.file")
-            signal = sg.Table.from_csv(csv)
+            try:
+                signal = sg.Table.from_csv(csv)
+            except InputError as exc:  # named from the experiment file, which is what the user runs
+                text = exc.message[:1].lower() + exc.message[1:]
+                raise ExperimentError(f"`{key}.file` {values['file']!r}: {text}", key=f"{key}.file") from None
         elif kind == "constant":
             signal = sg.Constant(float(values["value"]))
         else:
@@ -286,7 +292,8 @@ def load_function(spec: str, experiment_path: Path) -> Callable:
     if ":" not in spec:
         raise ExperimentError(f"`{key}` is {spec!r}; write it as \"file.py:function_name\".", key=key)
     file_part, _, name = spec.rpartition(":")
-    file = (experiment_path.parent / file_part).resolve()
+    file = resolve_user_file(file_part, key, experiment_path)
+    check_python_source(file_part, key)
     if not file.is_file():
         raise ExperimentError(f"`{key}`: the file {file_part!r} does not exist (looked for {file}).", key=key)
     if not name.isidentifier():
@@ -294,7 +301,9 @@ def load_function(spec: str, experiment_path: Path) -> Callable:
     module_name = "odelab_user_" + hashlib.sha256(str(file).encode()).hexdigest()[:12]
     module = sys.modules.get(module_name)
     if module is None:
-        spec_obj = importlib.util.spec_from_file_location(module_name, file)
+        # the source loader, whatever the file holds: never an extension module's loader
+        spec_obj = importlib.util.spec_from_file_location(
+            module_name, file, loader=importlib.machinery.SourceFileLoader(module_name, str(file)))
         if spec_obj is None or spec_obj.loader is None:
             raise ExperimentError(f"`{key}`: {file_part!r} cannot be imported as Python.", key=key)
         module = importlib.util.module_from_spec(spec_obj)
