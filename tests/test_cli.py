@@ -220,3 +220,32 @@ def test_names_cannot_escape_the_results_folder(tmp_path):
     assert written and all(runs in p.resolve().parents for p in written)
     assert sorted(p.parent.relative_to(runs).as_posix() for p in runs.rglob("result.json")) == [
         "escaped/ab-..-..-c", "escaped/etc-passwd"]
+
+
+@pytest.mark.parametrize("first, second", [("run A", "run/A"), (".", ".."), ("x" * 80 + "1", "x" * 80 + "2"),
+                                           ("Lab", "lab")])
+def test_experiments_sharing_a_results_folder_are_refused(tmp_path, first, second):
+    """Issue 15, class 2: the second file would overwrite the first's cases and exit 0."""
+    text = (EXPERIMENTS / "exercise1.toml").read_text()
+    (tmp_path / "a.toml").write_text(f"name = {json.dumps(first)}\n" + text)
+    (tmp_path / "b.toml").write_text(f"name = {json.dumps(second)}\n" + text)
+    result = invoke("run", tmp_path, "--runs", tmp_path / "runs")
+    assert result.exit_code == 2, result.output
+    b = tmp_path / "b.toml"
+    assert f"{b}: experiment is named {second!r}, which would be stored in the same results folder" in result.output
+    assert f"as {first!r} from {tmp_path / 'a.toml'}, overwriting its cases: give this file its own `name`" in result.output
+    assert "1.068e-04" in result.output  # the first file ran
+    records = [json.loads(p.read_text()) for p in (tmp_path / "runs").rglob("result.json")]
+    assert {r["experiment"] for r in records} == {first}
+    validate = invoke("validate", tmp_path)
+    assert validate.exit_code == 2 and "would be stored in the same results folder" in validate.output
+
+
+def test_two_files_with_the_same_name_are_refused(tmp_path):
+    text = 'name = "lab"\n' + (EXPERIMENTS / "exercise1.toml").read_text()
+    (tmp_path / "a.toml").write_text(text)
+    (tmp_path / "b.toml").write_text(text)
+    result = invoke("run", tmp_path, "--no-store")
+    assert result.exit_code == 2
+    assert (f"{tmp_path / 'b.toml'}: experiment is also named 'lab' and would be stored in the same results folder 'lab' "
+            f"as 'lab' from {tmp_path / 'a.toml'}") in result.output

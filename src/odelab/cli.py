@@ -95,7 +95,7 @@ def run(
     import warnings
 
     from odelab.exceptions import InputError
-    from odelab.experiment.loader import load_experiment
+    from odelab.experiment.loader import check_experiment_names, load_experiment
 
     # Everything worth saying (RelTol raised, equilibrium residuals...) reaches the user as a
     # note in the output; Python's own warning lines would only repeat it.
@@ -109,6 +109,9 @@ def run(
             loaded.append(load_experiment(file))
         except InputError as exc:
             bad.append(_error_text(exc))
+    for exp, exc in check_experiment_names(loaded):  # two files that would share a results folder
+        loaded.remove(exp)
+        bad.append(_error_text(exc))
     for line in bad:
         err.print(f"[bold red]error:[/] {_escape(line)}")
 
@@ -246,20 +249,24 @@ def validate(
 ) -> None:
     """Check experiment files without running them."""
     from odelab.exceptions import InputError
-    from odelab.experiment.loader import load_experiment
+    from odelab.experiment.loader import check_experiment_names, load_experiment
 
     out, err = _consoles()
     files, problems = expand_paths(paths)
     bad = len(problems)
     for path, why in problems:
         err.print(f"[bold red]error:[/] {_escape(str(path))}: {_escape(why)}")
+    loaded = []
     for file in files:
         try:
             exp = load_experiment(file)
+            for _, exc in check_experiment_names([*loaded, exp]):
+                raise exc
         except InputError as exc:
             bad += 1
             err.print(f"[bold red]error:[/] {_escape(_error_text(exc))}")
             continue
+        loaded.append(exp)
         from odelab.terminal import shown
 
         names = shown(", ".join(c.name for c in exp.cases))

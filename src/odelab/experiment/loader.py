@@ -61,6 +61,37 @@ def slug(name: str) -> str:
     return s[:80] or "unnamed"
 
 
+NAME_RULE = ("(a results folder's name keeps letters, digits, '.', '_' and '-' of the first 80 characters, anything "
+             "else becomes '-', and folder names are compared ignoring case, as on Windows and macOS)")
+
+
+def folder_key(name: str) -> str:
+    """What two names must not share: their results folder, compared as a case-insensitive file system would."""
+    return slug(name).casefold()
+
+
+def check_experiment_names(experiments) -> list[tuple[object, ExperimentError]]:
+    """Experiments of one run that would share a results folder: each later one with its error.
+
+    ``experiments`` are loaded experiments (``.name``, ``.source``); the first to claim a
+    folder keeps it, so a folder of files still runs all but the colliding ones.
+    """
+    claimed: dict[str, object] = {}
+    clashes = []
+    for exp in experiments:
+        key = folder_key(exp.name)
+        first = claimed.setdefault(key, exp)
+        if first is exp:
+            continue
+        same = first.name == exp.name
+        what = f"is also named {exp.name!r} and" if same else f"is named {exp.name!r}, which"
+        clashes.append((exp, ExperimentError(
+            f"experiment {what} would be stored in the same results folder {slug(exp.name)!r} as {first.name!r} "
+            f"from {first.source}, overwriting its cases: give this file its own `name` {NAME_RULE}.",
+            source=str(exp.source), key="name")))
+    return clashes
+
+
 # --- schema errors ----------------------------------------------------------------------------
 
 _TOML_TYPE = {bool: "a boolean", int: "a number", float: "a number", str: "a string", list: "an array",
@@ -207,23 +238,14 @@ def load_experiment(path: str | Path) -> LoadedExperiment:
     if not isinstance(name, str) or not name.strip():
         raise ExperimentError(f"`name` must be a non-empty string; got {_describe(name)}.", source=src, key="name")
 
+    _check_case_names(cases_raw, src)  # before any case is compiled
     cases = []
-    seen: dict[str, int] = {}
     for index, override in enumerate(cases_raw):
         if override is None:
             merged = data
             case_name = None
         else:
-            case_name = override.get("name")
-            if not isinstance(case_name, str) or not case_name.strip():
-                raise ExperimentError(
-                    f"[[case]] number {index + 1} needs a `name` (a non-empty string), e.g. name = \"ode45\".",
-                    source=src, key=f"case[{index}].name")
-            if case_name in seen:
-                raise ExperimentError(f"two cases are named {case_name!r} (cases {seen[case_name] + 1} and "
-                                      f"{index + 1}); give each case its own name.", source=src,
-                                      key=f"case[{index}].name")
-            seen[case_name] = index
+            case_name = override["name"]
             merged = merge(data, {k: v for k, v in override.items() if k != "name"})
         try:
             model = schema.Experiment.model_validate(_normalize_solver(merged, src, case_name))
@@ -241,6 +263,34 @@ def load_experiment(path: str | Path) -> LoadedExperiment:
                           file_hash=file_hash, config=config, problem=problem))
     title = data.get("title") if isinstance(data.get("title"), str) else name
     return LoadedExperiment(name=name, title=title, source=path, file_hash=file_hash, cases=tuple(cases))
+
+
+def _check_case_names(cases_raw: list, src: str) -> None:
+    """Every [[case]] has a name, and no two are stored in the same results folder."""
+    seen: dict[str, int] = {}
+    by_folder: dict[str, int] = {}
+    for index, override in enumerate(cases_raw):
+        if override is None:
+            continue
+        case_name = override.get("name")
+        if not isinstance(case_name, str) or not case_name.strip():
+            raise ExperimentError(
+                f"[[case]] number {index + 1} needs a `name` (a non-empty string), e.g. name = \"ode45\".",
+                source=src, key=f"case[{index}].name")
+        if case_name in seen:
+            raise ExperimentError(f"two cases are named {case_name!r} (cases {seen[case_name] + 1} and "
+                                  f"{index + 1}); give each case its own name.", source=src,
+                                  key=f"case[{index}].name")
+        seen[case_name] = index
+        folder = folder_key(case_name)
+        if folder in by_folder:
+            other = cases_raw[by_folder[folder]]["name"]
+            raise ExperimentError(
+                f"cases {other!r} (case {by_folder[folder] + 1}) and {case_name!r} (case {index + 1}) would be stored "
+                f"in the same results folder {slug(case_name)!r}, the second overwriting the first: give each case a "
+                f"name of its own {NAME_RULE}.",
+                source=src, key=f"case[{index}].name")
+        by_folder[folder] = index
 
 
 def _in_case(exc: InputError, override: dict | None, case_name: str | None) -> InputError:
