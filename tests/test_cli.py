@@ -67,6 +67,35 @@ def test_run_folder_json_shape(tmp_path):
     assert set(rigid["max_rel_error"]) == {"y1", "y2", "y3"}
 
 
+def test_headline_rule_is_the_same_in_the_terminal_json_and_result_json(tmp_path):
+    """Exercise 2's sine input: y ~ 4e-4 at t = 0.027 makes the pointwise maximum 2.8e-2; the
+    headline is the error relative to y's peak (3.3), 3.682e-05, marked "of peak"."""
+    result = invoke("run", EXPERIMENTS / "exercise2.toml", "--runs", tmp_path / "runs")
+    assert result.exit_code == 0, result.output
+    row = next(line for line in result.output.splitlines() if line.startswith("sine-ode45"))
+    assert "9.093e-06" not in row and "3.682e-05 of peak" in row
+    assert "2.8e-02 at t = 0.0271 (|f| = 6.4e-07)" in row  # x's pointwise maximum, where and how small |f| was
+    assert "where the reference nears zero it is max |f - y| / max |f|, marked 'of peak'" in " ".join(
+        result.output.split())
+    record = json.loads((tmp_path / "runs" / "exercise2" / "sine-ode45" / "result.json").read_text())
+    assert f"{record['rel_error']['y']:.3e}" == "3.682e-05" and record["rel_basis"]["y"] == "peak"
+    assert f"{record['max_rel_error']['y']:.3e}" == "2.801e-02"  # the lab's pointwise maximum, kept
+    e = record["errors"]["y"]
+    assert e["rel_error"] == record["rel_error"]["y"] == e["max_abs"] / e["scale"]
+    assert f"{e['t_max_rel']:.4f}" == "0.0271" and e["ref_at_max_rel"] < 1e-4
+    doc = json.loads(invoke("run", EXPERIMENTS / "exercise2.toml", "--no-store", "--json").output)
+    case = next(c for c in doc["experiments"][0]["cases"] if c["name"] == "sine-ode45")
+    assert case["rel_error"] == record["rel_error"] and case["rel_error_rule"] == record["rel_error_rule"]
+
+
+def test_exercise1_headline_is_the_labs_number(tmp_path):
+    doc = json.loads(invoke("run", EXPERIMENTS / "exercise1.toml", EXPERIMENTS / "exercise1_2pi.toml",
+                            "--no-store", "--json").output)
+    ode23 = [next(c for c in e["cases"] if c["name"] == "ode23") for e in doc["experiments"]]
+    assert [f"{c['rel_error']['y']:.3e}" for c in ode23] == ["1.068e-04", "6.907e-04"]
+    assert [c["rel_basis"]["y"] for c in ode23] == ["pointwise", "pointwise"]
+
+
 def test_table_prints_every_point(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     result = invoke("run", EXPERIMENTS / "exercise1.toml", "--no-store", "--table")

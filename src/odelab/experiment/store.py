@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from odelab.analysis.errors import error_columns
+from odelab.analysis.errors import HEADLINE_RULE, error_columns
 from odelab.fileio import atomic_write, umask
 from odelab.experiment.loader import slug
 from odelab.experiment.result import CaseResult
@@ -111,6 +111,10 @@ def summary(result: CaseResult) -> dict[str, Any]:
         "reference": result.reference_kind,
         "max_abs_error": {n: e.max_abs for n, e in result.errors.items()},
         "max_rel_error": {n: e.max_rel for n, e in result.errors.items()},
+        # the headline relative error of each quantity and its basis, by analysis.errors.HEADLINE_RULE
+        "rel_error": {n: e.headline for n, e in result.errors.items()},
+        "rel_basis": {n: e.basis for n, e in result.errors.items()},
+        "rel_error_rule": HEADLINE_RULE if result.errors else None,
         "errors": {n: e.as_dict() for n, e in result.errors.items()},
         "states": list(p.states),
         "inputs": list(p.inputs),
