@@ -443,6 +443,8 @@ def compile_case(model: schema.Experiment, path: Path) -> tuple[Problem, dict]:
         kind = "high-accuracy"
     get_method(ref.solver, key="reference.solver")
     resolved["reference"] = {"method": kind, "solver": ref.solver, "rtol": ref.rtol, "atol": ref.atol}
+    if model.units:
+        resolved["units"] = _units(model.units, states, inputs, outputs, params)
     if model.linearize is not None:
         _check_linearize(model.linearize, states, inputs, outputs, built)
         resolved["linearize"] = _plain(model.linearize.model_dump(exclude_none=True))
@@ -454,6 +456,21 @@ def compile_case(model: schema.Experiment, path: Path) -> tuple[Problem, dict]:
         linearize=model.linearize, parameters=params, diagram=built.diagram,
     )
     return problem, resolved
+
+
+def _units(units: dict[str, str], states, inputs, outputs, params) -> dict[str, str]:
+    """[units]: a short unit per time, state, input, output or parameter, shown on the report's axes."""
+    names = ["t", *states, *inputs, *outputs, *params]
+    for name, unit in units.items():
+        if name not in names:
+            close = difflib.get_close_matches(name, names, n=1)
+            hint = f" Did you mean {close[0]!r}?" if close else ""
+            raise ExperimentError(f"`units.{name}`: {name!r} is not t, a state, an input, an output or a parameter "
+                                  f"({', '.join(names)}).{hint}", key=f"units.{name}")
+        if not unit.strip() or len(unit) > 20 or any(c in unit for c in "\n\r\t"):
+            raise ExperimentError(f"`units.{name}` is {unit!r}; write a short unit on one line, e.g. "
+                                  f"{name} = \"m\" or \"N\" or \"rad/s\".", key=f"units.{name}")
+    return dict(units)
 
 
 def _check_linearize(spec: schema.Linearize, states, inputs, outputs, built) -> None:

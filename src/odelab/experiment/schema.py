@@ -132,3 +132,4 @@ class Experiment(_Section):
     inputs: dict[str, Annotated[InputSignal, Field()]] | None = None
     linearize: Linearize | None = None
     blocks: dict[str, dict[str, Any]] | None = None  # kind = "diagram"; checked by experiment/diagram.py
+    units: dict[str, StrictStr] | None = None  # [units]: x = "m", f = "N", t = "s": axis labels
