@@ -137,12 +137,18 @@ def test_summary_table_lists_every_case_with_its_numbers(tree):
 
 def test_error_tables_hold_the_stored_maxima(tree):
     records = {r["Case"]: r for r in table_records(section(tree, "exercise1").find("table", cls="errors"))}
-    assert records["ode23"]["Max rel error"] == "1.068e-04"
+    # Exercise 1's f = sin t + 2 stays in [1, 3]: the headline is the lab's pointwise maximum
+    assert records["ode23"]["Rel error"] == records["ode23"]["Max |f - y| / |f|"] == "1.068e-04"
     assert records["ode23"]["Points"] == "12"
-    assert records["ode45"]["Max rel error"] == "1.187e-07"
+    assert records["ode45"]["Rel error"] == "1.187e-07"
+    assert records["ode23"]["|f| there"] == "—"
+    # the rigid body's y1 crosses zero: the headline is relative to its peak (about 1), and the
+    # pointwise maximum is shown with the small |f| it divided by
     rigid = table_records(section(tree, "rigid_body").find("table", cls="errors"))[0]
     assert (rigid["Steps"], rigid["Failed"], rigid["F-evals"]) == ("21", "0", "127")
-    assert rigid["Quantity"] == "y1" and rigid["Max rel error"] == "1.728e-02 (1 undefined)"
+    assert rigid["Quantity"] == "y1" and rigid["Max |f - y| / |f|"] == "1.728e-02 (1 undefined)"
+    assert rigid["Rel error"] == "4.181e-04 of peak"  # max |f - y| = 4.181e-04, max |y1| = 1.000
+    assert rigid["|f| there"] == "7.607e-03"
 
 
 def test_exercise1_note_quotes_the_stored_numbers(lab_report, tree):
@@ -163,7 +169,8 @@ def test_rigid_body_plots_every_state_with_the_step_statistics(tree):
 def test_cases_that_differ_by_input_get_a_panel_each(tree):
     node = section(tree, "msd_inputs")
     caption = node.find("figure", id="fig-msd_inputs-solution").find("figcaption").text()
-    assert caption.startswith("One panel per input; cases that differ only in their solver share a panel")
+    assert caption.startswith("One column per input: rows show y, x, v, f against t; cases that differ only "
+                              "in their solver share a panel")
     records = {r["Case"]: r for r in table_records(node.find("table", cls="errors"))}
     assert list(records) == ["step", "step-ode23", "sine", "ramp"]  # the file's order, not alphabetical
     assert records["sine"]["Input"] == "f = sin(0.2 t)"
@@ -239,8 +246,11 @@ def test_header_has_version_date_hashes_and_settings(lab_report, tree):
         section(tree, "exercise1").find("code").text())).read_bytes()).hexdigest()
     assert digest[:12] in provenance.text()
     settings = tree.find("section", id="settings").find_all("details", cls="settings")
-    assert any(d.find("summary").text() == "exercise1 / ode23" and 'method = "ode23"' in d.find("pre").text()
-               for d in settings)
+    first = next(d for d in settings if d.find("summary").text() == "exercise1 (2 cases)")
+    assert first.find("p", cls="settings-case").text() == "ode23" and 'method = "ode23"' in first.find("pre").text()
+    # the other case shows only what differs, arrays written inline
+    pres = [p.text() for p in first.find_all("pre")]
+    assert len(pres) == 2 and pres[1].startswith("[solver]") and "[exact]" not in pres[1]
     assert provenance.find("a", href="#settings") is not None
 
 
@@ -275,7 +285,8 @@ def test_shipped_exercise2_shares_a_panel_per_input(tree):
     shipped("exercise2")
     node = section(tree, "exercise2")
     caption = node.find("figure", id="fig-exercise2-solution").find("figcaption").text()
-    assert caption.startswith("One panel per input; cases that differ only in their solver share a panel")
+    assert caption.startswith("One column per input: rows show y, x, v, f against t; cases that differ only "
+                              "in their solver share a panel")
     records = table_records(node.find("table", cls="errors"))
     assert len(records) >= 3 and all(r["Status"] == "ok" for r in records)
     assert any(r["Input"] == "f = sin(0.2 t)" for r in records)

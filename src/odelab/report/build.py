@@ -29,6 +29,8 @@ FIGURES_DIR = "figures"
 # Per-step tables: the HTML folds them away, so it can hold far more rows than the Markdown.
 HTML_STEP_ROWS = 200
 MD_STEP_ROWS = 40
+# A printed per-step table longer than this keeps its first and last rows and its maxima.
+PRINT_STEP_ROWS = 20
 
 
 @dataclass(frozen=True, eq=False)
@@ -131,6 +133,7 @@ def build_report(
         If ``runs`` is not a folder, a format is unknown, or a template is missing or broken.
     """
     from odelab import __version__
+    from odelab.analysis.errors import HEADLINE_RULE
     from odelab.report.collect import collect_runs
     from odelab.report.content import build_sections
     from odelab.report.render import environments, render_template
@@ -172,6 +175,8 @@ def build_report(
             "warnings": list(warnings),
             "html_step_rows": HTML_STEP_ROWS,
             "md_step_rows": MD_STEP_ROWS,
+            "print_rows": PRINT_STEP_ROWS,
+            "headline_rule": HEADLINE_RULE,
         },
         "sections": sections,
     }

@@ -33,9 +33,22 @@ class QuantityErrors:
     name: str
     max_abs: float | None
     t_max_abs: float | None
-    max_rel: float | None
+    max_rel: float | None  # the lab's pointwise max |f - y| / |f|
     t_max_rel: float | None
     undefined: int
+    scale: float | None = None  # max |f|
+    ref_at_max_rel: float | None = None  # |f| where the pointwise maximum is
+    basis: str = "pointwise"  # which relative error headlines: see odelab.analysis.errors.HEADLINE_RULE
+
+    @property
+    def peak_rel(self) -> float | None:
+        if self.max_abs is None or not self.scale:
+            return None
+        return self.max_abs / self.scale
+
+    @property
+    def headline(self) -> float | None:
+        return self.max_rel if self.basis == "pointwise" else self.peak_rel
 
 
 @dataclass(frozen=True, eq=False)
@@ -162,20 +175,30 @@ def parse_record(record: dict[str, Any]) -> StoredRun:
     errors_raw = record.get("errors") or {}
     if not isinstance(errors_raw, dict):
         raise ValueError("`errors` must be a table")
+    trajectory = record.get("trajectory")
+    if not isinstance(trajectory, dict) or "t" not in trajectory:
+        raise ValueError("trajectory.csv has no `t` column")
+    trajectory = {str(k): np.asarray(v, dtype=float) for k, v in trajectory.items()}
     errors = {}
     for name, e in errors_raw.items():
         if not isinstance(e, dict):
             raise ValueError(f"`errors.{name}` must be a table")
+        basis, scale = e.get("rel_basis"), _number(e.get("scale"), f"errors.{name}.scale")
+        ref = trajectory.get(f"{name}_ref")
+        if basis not in ("pointwise", "peak"):  # a run stored before the headline rule: apply it now
+            from odelab.analysis.errors import headline_basis
+
+            basis = headline_basis(ref) if ref is not None and ref.size else "pointwise"
+        if scale is None and ref is not None and np.any(np.isfinite(ref)):
+            scale = float(np.nanmax(np.abs(ref)))
         errors[name] = QuantityErrors(
             name=name, max_abs=_number(e.get("max_abs"), f"errors.{name}.max_abs"),
             t_max_abs=_number(e.get("t_max_abs"), f"errors.{name}.t_max_abs"),
             max_rel=_number(e.get("max_rel"), f"errors.{name}.max_rel"),
             t_max_rel=_number(e.get("t_max_rel"), f"errors.{name}.t_max_rel"),
-            undefined=_count(e.get("undefined_rel_points"), f"errors.{name}.undefined_rel_points") or 0)
-    trajectory = record.get("trajectory")
-    if not isinstance(trajectory, dict) or "t" not in trajectory:
-        raise ValueError("trajectory.csv has no `t` column")
-    trajectory = {str(k): np.asarray(v, dtype=float) for k, v in trajectory.items()}
+            undefined=_count(e.get("undefined_rel_points"), f"errors.{name}.undefined_rel_points") or 0,
+            scale=scale, ref_at_max_rel=_number(e.get("ref_at_max_rel"), f"errors.{name}.ref_at_max_rel"),
+            basis=basis)
     warnings = record.get("warnings") or []
     if not isinstance(warnings, list):
         raise ValueError("`warnings` must be a list")

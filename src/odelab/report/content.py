@@ -29,15 +29,8 @@ from typing import Any
 import numpy as np
 
 from odelab.report.collect import ExperimentRuns, QuantityErrors, StoredRun
-from odelab.report.plots import (
-    REFERENCE_COLOR,
-    SERIES_COLORS,
-    FigureSpec,
-    Line,
-    Panel,
-    RefLine,
-    method_color,
-)
+from odelab.report.figures import error_figure, linearisation_figures, solution_figure
+from odelab.report.setups import SetUp, describe_signal, inputs_text, plot_quantities, setups, units_of
 
 __all__ = [
     "CaseView",
@@ -53,23 +46,6 @@ __all__ = [
     "linearisation_view",
     "setups",
 ]
-
-TIME_LABEL = "t (s)"
-REL_LABEL = "relative error |f - y| / |f|"
-_MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
-_LINESTYLES = ("-", "-.", ":", "--")
-LINEARISED_COLOR = "#AA4499"  # a series colour, never a method's
-# Keys of a resolved configuration that only say how a case is solved or named.
-_SOLVER_ONLY_KEYS = ("solver", "case", "title", "description")
-
-AGAINST = {
-    "exact": "the exact solution (black)",
-    "lti": "the exact LTI response (black)",
-    "high-accuracy": "a high-accuracy reference (black)",
-    "linearization": "the linearised model (black)",
-    "none": "each other",
-}
-MARKERS_NOTE = "Markers are the solver's output points (left out where a line has too many to tell apart)."
 
 REFERENCE_TEXT = {
     "exact": "the exact solution given in the experiment file",
@@ -116,6 +92,17 @@ class StepTable:
         rel = float(self.rel_err[i])
         return (float(self.t[i]), float(self.value[i]), float(self.reference[i]), float(self.abs_err[i]),
                 None if math.isnan(rel) else rel)
+
+    def print_rows(self, limit: int) -> set[int]:
+        """Rows a printed report keeps: all up to ``limit``, else the first and last three and the maxima."""
+        n = len(self)
+        if n <= limit:
+            return set(range(n))
+        keep = {0, 1, 2, n - 3, n - 2, n - 1}
+        for column in (self.abs_err, self.rel_err):
+            if np.any(np.isfinite(column)):
+                keep.add(int(np.nanargmax(column)))
+        return keep
 
     def capped(self, limit: int) -> CappedRows:
         """All rows if there are at most ``limit``, else the first and last ``limit // 2``."""
@@ -250,50 +237,6 @@ def _interval(run: StoredRun) -> str:
     return f"[{format_bound(start)}, {format_bound(stop)}]"
 
 
-def _g(value: Any) -> str:
-    return f"{value:g}" if isinstance(value, (int, float)) and not isinstance(value, bool) else str(value)
-
-
-def describe_signal(name: str, spec: Any) -> str:
-    """An input signal as a formula where it has one: ``f = sin(0.2 t)``, ``f steps 0 → 1 at t = 0``."""
-    if not isinstance(spec, dict):
-        return f"{name} = {spec}"
-    kind = spec.get("type")
-    v = {k: x for k, x in spec.items() if x is not None}
-    try:
-        if kind == "step":
-            return f"{name} steps {_g(v.get('initial', 0))} → {_g(v.get('final', 1))} at t = {_g(v.get('time', 0))}"
-        if kind == "sine":
-            a, w, phi, bias = (v.get("amplitude", 1), v.get("frequency", 1), v.get("phase", 0), v.get("bias", 0))
-            arg = f"{_g(w)} t" if w != 1 else "t"
-            arg += f" + {_g(phi)}" if phi else ""
-            term = ("" if a == 1 else "-" if a == -1 else f"{_g(a)} ") + f"sin({arg})"
-            return f"{name} = " + (f"{_g(bias)} + {term}" if bias else term)
-        if kind == "ramp":
-            slope, start, initial = v.get("slope", 1), v.get("start", 0), v.get("initial", 0)
-            var = "t" if not start else f"(t - {_g(start)})"
-            term = var if slope == 1 else f"{_g(slope)} {var}"
-            text = f"{_g(initial)} + {term}" if initial else term
-            return f"{name} = {text}" + (f" for t >= {_g(start)}" if start else "")
-        if kind == "constant":
-            return f"{name} = {_g(v.get('value'))}"
-        if kind == "expression":
-            return f"{name} = {v.get('expression')}"
-        if kind == "table":
-            return f"{name}: table {v.get('file')}"
-    except TypeError:  # a hand-edited record with odd values: fall through to the plain listing
-        pass
-    args = ", ".join(f"{k} {_g(x)}" for k, x in v.items() if k != "type")
-    return f"{name}: {kind or 'signal'}" + (f" ({args})" if args else "")
-
-
-def _inputs_text(run: StoredRun) -> str:
-    inputs = run.config.get("inputs")
-    if not isinstance(inputs, dict) or not inputs:
-        return ""
-    return "; ".join(describe_signal(name, spec) for name, spec in inputs.items())
-
-
 def _toml(config: dict) -> str:
     import tomli_w
 
@@ -305,296 +248,40 @@ def _toml(config: dict) -> str:
         return value
 
     try:
-        return tomli_w.dumps(clean(config))
+        # arrays inline, as a person writes them, not one value per line
+        return _inline_arrays(tomli_w.dumps(clean(config)))
     except (TypeError, ValueError):  # a hand-edited record: show it as JSON instead
         return json.dumps(config, indent=2, default=str)
 
 
-def _reference_label(kind: str) -> str:
-    return {"exact": "exact", "lti": "exact (LTI)", "high-accuracy": "reference (high-accuracy)",
-            "linearization": "linearised model"}.get(kind, "reference")
+# --- linearisation ------------------------------------------------------------------------------
 
 
-def _plot_quantities(runs: list[StoredRun]) -> tuple[list[str], list[str]]:
-    """Quantities to draw, and those of them with a reference (outputs first, as the lab shows y)."""
-    states = list(dict.fromkeys(n for r in runs for n in r.states))
-    outputs = list(dict.fromkeys(n for r in runs for n in r.outputs))
-    referenced = [n for n in states + outputs if any(r.has_reference(n) for r in runs)]
-    if outputs:
-        shown = [n for n in outputs if n in referenced] or outputs
-    else:
-        shown = states or [n for n in referenced]
-    return shown, [n for n in shown if n in referenced]
-
-
-@dataclass(frozen=True, eq=False)
-class SetUp:
-    """Cases that differ only in how they are solved: they share one reference and one panel."""
-
-    label: str
-    runs: list[StoredRun]
-    colors: dict[str, str]  # case -> colour
-    prefix: str = ""  # what the members' names share, left out of their legend labels
-
-
-def _setup_key(run: StoredRun) -> str:
-    rest = {k: v for k, v in run.config.items() if k not in _SOLVER_ONLY_KEYS}
-    return json.dumps(rest, sort_keys=True, default=str)
-
-
-_NAME_PARTS = re.compile(r"[-_ .:/]+")
-
-
-def _common_prefix(names: list[str]) -> str:
-    """The words the names start with: "sine" for sine-ode45 and sine-ode23."""
-    split = [_NAME_PARTS.split(n) for n in names]
-    words = []
-    for parts in zip(*split):
-        if len(set(parts)) != 1:
-            break
-        words.append(parts[0])
-    if not words:
-        return ""
-    # the prefix as written in the first name (with its own separators)
-    match = re.match(r"^" + r"[-_ .:/]+".join(re.escape(w) for w in words), names[0])
-    return match.group(0) if match else ""
-
-
-def _colors(runs: list[StoredRun]) -> dict[str, str]:
-    """A colour per case: its method's colour when methods tell the cases apart, else a series colour."""
-    methods = [r.method for r in runs]
-    if len(set(methods)) == len(methods):
-        return {r.case: method_color(r.method) for r in runs}
-    return {r.case: SERIES_COLORS[i % len(SERIES_COLORS)] for i, r in enumerate(runs)}
-
-
-def setups(runs: list[StoredRun]) -> list[SetUp]:
-    """The experiment's cases grouped by everything but their solver, in case order."""
-    groups: dict[str, list[StoredRun]] = {}
-    for r in runs:
-        groups.setdefault(_setup_key(r), []).append(r)
+def _settings(runs: list[StoredRun]) -> list[tuple[str, str]]:
+    """The first case's resolved settings in full, then for each other case only what differs."""
     out = []
-    for members in groups.values():
-        prefix = _common_prefix([r.case for r in members]) if len(members) > 1 else ""
-        name = prefix or (members[0].case if len(members) == 1 else "")
-        inputs = _inputs_text(members[0])
-        if len(groups) == 1:
-            label = ""
-        elif name and inputs:
-            label = f"{name}: {inputs}"
-        else:
-            label = name or inputs or members[0].case
-        out.append(SetUp(label, members, _colors(members), prefix))
+    base = runs[0].config if runs else {}
+    for i, r in enumerate(runs):
+        if i == 0:
+            out.append((r.case, _toml(r.config)))
+            continue
+        diff = {k: v for k, v in r.config.items() if k not in ("case", "name") and base.get(k) != v}
+        diff.update({k: None for k in base if k not in r.config and k not in ("case", "name")})
+        out.append((r.case, _toml({k: v for k, v in diff.items() if v is not None}) or "(nothing)\n"))
     return out
 
 
-def _what_differs(groups: list[SetUp]) -> str:
-    keys = set()
-    first = groups[0].runs[0].config
-    for g in groups[1:]:
-        other = g.runs[0].config
-        keys |= {k for k in set(first) | set(other)
-                 if k not in _SOLVER_ONLY_KEYS and json.dumps(first.get(k), sort_keys=True, default=str)
-                 != json.dumps(other.get(k), sort_keys=True, default=str)}
-    return "input" if keys == {"inputs"} else "parameter set" if keys == {"parameters"} else "set-up"
+_MULTILINE_ARRAY = re.compile(r"\[\n((?:[ \t]+[^\n]*,\n)+)[ \t]*\]")
 
 
-def _case_label(run: StoredRun, prefix: str = "") -> str:
-    """``ode23`` for a case named after its method, else ``step (ode45)``; without a shared ``prefix``."""
-    name = run.case
-    rest = name[len(prefix):].lstrip("-_ .:/") if prefix and name.startswith(prefix) else ""
-    if rest:
-        name = rest
-    return run.method if name == run.method else f"{name} ({run.method})"
-
-
-def _stats_text(run: StoredRun) -> str:
-    def n(v):
-        return "n/a" if v is None else str(v)
-
-    return f"{n(run.nsteps)} successful steps, {n(run.nfailed)} failed attempts, {n(run.nfevals)} function evaluations"
-
-
-def _reference_union(runs: list[StoredRun], name: str) -> tuple[np.ndarray, np.ndarray]:
-    """The reference of ``name`` through every case's output times (the cases share it)."""
-    ts, fs = [], []
-    for r in runs:
-        ref = r.column(f"{name}_ref")
-        if ref is not None:
-            ts.append(r.t)
-            fs.append(ref)
-    if not ts:
-        return np.array([]), np.array([])
-    t = np.concatenate(ts)
-    f = np.concatenate(fs)
-    order = np.argsort(t, kind="stable")
-    t, f = t[order], f[order]
-    keep = np.concatenate([[True], np.diff(t) > 0]) if t.size else np.array([], dtype=bool)
-    return t[keep], f[keep]
-
-
-# --- figures ----------------------------------------------------------------------------------
-
-
-def _solver_lines(group: SetUp, name: str, ref_label: str) -> list[Line]:
-    """The reference (black, through every member's output times) and each member's solution."""
-    members, colors = group.runs, group.colors
-    lines = []
-    t_ref, f_ref = _reference_union(members, name)
-    if t_ref.size:
-        lines.append(Line(t_ref, f_ref, ref_label, REFERENCE_COLOR, linewidth=1.0, zorder=1))
-    for i, r in enumerate(members):
-        y = r.column(name)
-        if y is not None and r.t.size:
-            lines.append(Line(r.t, y, f"{_case_label(r, group.prefix)}, {r.t.size} points", colors[r.case],
-                              marker=_MARKERS[i % len(_MARKERS)], linewidth=1.0, markersize=3.5, zorder=2 + i))
-    return lines
-
-
-def _solution_figure(stem: str, groups: list[SetUp], shown: list[str], layout: str) -> FigureSpec | None:
-    runs = [r for g in groups for r in g.runs if r.t.size]
-    if not runs or not shown:
-        return None
-    kind = runs[0].reference
-    ref_label = _reference_label(kind)
-    against = AGAINST.get(kind, "the reference")
-    panels = []
-    if layout == "states":
-        r = runs[0]
-        lines = []
-        for j, name in enumerate(shown):
-            y, ref = r.column(name), r.column(f"{name}_ref")
-            if y is None:
-                continue
-            if ref is not None:
-                lines.append(Line(r.t, ref, ref_label if j == 0 else "_nolegend_", REFERENCE_COLOR, linewidth=0.9,
-                                  zorder=1))
-            lines.append(Line(r.t, y, f"{name} ({r.method})", SERIES_COLORS[j % len(SERIES_COLORS)],
-                              linestyle=_LINESTYLES[j % len(_LINESTYLES)], marker=_MARKERS[j % len(_MARKERS)],
-                              linewidth=1.2, markersize=3.5, zorder=2 + j))
-        stats = f"{r.nsteps} steps, {r.nfailed if r.nfailed is not None else 'n/a'} failed, {r.nfevals} fevals"
-        panels.append(Panel(f"{_case_label(r)}: {stats}", TIME_LABEL, "value", tuple(lines), legend_outside=True))
-        caption = ("Every state against t, as MATLAB's documentation plots the rigid body: markers at the output "
-                   f"points, thin black lines the {ref_label}. {_case_label(r)}: {_stats_text(r)}.")
-    else:
-        for g in groups:
-            for name in shown:
-                title = (f"{g.label}: {name}" if len(shown) > 1 else g.label) if g.label else name
-                panels.append(Panel(title, TIME_LABEL, name, tuple(_solver_lines(g, name, ref_label))))
-        if layout == "by-quantity":
-            caption = f"Solution against t, every case against {against}. {MARKERS_NOTE}"
-        else:
-            caption = (f"One panel per {_what_differs(groups)}; cases that differ only in their solver share a "
-                       f"panel, every solver against {against}. {MARKERS_NOTE}")
-    columns = 1 if len(panels) == 1 else 2
-    return FigureSpec(f"{stem}-solution", caption, f"{stem}: solution against time", tuple(panels),
-                      columns=columns, panel_height=3.0 if len(panels) == 1 else 2.6)
-
-
-def _error_lines(group: SetUp, name: str) -> list[Line]:
-    lines = []
-    for i, r in enumerate(group.runs):
-        rel = r.column(f"{name}_rel_err")
-        if rel is not None and r.t.size:
-            lines.append(Line(r.t, rel, _case_label(r, group.prefix), group.colors[r.case], linestyle=_LINESTYLES[i % len(_LINESTYLES)],
-                              marker=_MARKERS[i % len(_MARKERS)], linewidth=1.1, markersize=3.5))
-    return lines
-
-
-def _error_figure(stem: str, groups: list[SetUp], names: list[str], layout: str) -> FigureSpec | None:
-    runs = [r for g in groups for r in g.runs]
-    panels = []
-    note = "the relative error is zero or undefined at every point"
-    per = "case"
-    if layout == "states":
-        # one solution, several quantities: one panel, coloured as the states in the solution figure
-        r = runs[0]
-        lines = []
-        for j, name in enumerate(names):
-            rel = r.column(f"{name}_rel_err")
-            if rel is not None and r.t.size:
-                lines.append(Line(r.t, rel, f"{name} ({r.method})", SERIES_COLORS[j % len(SERIES_COLORS)],
-                                  linestyle=_LINESTYLES[j % len(_LINESTYLES)], marker=_MARKERS[j % len(_MARKERS)],
-                                  linewidth=1.1, markersize=3.5))
-        if lines:
-            panels.append(Panel(f"relative error, {_case_label(r)}", TIME_LABEL, REL_LABEL, tuple(lines),
-                                yscale="log", note=note, legend_outside=True))
-        per = "quantity"
-    else:
-        for g in groups:
-            for name in names:
-                lines = _error_lines(g, name)
-                if not lines:
-                    continue
-                title = f"relative error of {name}" + (f", {g.label}" if g.label else "")
-                panels.append(Panel(title, TIME_LABEL, REL_LABEL, tuple(lines), yscale="log", note=note))
-    if not panels:
-        return None
-    caption = (f"Relative error against t on a log scale, one line per {per}. Points where it is undefined "
-               "(reference zero or tiny) or exactly zero (the initial point) are left out.")
-    return FigureSpec(f"{stem}-relative-error", caption, f"{stem}: relative error against time", tuple(panels),
-                      columns=1 if len(panels) == 1 else 2, panel_height=3.0 if len(panels) == 1 else 2.6)
-
-
-def _linearisation_figures(stem: str, lin: LinearisationView) -> list[FigureSpec]:
-    figures = []
-    panels = []
-    for comp in lin.comparisons:
-        t = comp["t"]
-        names = comp["names"]
-        lines = []
-        for j, name in enumerate(names):
-            single = len(names) == 1
-            nl_color = REFERENCE_COLOR if single else SERIES_COLORS[j % len(SERIES_COLORS)]
-            lin_color = LINEARISED_COLOR if single else SERIES_COLORS[j % len(SERIES_COLORS)]
-            suffix = "" if single else f" {name}"
-            lines.append(Line(t, comp["nonlinear"][name], f"nonlinear{suffix}", nl_color, linewidth=1.4))
-            lines.append(Line(t, comp["linear"][name], f"linearised{suffix}", lin_color, linestyle="--",
-                              linewidth=1.4, zorder=3))
-        err = comp.get("error")
-        title = f"amplitude {comp['amplitude']:g}" + (f" (error {err:.2%})" if err is not None else "")
-        if comp.get("status", "success") != "success":
-            title += f", {comp['status']}"
-        panels.append(Panel(title, TIME_LABEL, names[0] if len(names) == 1 else "value", tuple(lines)))
-    if panels:
-        cols = 3 if len(panels) >= 5 else 2 if len(panels) >= 2 else 1
-        figures.append(FigureSpec(
-            f"{stem}-linearised-responses",
-            "Nonlinear model (solid) and linearised model (dashed) for each input amplitude.",
-            f"{lin.case}: nonlinear and linearised responses, one panel per amplitude", tuple(panels),
-            columns=cols, panel_height=2.3 if cols == 3 else 2.6))
-    lines = []
-    amplitudes = np.array(lin.amplitudes, dtype=float)
-    for j, name in enumerate(lin.error_names):
-        values = np.array([np.nan if row[1][j] is None else row[1][j] for row in lin.error_rows], dtype=float)
-        lead = name == lin.quantity or (j == 0 and not lin.quantity)
-        # the study's quantity in front; others thinner, dashed, so coinciding curves (y = q x) stay visible
-        lines.append(Line(amplitudes, values, name, SERIES_COLORS[j % len(SERIES_COLORS)],
-                          linestyle="-" if lead else _LINESTYLES[1 + j % 3], marker=_MARKERS[j % len(_MARKERS)],
-                          linewidth=2.0 if lead else 1.1, markersize=5 if lead else 3.5, zorder=2 if lead else 3))
-    if lines:
-        refs = [RefLine(lin.threshold, f"threshold {lin.threshold:g}")]
-        if lin.threshold_amplitude is not None:
-            refs.append(RefLine(lin.threshold_amplitude, f"threshold reached at {lin.threshold_amplitude:.3g}",
-                                axis="x", color="#555555", linestyle=":"))
-        elif lin.max_amplitude_within is not None:
-            refs.append(RefLine(lin.max_amplitude_within, f"largest amplitude within: {lin.max_amplitude_within:g}",
-                                axis="x", color="#555555", linestyle=":"))
-        slope = (f" The log-log slope is {lin.slope:.2f}: the error grows as the amplitude to that power."
-                 if lin.slope is not None else "")
-        figures.append(FigureSpec(
-            f"{stem}-linearisation-error",
-            f"Relative error of the linearised model against the input amplitude (log-log), with the "
-            f"threshold {lin.threshold:g}.{slope}",
-            f"{lin.case}: linearisation error against amplitude", (
-                Panel("error of the linearised model", "input amplitude", "relative error", tuple(lines),
-                      xscale="log", yscale="log", reflines=tuple(refs),
-                      note="no positive error to show on a log scale"),),
-            columns=1, panel_height=3.0))
-    return figures
-
-
-# --- linearisation ------------------------------------------------------------------------------
+def _inline_arrays(text: str) -> str:
+    """tomli_w writes one array item per line; join them, innermost arrays first."""
+    while True:
+        joined = _MULTILINE_ARRAY.sub(lambda m: "[" + ", ".join(x.strip().rstrip(",")
+                                                               for x in m.group(1).splitlines()) + "]", text)
+        if joined == text:
+            return text
+        text = joined
 
 
 def _float_list(value: Any, what: str) -> list[float]:
@@ -761,7 +448,8 @@ def build_sections(groups: list[ExperimentRuns]) -> tuple[list[Section], list[st
     for group in groups:
         runs = group.runs
         anchor = anchors[group.name]
-        shown, referenced = _plot_quantities(runs)
+        shown, referenced = plot_quantities(runs)
+        units = units_of(runs[0])
         groups = setups(runs)
         if len(runs) == 1 and len(shown) > 1:
             layout = "states"
@@ -775,7 +463,7 @@ def build_sections(groups: list[ExperimentRuns]) -> tuple[list[Section], list[st
                                                                              if n not in (*r.states, *r.outputs)]
             errors = [r.errors[n] for n in order]
             cases.append(CaseView(run=r, anchor=anchor_for(f"{anchor}-{r.case}", taken), errors=errors,
-                                  inputs_text=_inputs_text(r),
+                                  inputs_text=inputs_text(r),
                                   summary_errors=[e for e in errors if e.name in shown] or errors))
         kinds = sorted({r.reference for r in runs if r.errors})
         section = Section(
@@ -784,14 +472,15 @@ def build_sections(groups: list[ExperimentRuns]) -> tuple[list[Section], list[st
             versions=sorted({", ".join(f"{k} {v}" for k, v in r.versions.items()) for r in runs if r.versions}),
             notes=list(group.notes), reference_text="; ".join(REFERENCE_TEXT.get(k, k) for k in kinds),
             cases=cases, layout=layout)
-        section.solution_figure = _solution_figure(anchor, groups, shown, layout)
-        section.error_figure = _error_figure(anchor, groups, referenced, layout)
+        section.solution_figure = solution_figure(anchor, groups, shown, layout, units)
+        if not all(r.reference == "linearization" for r in runs):  # else the amplitude study shows the error
+            section.error_figure = error_figure(anchor, groups, referenced, layout, units)
         for r in runs:
             for name in referenced:
                 cols = [r.column(c) for c in (name, f"{name}_ref", f"{name}_abs_err", f"{name}_rel_err")]
                 if all(c is not None for c in cols) and r.t.size:
                     section.step_tables.append(StepTable(r.case, r.method, name, r.t, *cols))
-            section.settings.append((r.case, _toml(r.config)))
+        section.settings = _settings(runs)
         for r in runs:
             lin = r.extra.get("linearization")
             if lin is None:
@@ -804,7 +493,7 @@ def build_sections(groups: list[ExperimentRuns]) -> tuple[list[Section], list[st
                 section.notes.append(text)
                 continue
             stem = anchor if len(runs) == 1 else f"{anchor}-{anchor_for(r.case, set())}"
-            view.figures = _linearisation_figures(stem, view)
+            view.figures = linearisation_figures(stem, view, units)
             section.linearisations.append(view)
         if group.name in ("exercise1", "exercise1_2pi") and lab_note is not None and not any(
                 s.lab_note for s in sections):

@@ -1,14 +1,23 @@
 """Figures of the report: declarative panel specs in, PNG bytes out.
 
-The report's content code (:mod:`odelab.report.content`) decides *what* each figure shows as
+The report's content code (:mod:`odelab.report.figures`) decides *what* each figure shows as
 plain :class:`FigureSpec` data; this module is the only place that knows matplotlib, which it
 imports (with the non-interactive Agg backend) only when a figure is drawn, so importing the
 report package stays light and works on a machine with no display.
 
-Colours are fixed, not cycled, so a method has the same colour in every figure of a report:
-:data:`METHOD_COLORS` for solvers, black for every reference (exact, LTI, high-accuracy or
-the nonlinear model), :data:`SERIES_COLORS` for lines that are not methods (several states of
-one solution, several cases of one method).
+One look for the whole report (every new section follows it; docs/REPORT-STYLE.md says why):
+
+- **one colour meaning per quantity**: a solver method always has its :func:`method_style`
+  (colour, marker and line style together, so lines survive grey-scale printing); the truth a
+  run is compared with (exact, exact LTI, high-accuracy, the nonlinear model) is always
+  :data:`REFERENCE` (thin, black, drawn on top); the linearised model is always
+  :data:`LINEARISED` (purple, dashed); inputs u(t) are always :data:`INPUT` (grey); several
+  states of one solution take :data:`SERIES_COLORS` in order;
+- markers are hollow, and the line with fewer points is drawn above the one with more, so
+  ode23's 12 output points are never hidden under ode45's 41;
+- every axis label carries its unit ("x (m)", "t (s)"; see :func:`axis_label`); an error axis
+  says what it divides by ("|f - y| / |f|" or "|f - y| / max |f|");
+- titles wrap instead of running off the panel.
 """
 
 from __future__ import annotations
@@ -21,14 +30,22 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = [
+    "INPUT",
+    "LINEARISED",
     "METHOD_COLORS",
+    "REFERENCE",
     "REFERENCE_COLOR",
     "SERIES_COLORS",
     "FigureSpec",
     "Line",
+    "LineStyle",
     "Panel",
     "RefLine",
+    "axis_label",
+    "clipped_texts",
+    "draw_figure",
     "method_color",
+    "method_style",
     "render_png",
 ]
 
@@ -71,6 +88,43 @@ def method_color(method: str) -> str:
     return _EXTRA_METHOD_COLORS[zlib.crc32(method.encode("utf-8")) % len(_EXTRA_METHOD_COLORS)]
 
 
+@dataclass(frozen=True)
+class LineStyle:
+    """Colour, marker and line style of one role, used together everywhere in the report."""
+
+    color: str
+    marker: str | None = None
+    linestyle: str = "-"
+    linewidth: float = 1.2
+
+
+# The lab's pair differ in colour, marker *and* dash, so they stay apart in grey-scale print.
+_METHOD_MARKERS = {"ode23": "o", "ode45": "s", "rk4": "^", "euler": "v", "heun": "D", "midpoint": "P",
+                   "ralston": "X", "rk3": "<", "RK23": "h", "RK45": "d", "DOP853": "*", "Radau": ">",
+                   "BDF": "p", "LSODA": "8"}
+_METHOD_DASHES = {"ode23": "-", "ode45": "--", "rk4": "-.", "euler": ":"}
+_EXTRA_MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "h")
+_EXTRA_DASHES = ("-", "--", "-.", ":")
+
+REFERENCE = LineStyle(REFERENCE_COLOR, None, "-", 0.9)  # the truth: thin, black, on top
+LINEARISED = LineStyle("#AA4499", None, "--", 1.4)  # the linearised model (a series colour, never a method's)
+INPUT = LineStyle("#555555", None, "-", 1.2)  # inputs u(t)
+REFERENCE_ZORDER = 10.0
+
+
+def method_style(method: str) -> LineStyle:
+    """The report-wide colour, marker and dash of a solver method (stable for unknown names too)."""
+    h = zlib.crc32(method.encode("utf-8"))
+    marker = _METHOD_MARKERS.get(method) or _EXTRA_MARKERS[h % len(_EXTRA_MARKERS)]
+    dash = _METHOD_DASHES.get(method) or _EXTRA_DASHES[(h >> 8) % len(_EXTRA_DASHES)]
+    return LineStyle(method_color(method), marker, dash, 1.1)
+
+
+def axis_label(name: str, unit: str | None = None) -> str:
+    """``x (m)``; the name alone when no unit is known."""
+    return f"{name} ({unit})" if unit else name
+
+
 @dataclass(frozen=True, eq=False)
 class Line:
     """One curve of a panel. ``marker`` is drawn only if the line has few enough points."""
@@ -110,6 +164,8 @@ class Panel:
     reflines: tuple[RefLine, ...] = ()
     note: str = ""  # shown in the panel when it has nothing to draw
     legend_outside: bool = False  # right of the axes: for curves that fill the whole panel
+    height: float = 1.0  # relative height of the panel's row (an input under an output: 0.6)
+    legend: bool = True  # False: the figure's shared legend (FigureSpec.legend) names these lines
 
 
 @dataclass(frozen=True, eq=False)
@@ -122,6 +178,7 @@ class FigureSpec:
     panels: tuple[Panel, ...]
     columns: int = 1
     panel_height: float = PANEL_HEIGHT
+    legend: bool = False  # one legend above the panels, of every distinct label (small multiples)
 
 
 def _finite_positive(x: np.ndarray, y: np.ndarray, log_x: bool, log_y: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -137,9 +194,26 @@ def _finite_positive(x: np.ndarray, y: np.ndarray, log_x: bool, log_y: bool) -> 
     return x, y
 
 
-def _draw_panel(ax, panel: Panel) -> None:
+# A log error axis shows at most this many decades below its largest value: round-off-level
+# errors at the first points (1e-20) would otherwise squeeze the errors that matter into a strip.
+LOG_DECADES = 9
+
+
+def _limit_decades(ax, panel: Panel, log_x: bool) -> None:
+    values = [_finite_positive(ln.x, ln.y, log_x, True)[1] for ln in panel.lines]
+    finite = np.concatenate([v[np.isfinite(v)] for v in values]) if values else np.array([])
+    if finite.size and finite.min() < finite.max() * 10.0 ** -LOG_DECADES:
+        ax.set_ylim(bottom=finite.max() * 10.0 ** -LOG_DECADES)
+
+
+def _draw_panel(ax, panel: Panel, columns: int = 1) -> None:
+    import textwrap
+
     log_x, log_y = panel.xscale == "log", panel.yscale == "log"
     drawn = 0
+    # the sparser of two marked lines goes on top, so its markers are never hidden
+    marked = sorted((ln for ln in panel.lines if ln.marker), key=lambda ln: -np.size(ln.x))
+    rank = {id(ln): i for i, ln in enumerate(marked)}
     for line in panel.lines:
         x, y = _finite_positive(line.x, line.y, log_x, log_y)
         if not np.any(np.isfinite(y)):
@@ -148,8 +222,11 @@ def _draw_panel(ax, panel: Panel) -> None:
         # an isolated finite point between gaps is invisible without a marker
         if marker is None and log_y and x.size <= 4 * MAX_MARKERS:
             marker = "."
+        # marked lines: by point count alone (sparsest on top), always under a reference line
+        zorder = 2.0 + 0.5 * rank[id(line)] if id(line) in rank else line.zorder
+        hollow = {"markerfacecolor": "none", "markeredgewidth": 0.9} if marker not in (None, ".") else {}
         ax.plot(x, y, linestyle=line.linestyle, marker=marker, color=line.color, label=line.label,
-                linewidth=line.linewidth, markersize=line.markersize, zorder=line.zorder)
+                linewidth=line.linewidth, markersize=line.markersize, zorder=zorder, **hollow)
         drawn += 1
     for ref in panel.reflines:
         if ref.value is None or not math.isfinite(ref.value):
@@ -160,7 +237,11 @@ def _draw_panel(ax, panel: Panel) -> None:
         ax.set_xscale("log")
     if log_y:
         ax.set_yscale("log")
-    ax.set_title(panel.title, fontsize=10)
+        _limit_decades(ax, panel, log_x)
+    # characters that fit over one panel: titles wrap rather than run off the figure
+    size = 9.5 if columns <= 2 else 8.5
+    width = max(18, int(84 / max(columns, 1)))
+    ax.set_title("\n".join(textwrap.wrap(panel.title, width)) if panel.title else "", fontsize=size)
     ax.set_xlabel(panel.xlabel)
     ax.set_ylabel(panel.ylabel)
     ax.grid(True, which="major", color="#DDDDDD", linewidth=0.6)
@@ -169,39 +250,94 @@ def _draw_panel(ax, panel: Panel) -> None:
     if not drawn:
         ax.text(0.5, 0.5, panel.note or "nothing to plot", transform=ax.transAxes, ha="center", va="center",
                 fontsize=9, color="#555555")
-    elif ax.get_legend_handles_labels()[0]:
+    elif ax.get_legend_handles_labels()[0] and panel.legend:
         if panel.legend_outside:
             ax.legend(fontsize=8, frameon=False, loc="upper left", bbox_to_anchor=(1.01, 1.0))
         else:
             ax.legend(fontsize=8, frameon=True, framealpha=0.85, loc="best")
 
 
-def render_png(spec: FigureSpec) -> bytes:
-    """Draw ``spec`` and return the PNG file's bytes (the figure is closed before returning)."""
+def _figure_legend(fig) -> None:
+    """One legend above the panels holding every distinct label once (small multiples)."""
+    handles: dict[str, object] = {}
+    for ax in fig.axes:
+        for handle, label in zip(*ax.get_legend_handles_labels()):
+            handles.setdefault(label, handle)
+    if handles:
+        fig.legend(list(handles.values()), list(handles), loc="outside upper center", ncols=min(len(handles), 5),
+                   fontsize=8, frameon=False)
+
+
+_STYLE = {"font.size": 9, "axes.titlesize": 10, "axes.labelsize": 9, "xtick.labelsize": 8, "ytick.labelsize": 8,
+          "legend.fontsize": 8, "axes.spines.top": False, "axes.spines.right": False}
+
+
+def _pyplot():
     import matplotlib
 
     matplotlib.use("Agg", force=True)
     import matplotlib.pyplot as plt
 
+    return plt
+
+
+def draw_figure(spec: FigureSpec):
+    """The matplotlib figure of ``spec``, laid out; the caller closes it (``render_png`` does)."""
+    plt = _pyplot()
     n = max(len(spec.panels), 1)
     cols = max(1, min(spec.columns, n))
     rows = math.ceil(n / cols)
-    height = spec.panel_height * rows + 0.3
-    style = {"font.size": 9, "axes.titlesize": 10, "axes.labelsize": 9, "xtick.labelsize": 8,
-             "ytick.labelsize": 8, "legend.fontsize": 8, "axes.spines.top": False, "axes.spines.right": False}
-    with plt.rc_context(style):
+    ratios = [max((p.height for p in spec.panels[r * cols:(r + 1) * cols]), default=1.0) for r in range(rows)]
+    height = spec.panel_height * sum(ratios) + 0.3 + (0.35 if spec.legend else 0.0)
+    with plt.rc_context(_STYLE):
         fig = plt.figure(figsize=(FIGURE_WIDTH, height), layout="constrained")
         try:
             # each panel spans two grid columns, so a short last row can be centred
-            grid = fig.add_gridspec(rows, 2 * cols)
+            grid = fig.add_gridspec(rows, 2 * cols, height_ratios=ratios)
             for i, panel in enumerate(spec.panels):
                 row, col = divmod(i, cols)
                 in_row = min(cols, len(spec.panels) - row * cols)
                 start = 2 * col + (cols - in_row)
-                _draw_panel(fig.add_subplot(grid[row, start:start + 2]), panel)
-            buf = io.BytesIO()
-            # no timestamp in the metadata: the same data gives the same file, run after run
-            fig.savefig(buf, format="png", dpi=DPI, facecolor="white", metadata={"Software": "odelab report"})
-        finally:
+                _draw_panel(fig.add_subplot(grid[row, start:start + 2]), panel, cols)
+            if spec.legend:
+                _figure_legend(fig)
+            fig.canvas.draw()  # lay out now, so a caller can measure what was drawn
+        except BaseException:
             plt.close(fig)
+            raise
+    return fig
+
+
+def clipped_texts(fig) -> list[str]:
+    """What reaches past the figure's edges, cut off in the PNG: titles, axis labels, tick labels, legends."""
+    renderer = fig.canvas.get_renderer()
+    width, height = fig.bbox.width, fig.bbox.height
+    parts = []
+    for ax in fig.axes:
+        parts += [(f"title {ax.get_title()!r}", ax.title), (f"x label {ax.get_xlabel()!r}", ax.xaxis.label),
+                  (f"y label {ax.get_ylabel()!r}", ax.yaxis.label), ("legend", ax.get_legend()),
+                  (f"x ticks of {ax.get_title()!r}", ax.xaxis), (f"y ticks of {ax.get_title()!r}", ax.yaxis)]
+    parts += [("figure legend", legend) for legend in fig.legends]
+    out = []
+    for what, artist in parts:
+        if artist is None or not artist.get_visible():
+            continue
+        box = artist.get_tightbbox(renderer) if hasattr(artist, "get_ticklabels") else artist.get_window_extent(renderer)
+        if box is None or box.width == 0:
+            continue
+        if box.x0 < -0.5 or box.y0 < -0.5 or box.x1 > width + 0.5 or box.y1 > height + 0.5:
+            out.append(what)
+    return out
+
+
+def render_png(spec: FigureSpec) -> bytes:
+    """Draw ``spec`` and return the PNG file's bytes (the figure is closed before returning)."""
+    plt = _pyplot()
+    fig = draw_figure(spec)
+    try:
+        buf = io.BytesIO()
+        # no timestamp in the metadata: the same data gives the same file, run after run
+        fig.savefig(buf, format="png", dpi=DPI, facecolor="white", metadata={"Software": "odelab report"})
+    finally:
+        plt.close(fig)
     return buf.getvalue()

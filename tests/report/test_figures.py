@@ -1,0 +1,109 @@
+"""The report's figures as data: one look everywhere, units on the axes, nothing hidden or cut off."""
+
+from __future__ import annotations
+
+import pytest
+
+from odelab.report.collect import collect_runs
+from odelab.report.content import build_sections
+from odelab.report.plots import (
+    INPUT,
+    LINEARISED,
+    REFERENCE,
+    REFERENCE_ZORDER,
+    clipped_texts,
+    draw_figure,
+    method_style,
+)
+
+
+@pytest.fixture(scope="module")
+def sections(lab_runs):
+    groups, warnings = collect_runs(lab_runs)
+    found, more = build_sections(groups)
+    assert warnings == [] and more == []
+    return {s.name: s for s in found}
+
+
+def specs(section):
+    out = [section.solution_figure, section.error_figure]
+    out += [f for lin in section.linearisations for f in lin.figures]
+    return [f for f in out if f is not None]
+
+
+def test_every_method_has_its_own_colour_marker_and_dash():
+    ode23, ode45, rk4 = method_style("ode23"), method_style("ode45"), method_style("rk4")
+    for a, b in ((ode23, ode45), (ode23, rk4), (ode45, rk4)):
+        assert a.color != b.color and a.marker != b.marker and a.linestyle != b.linestyle
+    assert method_style("a-future-method") == method_style("a-future-method")
+
+
+def test_exercise1_reference_is_drawn_thin_black_and_on_top(sections):
+    (panel,) = sections["exercise1"].solution_figure.panels
+    by_label = {line.label: line for line in panel.lines}
+    assert list(by_label) == ["ode23, 12 points", "ode45, 41 points", "exact"]
+    exact = by_label["exact"]
+    assert exact.color == REFERENCE.color == "#000000" and exact.zorder == REFERENCE_ZORDER and exact.marker is None
+    assert all(exact.linewidth < line.linewidth for line in panel.lines if line is not exact)
+    assert by_label["ode23, 12 points"].marker == "o" and by_label["ode45, 41 points"].marker == "s"
+    assert panel.xlabel == "t (s)"
+
+
+def test_exercise2_shows_output_states_and_input_with_units(sections):
+    spec = sections["exercise2"].solution_figure
+    assert spec.columns == 3 and spec.legend  # one column per input, one legend for the figure
+    assert [p.ylabel for p in spec.panels] == [u for u in ("y (V)", "x (m)", "v (m/s)", "f (N)") for _ in range(3)]
+    assert [p.title for p in spec.panels[:3]] == ["step: f steps 0 -> 1 at t = 0", "sine: f = sin(0.2 t)",
+                                                   "ramp: f = t"]
+    inputs = spec.panels[9:]
+    assert all(p.height < 1 and [ln.color for ln in p.lines] == [INPUT.color] for p in inputs)
+    assert all(p.xlabel == "t (s)" for p in inputs) and all(p.xlabel == "" for p in spec.panels[:9])
+    step_y = {ln.label: ln for ln in spec.panels[0].lines}
+    assert set(step_y) == {"ode45", "ode23", "rk4", "exact (LTI)"}
+    # the error panels plot what the headline measures: relative to the peak, as y starts at 0
+    assert [p.ylabel for p in sections["exercise2"].error_figure.panels] == ["y: |f - y| / max |f|"] * 3
+
+
+def test_linearisation_colours_mean_the_same_in_every_figure(sections):
+    section = sections["linearisation"]
+    lines = [ln for p in section.solution_figure.panels for ln in p.lines]
+    lines += [ln for lin in section.linearisations for p in lin.figures[0].panels for ln in p.lines]
+    nonlinear = [ln for ln in lines if ln.label.startswith("nonlinear model")]
+    linearised = [ln for ln in lines if ln.label.startswith("linearised model")]
+    assert nonlinear and linearised
+    assert {ln.color for ln in nonlinear} == {REFERENCE.color}
+    assert {(ln.color, ln.linestyle) for ln in linearised} == {(LINEARISED.color, "--")}
+    assert section.error_figure is None  # the amplitude study shows the linearisation error
+    error = section.linearisations[0].figures[1].panels[0]
+    assert error.xlabel == "step amplitude of f (N)" and error.ylabel == "max |nonlinear - linear| / peak"
+
+
+def test_no_title_label_or_legend_is_cut_off(sections):
+    import matplotlib.pyplot as plt
+
+    checked = 0
+    for section in sections.values():
+        for spec in specs(section):
+            fig = draw_figure(spec)
+            try:
+                assert clipped_texts(fig) == [], spec.name
+            finally:
+                plt.close(fig)
+            checked += 1
+    assert checked >= 12
+
+
+def test_the_check_finds_a_cut_off_title():
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from odelab.report.plots import FigureSpec, Line, Panel
+
+    panel = Panel("x", "t (s)", "y", (Line(np.arange(3.0), np.arange(3.0), "y", "#000000"),))
+    fig = draw_figure(FigureSpec("f", "", "", (panel,)))
+    try:
+        fig.axes[0].set_title("a title far too long for any figure " * 6)
+        fig.canvas.draw()
+        assert clipped_texts(fig) != []
+    finally:
+        plt.close(fig)
