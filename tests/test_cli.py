@@ -193,8 +193,13 @@ def test_new_rejects_unknown_kind(tmp_path):
 def test_solvers_lists_every_method():
     result = invoke("solvers")
     assert result.exit_code == 0
-    for name in ("ode23", "ode45", "euler", "heun", "midpoint", "ralston", "rk3", "rk4", "RK45", "LSODA"):
+    for name in ("ode23", "ode45", "ode15s", "ode23s", "ode23t", "ode23tb", "ode113", "ode78", "ode89", "euler",
+                 "heun", "midpoint", "ralston", "rk3", "rk4", "RK45", "LSODA"):
         assert name in result.output
+    rows = {line.split("│")[1].strip(): [c.strip() for c in line.split("│")[2:]]
+            for line in result.output.splitlines() if line.startswith("│") and line.split("│")[1].strip()}
+    assert rows["ode15s"][:2] == ["stiff, DAE", "1-5"] and rows["ode45"][:2] == ["non-stiff", "5(4)"]
+    assert rows["LSODA"][1].startswith("Adams 1-12") and rows["ode23s"][:2] == ["stiff", "2(3)"]
 
 
 def test_function_system_runs_the_users_file(tmp_path):

@@ -298,25 +298,17 @@ def new(
 
 @app.command()
 def solvers() -> None:
-    """List the integration methods with their order, kind and defaults."""
+    """List the integration methods: what they are for (non-stiff, stiff, DAE), order, defaults."""
     from rich.table import Table
 
     from odelab.solvers.registry import METHODS
 
     out, _ = _consoles()
     table = Table(title="odelab methods", title_justify="left")
-    for col in ("method", "kind", "order", "defaults", "description"):
+    for col in ("method", "for", "order", "defaults", "description"):
         table.add_column(col)
     for m in METHODS.values():
-        if m.kind == "adaptive":
-            defaults = f"rtol 1e-3, atol 1e-6, refine {m.refine}, max_step 0.1*span"
-        elif m.kind == "fixed":
-            defaults = "h required"
-        else:
-            defaults = "rtol 1e-3, atol 1e-6"
-        kind = "adaptive (MATLAB)" if m.kind == "adaptive" else "fixed step" if m.kind == "fixed" else (
-            "SciPy, stiff" if m.stiff else "SciPy")
-        table.add_row(m.name, kind, str(m.order), defaults, m.description)
+        table.add_row(m.name, m.kind_label, m.order_label, m.defaults, m.description)
     out.print(table)
 
 

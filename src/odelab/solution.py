@@ -23,14 +23,38 @@ class Stats:
         count them (SciPy's implicit methods keep them internal).
     nfevals
         Calls of the right-hand side.
+    npds, ndecomps, nsolves
+        For odelab's stiff solvers (ode15s, ode23s...): partial derivatives (Jacobians)
+        formed, LU decompositions and linear solves, as MATLAB's ``Stats`` prints them;
+        ``None`` for explicit methods.
     """
 
     nsteps: int
     nfailed: int | None
     nfevals: int
+    npds: int | None = None
+    ndecomps: int | None = None
+    nsolves: int | None = None
 
     def as_dict(self) -> dict:
-        return {"nsteps": self.nsteps, "nfailed": self.nfailed, "nfevals": self.nfevals}
+        out = {"nsteps": self.nsteps, "nfailed": self.nfailed, "nfevals": self.nfevals}
+        if self.npds is not None:
+            out.update(npds=self.npds, ndecomps=self.ndecomps, nsolves=self.nsolves)
+        return out
+
+    def matlab(self) -> str:
+        """The statistics as MATLAB's ``odeset('Stats', 'on')`` prints them."""
+        lines = [f"{self.nsteps} successful steps", f"{self.nfailed if self.nfailed is not None else '?'} failed attempts",
+                 f"{self.nfevals} function evaluations"]
+        if self.npds is not None:
+            lines += [f"{self.npds} partial derivatives", f"{self.ndecomps} LU decompositions",
+                      f"{self.nsolves} solutions of linear systems"]
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        extra = (f", npds={self.npds}, ndecomps={self.ndecomps}, nsolves={self.nsolves}"
+                 if self.npds is not None else "")
+        return f"Stats(nsteps={self.nsteps}, nfailed={self.nfailed}, nfevals={self.nfevals}{extra})"
 
 
 @dataclass(frozen=True)

@@ -34,4 +34,15 @@ def test_max_steps_guard_is_applied(tmp_path):
                     'v = "mu*(1 - x^2)*v - x"\n[initial]\nx = 2\nv = 0\n[time]\nstop = 3000\n')
     result = run_case(load_experiment(path).cases[0], max_steps=300)
     assert result.status == "failed" and result.stats.nsteps == 300
-    assert "stiff" in result.message and "Radau" in result.message
+    assert "stiff" in result.message and "use method 'ode15s'" in result.message
+
+
+def test_stiff_solvers_and_their_options_in_experiment_files(tmp_path):
+    path = tmp_path / "vdp.toml"
+    path.write_text('[parameters]\nmu = 1000\n[system]\nstates = ["x", "v"]\n[system.equations]\nx = "v"\n'
+                    'v = "mu*(1 - x^2)*v - x"\n[initial]\nx = 2\nv = 0\n[time]\nstop = 100\n'
+                    '[solver]\nmethod = "ode15s"\nMaxOrder = 2\nBDF = "on"\n[reference]\nmethod = "high-accuracy"\nsolver = "Radau"\nrtol = 1e-8\natol = 1e-10\n')
+    result = run_case(load_experiment(path).cases[0])
+    assert result.status == "success" and result.stats.nsteps < 600
+    assert result.stats.as_dict()["npds"] == result.stats.npds >= 1
+    assert result.errors["x"].max_abs < 0.05  # phase error of a relaxation oscillation at rtol 1e-3

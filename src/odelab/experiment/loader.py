@@ -411,7 +411,7 @@ def compile_case(model: schema.Experiment, path: Path) -> tuple[Problem, dict]:
         raise ExperimentError(exc.message.replace(f"`{exc.key}`", f"`solver.{exc.key}`"),
                               key=f"solver.{exc.key}" if exc.key else "solver") from None
     resolved["solver"] = {"method": method.name, **_plain(options)}
-    if method.kind == "adaptive":
+    if method.kind in ("adaptive", "implicit"):
         resolved["solver"].setdefault("rtol", 1e-3)
         resolved["solver"].setdefault("atol", 1e-6)
 

@@ -20,7 +20,8 @@ Matrix = Union[Value, list[Value], list[list[Value]]]
 __all__ = ["Experiment", "SOLVER_KEYS"]
 
 # [solver] keys, after MATLAB's names are mapped to odelab's (see odelab.solvers.options).
-SOLVER_KEYS = ("method", "rtol", "atol", "max_step", "initial_step", "refine", "norm_control", "h", "max_steps")
+SOLVER_KEYS = ("method", "rtol", "atol", "max_step", "initial_step", "refine", "norm_control", "h", "max_steps",
+               "max_order", "bdf", "vectorized")
 
 
 class _Section(BaseModel):
@@ -63,6 +64,9 @@ class Solver(_Section):
     norm_control: Union[StrictBool, Literal["on", "off"], None] = None
     h: Number | None = None
     max_steps: StrictInt | None = None
+    max_order: StrictInt | None = None  # ode15s's MaxOrder
+    bdf: Union[StrictBool, Literal["on", "off"], None] = None  # ode15s's BDF
+    vectorized: Union[StrictBool, Literal["on", "off"], None] = None
 
 
 class Reference(_Section):

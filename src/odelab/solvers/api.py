@@ -190,6 +190,8 @@ def _solve(fun, tspan, y0, method: str, options: dict) -> Solution:
     if not np.all(np.isfinite(f0)):
         return _failed_at_start(m, tspan_arr, y0_arr, opts, f"the derivative at t = {t0:g} is not finite "
                                 f"({_fmt_vec(f0)}): check the right-hand side at the initial state")
+    if m.kind == "implicit":
+        return _solve_implicit(rhs, tspan_arr, y0_arr, f0, m, opts)
     if m.kind == "adaptive":
         return _solve_adaptive(rhs, tspan_arr, y0_arr, f0, m, opts, {"fun": user_fun, "options": given})
     return _solve_fixed(rhs, tspan_arr, y0_arr, m, opts)
@@ -318,6 +320,17 @@ def _output_function(opts: SolverOptions, tspan: np.ndarray, y0: np.ndarray):
     return out
 
 
+def _solve_implicit(fun, tspan, y0, f0, m: Method, opts: SolverOptions) -> Solution:
+    from odelab.solvers.implicit import solve_implicit
+
+    (t, y, nsteps, nfailed, status, t_stop, h_stop, exc), work = solve_implicit(fun, tspan, y0, f0, m, opts)
+    stats = Stats(nsteps=nsteps, nfailed=nfailed, nfevals=work.nfevals + 1, npds=work.npds,
+                  ndecomps=work.ndecomps, nsolves=work.nsolves)
+    message = _status_message(status, m, t_stop, h_stop, y, y0, opts, exc, tspan)
+    return Solution(t=t, y=y, stats=stats, status="success" if status == 0 else "failed", message=message,
+                    method=m.name, warnings=opts.warnings)
+
+
 def fixed_grid(tspan: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
     """Step points for a fixed step ``h`` and which of them are output.
 
@@ -396,8 +409,10 @@ def _status_message(status, m: Method, t_stop, h_stop, y, y0, opts: SolverOption
         )
     if status == engine.STATUS_MAX_STEPS:
         return (
-            f"{m.name} stopped {where} of {tf:g} after max_steps = {opts.max_steps} steps: the problem "
-            "may be stiff (try method 'Radau' or 'BDF') or need a larger max_steps."
+            f"{m.name} stopped {where} of {tf:g} after max_steps = {opts.max_steps} steps: "
+            + ("the problem is probably stiff: use method 'ode15s' (or 'ode23s' at crude tolerances), "
+               "which take a few hundred steps where explicit methods need millions; or raise max_steps."
+               if not m.stiff else "raise max_steps, or loosen rtol/atol.")
         )
     from odelab.solvers.events import CallbackError
 

@@ -43,9 +43,16 @@ _ALIASES = {
     "outputfcn": "output_fcn",
     "outputsel": "output_sel",
     "args": "args",
+    # the stiff solvers' odeset options (see odelab.solvers.implicit)
+    "jacobian": "jacobian",
+    "jpattern": "jpattern",
+    "vectorized": "vectorized",
+    "maxorder": "max_order",
+    "bdf": "bdf",
 }
 OPTION_NAMES = ("rtol", "atol", "max_step", "initial_step", "refine", "norm_control", "h", "max_steps",
-                "events", "nonnegative", "mass", "mstate_dependence", "output_fcn", "output_sel", "args")
+                "events", "nonnegative", "mass", "mstate_dependence", "output_fcn", "output_sel", "args",
+                "jacobian", "jpattern", "vectorized", "max_order", "bdf")
 # MATLAB's spellings of index options count from 1 (what a MATLAB user types); odelab's from 0.
 _ONE_BASED = {"NonNegative": "nonnegative", "OutputSel": "output_sel"}
 
@@ -216,6 +223,7 @@ class SolverOptions:
     output_fcn: object = None
     output_sel: np.ndarray | None = None
     args: tuple = ()
+    extra: Mapping[str, object] | None = None  # the stiff solvers' options (odelab.solvers.implicit)
 
 
 def _as_args(value) -> tuple:
@@ -276,7 +284,7 @@ def resolve_options(method: Method, opts: Mapping[str, object], tspan: np.ndarra
     if "max_step" in opts:
         max_step = min(span, _positive("max_step", opts["max_step"]))
     else:
-        max_step = 0.1 * span if method.kind == "adaptive" else math.inf
+        max_step = 0.1 * span if method.kind in ("adaptive", "implicit") else math.inf
     initial_step = _positive("initial_step", opts["initial_step"]) if "initial_step" in opts else math.nan
 
     refine = opts.get("refine", method.refine)
@@ -298,7 +306,15 @@ def resolve_options(method: Method, opts: Mapping[str, object], tspan: np.ndarra
                                    or dependence.lower() not in ("none", "weak", "strong")):
         raise InputError(f"`mstate_dependence` must be 'none', 'weak' or 'strong' (MATLAB's MStateDependence); "
                          f"got {dependence!r}.", key="mstate_dependence")
+    extra = None
+    if method.kind == "implicit":
+        from odelab.solvers.implicit import resolve_extras
+
+        extra = resolve_extras(method, opts, n)
+    if method.note:
+        notes.append(method.note)
     return SolverOptions(
+        extra=extra,
         events=opts.get("events"),
         nonnegative=nonnegative,
         mass=opts.get("mass"),

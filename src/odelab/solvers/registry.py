@@ -21,10 +21,11 @@ class Method:
         Registry name, as users type it (``"ode45"``, ``"rk4"``, ``"Radau"``).
     kind
         ``"adaptive"`` (odelab's engine with MATLAB's controller), ``"fixed"`` (odelab's
-        engine on a fixed step ``h``) or ``"scipy"`` (``scipy.integrate`` solver classes).
+        engine on a fixed step ``h``), ``"implicit"`` (odelab's stiff solvers in
+        :mod:`odelab.solvers.implicit`) or ``"scipy"`` (``scipy.integrate`` solver classes).
     order
-        Order of accuracy of the propagated solution (for SciPy's multistep methods, the
-        largest order they use).
+        Order of accuracy of the propagated solution; for variable-order methods the
+        highest order used (see ``orders``).
     description
         One line for ``odelab solvers``.
     tableau
@@ -45,6 +46,40 @@ class Method:
     shrink_min: float = 0.0
     refine: int = 1
     stiff: bool = False
+    orders: str = ""
+    problem: str = "non-stiff"
+    runs_as: str = ""
+    note: str = ""
+
+    @property
+    def kind_label(self) -> str:
+        """What the method is for, as ``odelab solvers`` shows it: non-stiff, stiff or DAE."""
+        return self.problem
+
+    @property
+    def defaults(self) -> str:
+        """MATLAB's defaults for the method, one line."""
+        if self.kind == "fixed":
+            return "h required"
+        text = "rtol 1e-3, atol 1e-6"
+        if self.kind in ("adaptive", "implicit"):
+            text += f", refine {self.refine}, max_step 0.1*span"
+        if self.name == "ode15s":
+            text += ", max_order 5, NDF (bdf off)"
+        if self.kind == "implicit":
+            text += ", Jacobian by finite differences"
+        if self.runs_as:
+            text += f" (runs {self.runs_as})"
+        return text
+
+    @property
+    def order_label(self) -> str:
+        """The order as a user reads it: ``"5(4)"`` for a pair, ``"1-5"`` for variable order."""
+        if self.orders:
+            return self.orders
+        if self.tableau is not None and self.tableau.error_order:
+            return f"{self.order}({self.tableau.error_order})"
+        return str(self.order)
 
     @property
     def options(self) -> tuple[str, ...]:
@@ -54,6 +89,10 @@ class Method:
                     "events", "nonnegative", "mass", "mstate_dependence", "output_fcn", "output_sel", "args")
         if self.kind == "fixed":
             return ("h", "args")
+        if self.kind == "implicit":
+            common = ("rtol", "atol", "max_step", "initial_step", "refine", "max_steps", "jacobian", "jpattern",
+                      "vectorized", "mass", "args")
+            return common + (("max_order", "bdf") if self.name == "ode15s" else ())
         return ("rtol", "atol", "max_step", "initial_step", "max_steps", "args")
 
 
@@ -67,11 +106,23 @@ def _adaptive(name, tableau, shrink_min, refine, description):
         power=1.0 / (tableau.error_order + 1),
         shrink_min=shrink_min,
         refine=refine,
+        problem="non-stiff",
     )
 
 
+def _implicit(name, order, orders, problem, description):
+    return Method(name=name, kind="implicit", order=order, orders=orders, description=description, stiff=True,
+                  problem=problem)
+
+
+def _mapped(name, runs_as, order, orders, description, note):
+    return Method(name=name, kind="scipy", order=order, orders=orders, description=description, runs_as=runs_as,
+                  note=note)
+
+
 def _fixed(name, tableau, description):
-    return Method(name=name, kind="fixed", order=tableau.order, description=description, tableau=tableau)
+    return Method(name=name, kind="fixed", order=tableau.order, description=description, tableau=tableau,
+                  problem="non-stiff (fixed h)")
 
 
 METHODS: dict[str, Method] = {
@@ -79,6 +130,27 @@ METHODS: dict[str, Method] = {
     for m in (
         _adaptive("ode23", tb.BS23, 0.5, 1, "MATLAB's ode23: Bogacki-Shampine 3(2), adaptive"),
         _adaptive("ode45", tb.DP54, 0.1, 4, "MATLAB's ode45: Dormand-Prince 5(4), adaptive"),
+        _implicit("ode15s", 5, "1-5", "stiff, DAE",
+                  "MATLAB's ode15s: variable-order NDF/BDF (orders 1-5), for stiff problems and index-1 DAEs"),
+        _implicit("ode23s", 2, "2(3)", "stiff",
+                  "MATLAB's ode23s: modified Rosenbrock (2,3) W-method, for stiff problems at crude tolerances"),
+        Method("ode23t", "implicit", 5, "MATLAB's ode23t name: moderately stiff problems and DAEs (here run by "
+               "odelab's ode15s)", stiff=True, orders="1-5", problem="stiff, DAE", runs_as="ode15s",
+               note="ode23t ran as odelab's ode15s (NDFs, orders 1-5): odelab has no native trapezoidal-rule "
+                    "solver yet"),
+        Method("ode23tb", "implicit", 5, "MATLAB's ode23tb name: stiff problems at crude tolerances (here run by "
+               "odelab's ode15s)", stiff=True, orders="1-5", problem="stiff", runs_as="ode15s",
+               note="ode23tb ran as odelab's ode15s (NDFs, orders 1-5): odelab has no native TR-BDF2 solver yet"),
+        _mapped("ode113", "LSODA", 12, "1-12",
+                "MATLAB's ode113 name: variable-order Adams (here run by SciPy's LSODA)",
+                "ode113 ran as SciPy's LSODA (variable-order Adams-Moulton, switching to BDF if the problem "
+                "turns stiff): odelab has no native Adams-Bashforth-Moulton PECE yet"),
+        _mapped("ode78", "DOP853", 8, "8(5,3)",
+                "MATLAB's ode78 name: high-order explicit RK (here run by SciPy's DOP853)",
+                "ode78 ran as SciPy's DOP853 (Dormand-Prince 8(5,3)), not Verner's 7(8) pair"),
+        _mapped("ode89", "DOP853", 8, "8(5,3)",
+                "MATLAB's ode89 name: high-order explicit RK (here run by SciPy's DOP853)",
+                "ode89 ran as SciPy's DOP853 (Dormand-Prince 8(5,3)), not Verner's 8(9) pair"),
         _fixed("euler", tb.EULER, "Forward Euler, fixed step h"),
         _fixed("heun", tb.HEUN, "Heun's method (improved Euler), fixed step h"),
         _fixed("midpoint", tb.MIDPOINT, "Explicit midpoint, fixed step h"),
@@ -88,13 +160,27 @@ METHODS: dict[str, Method] = {
         Method("RK23", "scipy", 3, "SciPy solve_ivp RK23 (Bogacki-Shampine, SciPy's controller)"),
         Method("RK45", "scipy", 5, "SciPy solve_ivp RK45 (Dormand-Prince, SciPy's controller)"),
         Method("DOP853", "scipy", 8, "SciPy solve_ivp DOP853 (Dormand-Prince 8(5,3))"),
-        Method("Radau", "scipy", 5, "SciPy solve_ivp Radau IIA, implicit, for stiff problems", stiff=True),
-        Method("BDF", "scipy", 5, "SciPy solve_ivp BDF (orders 1-5), implicit, for stiff problems", stiff=True),
-        Method("LSODA", "scipy", 12, "SciPy solve_ivp LSODA (Adams/BDF switching)", stiff=True),
+        Method("Radau", "scipy", 5, "SciPy solve_ivp Radau IIA, implicit, for stiff problems", stiff=True,
+               problem="stiff"),
+        Method("BDF", "scipy", 5, "SciPy solve_ivp BDF (orders 1-5), implicit, for stiff problems", stiff=True,
+               orders="1-5", problem="stiff"),
+        # LSODA: Adams orders 1-12 while non-stiff, BDF orders 1-5 once stiff (Petzold 1983).
+        Method("LSODA", "scipy", 12, "SciPy solve_ivp LSODA (Adams/BDF switching)", stiff=True,
+               orders="Adams 1-12 / BDF 1-5", problem="both (switches)"),
     )
 }
 
 _BY_LOWER = {name.lower(): m for name, m in METHODS.items()}
+
+# What users type when they mean a suite member: MATLAB names without their letter, other
+# tools' names for the same methods. Checked before the spelling-based suggestion.
+_MEANT = {
+    "ode15": "ode15s", "ode15i": "ode15s", "ode113s": "ode113",
+    "ode11": "ode113", "ode13": "ode113", "ode8": "ode89", "ode87": "ode78", "ode98": "ode89",
+    "ode23ts": "ode23t", "ode23st": "ode23s", "ode45s": "ode15s", "stiff": "ode15s", "gear": "ode15s",
+    "ndf": "ode15s", "rosenbrock": "ode23s", "trbdf2": "ode23tb", "tr-bdf2": "ode23tb", "adams": "ode113",
+    "trapezoidal": "ode23t", "verner": "ode78", "rk45": "RK45", "dopri5": "ode45", "dopri853": "DOP853",
+}
 
 
 def get_method(name: str, *, key: str = "method") -> Method:
@@ -103,8 +189,11 @@ def get_method(name: str, *, key: str = "method") -> Method:
         raise InputError(f"`{key}` must be a method name such as 'ode45'; got {name!r}.", key=key)
     method = _BY_LOWER.get(name.lower())
     if method is None:
-        close = difflib.get_close_matches(name.lower(), list(_BY_LOWER), n=1)
-        hint = f" Did you mean '{_BY_LOWER[close[0]].name}'?" if close else ""
+        meant = _MEANT.get(name.lower().strip())
+        if meant is None:
+            close = difflib.get_close_matches(name.lower(), list(_BY_LOWER), n=1)
+            meant = _BY_LOWER[close[0]].name if close else None
+        hint = f" Did you mean '{meant}'?" if meant else ""
         raise InputError(
             f"`{key}` is {name!r}, which is not a method odelab knows.{hint} "
             f"Known methods: {', '.join(METHODS)}.",

@@ -173,7 +173,7 @@ def simulate(
     if backward:
         cuts = cuts[::-1]
     edges = [t0, *cuts.tolist(), tf]
-    if cuts.size and kind == "adaptive" and not any(
+    if cuts.size and kind in ("adaptive", "implicit") and not any(
         _is_max_step(key) and value is not None for key, value in options.items()
     ):
         options = {**options, "max_step": 0.1 * abs(tf - t0)}
@@ -183,6 +183,7 @@ def simulate(
     ts: list[np.ndarray] = []
     xs: list[np.ndarray] = []
     nsteps, nfailed, nfevals = 0, 0, 0
+    linalg = None  # npds, ndecomps, nsolves summed for the stiff solvers
     status, message, method_name = "success", "", method
     notes: list[str] = []
     state = x0
@@ -219,6 +220,9 @@ def simulate(
         nsteps += sol.stats.nsteps
         nfevals += sol.stats.nfevals
         nfailed = None if nfailed is None or sol.stats.nfailed is None else nfailed + sol.stats.nfailed
+        if sol.stats.npds is not None:
+            counts = (sol.stats.npds, sol.stats.ndecomps, sol.stats.nsolves)
+            linalg = counts if linalg is None else tuple(a + b for a, b in zip(linalg, counts))
         method_name = sol.method or method
         notes.extend(w for w in sol.warnings if w not in notes)
         if sol.status != "success":
@@ -248,7 +252,7 @@ def simulate(
         states=states,
         inputs=inputs,
         outputs=outputs,
-        stats=Stats(nsteps=nsteps, nfailed=nfailed, nfevals=nfevals),
+        stats=Stats(nsteps, nfailed, nfevals, *(linalg or ())),
         status=status,
         message=message,
         method=method_name,

@@ -1,0 +1,111 @@
+"""odelab's own stiff solvers, written from the MATLAB ODE Suite papers (one module each).
+
+:func:`solve_implicit` runs one of them for :func:`odelab.solve`; :func:`resolve_extras`
+checks MATLAB's options that only they take (``Jacobian``, ``JPattern``, ``Vectorized``,
+``Mass``, ``MaxOrder``, ``BDF``). SciPy is imported only when a solve starts.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from odelab.exceptions import InputError
+
+__all__ = ["resolve_extras", "solve_implicit", "EXTRA_DEFAULTS"]
+
+EXTRA_DEFAULTS = {"jacobian": None, "jpattern": None, "vectorized": False, "mass": None, "max_order": 5,
+                  "bdf": False}
+
+
+def _as_bool(name, value) -> bool:
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, str) and value.lower() in ("on", "off"):
+        return value.lower() == "on"
+    raise InputError(f"`{name}` must be true/false (or MATLAB's 'on'/'off'); got {value!r}.", key=name)
+
+
+def _square(name, value, n, what):
+    if hasattr(value, "toarray"):  # a scipy.sparse matrix
+        shape = value.shape
+    else:
+        try:
+            arr = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError(f"`{name}` must be {what}: a {n}-by-{n} matrix; got {value!r}.", key=name) from None
+        if n == 1 and arr.ndim < 2 and arr.size == 1:
+            arr = arr.reshape(1, 1)
+        shape = arr.shape
+        if arr.ndim == 2 and shape == (n, n) and not np.all(np.isfinite(arr)):
+            raise InputError(f"`{name}` must have finite entries.", key=name)
+        value = arr
+    if tuple(shape) != (n, n):
+        raise InputError(f"`{name}` must be {what}: a {n}-by-{n} matrix (one row and column per state); "
+                         f"got shape {tuple(shape)}.", key=name)
+    return value
+
+
+def resolve_extras(method, opts, n: int) -> dict:
+    """Check the stiff solvers' own options and fill in MATLAB's defaults."""
+    out = dict(EXTRA_DEFAULTS)
+    if "max_order" in opts:
+        k = opts["max_order"]
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 1 <= k <= 5:
+            raise InputError(f"`max_order` must be 1, 2, 3, 4 or 5 (ode15s's MaxOrder); got {k!r}.", key="max_order")
+        out["max_order"] = int(k)
+    if "bdf" in opts:
+        out["bdf"] = _as_bool("bdf", opts["bdf"])
+    if "vectorized" in opts:
+        out["vectorized"] = _as_bool("vectorized", opts["vectorized"])
+    jac = opts.get("jacobian")
+    if jac is not None:
+        out["jacobian"] = jac if callable(jac) else _square("jacobian", jac, n, "df/dy (constant) or a callable J(t, y)")
+    if opts.get("jpattern") is not None:
+        pattern = _square("jpattern", opts["jpattern"], n, "the sparsity pattern of df/dy (nonzero where f_i "
+                          "depends on y_j)")
+        out["jpattern"] = pattern
+    if opts.get("mass") is not None:
+        mass = opts["mass"]
+        if callable(mass):
+            raise InputError("`mass` must be a constant matrix: odelab's stiff solvers take M y' = f(t, y) with "
+                             "a constant M (MATLAB's time- or state-dependent Mass is not supported).", key="mass")
+        mass = _square("mass", mass, n, "the mass matrix M of M y' = f(t, y)")
+        dense = mass.toarray() if hasattr(mass, "toarray") else mass
+        if method.name not in ("ode15s", "ode23t") and np.linalg.matrix_rank(dense) < n:
+            raise InputError(f"`mass` is singular (a DAE); {method.name} needs a nonsingular mass matrix: use "
+                             "ode15s (or ode23t) for index-1 DAEs, as in MATLAB.", key="mass")
+        out["mass"] = mass
+    return out
+
+
+def solve_implicit(fun, tspan, y0, f0, m, opts):
+    """Run the native stiff solver ``m`` and wrap its result as the engine's tuple plus counters."""
+    from odelab.solvers.implicit.common import Work
+
+    extra = opts.extra
+    n = y0.size
+    mass = extra["mass"]
+    jpattern = extra["jpattern"]
+    if jpattern is not None and mass is not None:
+        from scipy import sparse
+
+        mass = sparse.csc_matrix(mass, dtype=float)
+    elif mass is not None and hasattr(mass, "toarray"):
+        mass = mass.toarray()
+    work = Work(fun, n, jacobian=extra["jacobian"], jpattern=jpattern, vectorized=extra["vectorized"], mass=mass)
+    atol = np.broadcast_to(np.asarray(opts.atol, dtype=float), (n,))
+    name = m.runs_as or m.name
+    if name == "ode15s":
+        from odelab.solvers.implicit.ode15s import integrate_ode15s
+
+        dae = mass is not None and np.linalg.matrix_rank(mass.toarray() if hasattr(mass, "toarray") else mass) < n
+        result = integrate_ode15s(work, tspan, y0, f0, opts.rtol, atol, opts.max_step, opts.initial_step,
+                                  opts.refine, opts.max_steps, max_order=extra["max_order"], bdf=extra["bdf"], dae=dae)
+    elif name == "ode23s":
+        from odelab.solvers.implicit.ode23s import integrate_ode23s
+
+        result = integrate_ode23s(work, tspan, y0, f0, opts.rtol, atol, opts.max_step, opts.initial_step,
+                                  opts.refine, opts.max_steps)
+    else:  # pragma: no cover - the registry lists only the solvers above as implicit
+        raise ValueError(name)
+    return result, work

@@ -1,0 +1,225 @@
+"""What the implicit solvers share: Jacobians, LU factorisations, counters and output.
+
+MATLAB's stiff solvers report, besides steps, failures and function evaluations, the partial
+derivatives (Jacobians) formed, the LU decompositions and the linear solves. :class:`Work`
+holds those counters and the three operations that produce them:
+
+* :meth:`Work.jacobian` — ``df/dy`` at ``(t, y)``: the user's analytic Jacobian (a matrix or a
+  callable), or finite differences as MATLAB's ``numjac`` does them (one evaluation per column,
+  fewer with a ``JPattern`` sparsity pattern by grouping structurally orthogonal columns, one
+  vectorised call with ``Vectorized``);
+* :meth:`Work.factor` — LU of an iteration matrix ``M - c J`` (dense LAPACK, or SuperLU when a
+  sparsity pattern makes the matrix sparse);
+* :meth:`Work.solve` — one solve with that factorisation.
+
+:class:`Output` turns accepted steps into MATLAB's output points (``Refine`` points per step
+for a two-element ``tspan``, exactly the ``tspan`` times otherwise) from each solver's own
+interpolant.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["Work", "Output", "rms_or_max", "initial_step"]
+
+EPS = float(np.finfo(float).eps)
+SQRT_EPS = math.sqrt(EPS)
+
+
+class Work:
+    """The right-hand side, the Jacobian source and MATLAB's cost counters for one solve."""
+
+    def __init__(self, fun, n: int, *, jacobian=None, jpattern=None, vectorized: bool = False, mass=None):
+        self.fun = fun
+        self.n = n
+        self.vectorized = vectorized
+        self.nfevals = 0
+        self.npds = 0
+        self.ndecomps = 0
+        self.nsolves = 0
+        self.sparse = jpattern is not None
+        self._jac = jacobian
+        self._groups = None
+        if jpattern is not None:
+            from scipy import sparse
+
+            self.pattern = sparse.csc_matrix(jpattern, dtype=bool)
+            self._groups = _column_groups(self.pattern)
+        if mass is None:
+            self.mass = None
+        else:
+            self.mass = mass
+        self.identity = self._identity()
+
+    def _identity(self):
+        if self.sparse:
+            from scipy import sparse
+
+            return sparse.identity(self.n, format="csc")
+        return np.eye(self.n)
+
+    @property
+    def M(self):
+        """The mass matrix (the identity when there is none)."""
+        return self.identity if self.mass is None else self.mass
+
+    def f(self, t: float, y: np.ndarray) -> np.ndarray:
+        self.nfevals += 1
+        return np.asarray(self.fun(t, y), dtype=float).reshape(self.n)
+
+    # --- Jacobian -------------------------------------------------------------------------
+
+    def jacobian(self, t: float, y: np.ndarray, fy, threshold: np.ndarray):
+        """``df/dy`` at ``(t, y)``; ``fy = f(t, y)`` (or None) is reused by finite differences."""
+        self.npds += 1
+        jac = self._jac
+        if jac is not None:
+            value = jac(t, y) if callable(jac) else jac
+            if self.sparse:
+                from scipy import sparse
+
+                return sparse.csc_matrix(value, dtype=float)
+            return np.asarray(value, dtype=float).reshape(self.n, self.n)
+        if fy is None:
+            fy = self.f(t, y)
+        return self._numjac(t, y, fy, threshold)
+
+    def _numjac(self, t, y, fy, threshold):
+        # Increments as MATLAB's numjac starts them: sqrt(eps) relative to max(|y|, thresh),
+        # with the sign of y (so the perturbed point stays on the same side of zero).
+        ymax = np.maximum(np.abs(y), threshold)
+        delta = SQRT_EPS * ymax
+        delta = np.where(y >= 0, delta, -delta)
+        delta = (y + delta) - y  # the increment actually represented
+        n = self.n
+        if self._groups is not None:
+            from scipy import sparse
+
+            rows, cols = self.pattern.nonzero()
+            values = np.empty(rows.size)
+            for group in self._groups:
+                yp = y.copy()
+                yp[group] += delta[group]
+                df = self.f(t, yp) - fy
+                mask = np.isin(cols, group)
+                values[mask] = df[rows[mask]] / delta[cols[mask]]
+            return sparse.csc_matrix((values, (rows, cols)), shape=(n, n))
+        if self.vectorized:
+            Y = y[:, None] + np.diag(delta)
+            self.nfevals += 1
+            F = np.asarray(self.fun(t, Y), dtype=float).reshape(n, n)
+            return (F - fy[:, None]) / delta
+        J = np.empty((n, n))
+        for j in range(n):
+            yp = y.copy()
+            yp[j] += delta[j]
+            J[:, j] = (self.f(t, yp) - fy) / delta[j]
+        return J
+
+    # --- linear algebra ---------------------------------------------------------------------
+
+    def factor(self, matrix):
+        """LU-factor an iteration matrix (counted as one decomposition)."""
+        self.ndecomps += 1
+        if self.sparse:
+            from scipy.sparse.linalg import splu
+
+            return ("sparse", splu(matrix.tocsc()))
+        from scipy.linalg import lu_factor
+
+        return ("dense", lu_factor(matrix, check_finite=False))
+
+    def solve(self, lu, rhs: np.ndarray) -> np.ndarray:
+        """Solve with a factorisation from :meth:`factor` (counted as one linear solve)."""
+        self.nsolves += 1
+        kind, fac = lu
+        if kind == "sparse":
+            return fac.solve(rhs)
+        from scipy.linalg import lu_solve
+
+        return lu_solve(fac, rhs, check_finite=False)
+
+    def mass_times(self, v: np.ndarray) -> np.ndarray:
+        return v if self.mass is None else self.mass @ v
+
+
+def _column_groups(pattern) -> list[np.ndarray]:
+    """Greedy grouping of structurally orthogonal columns (Curtis, Powell & Reid 1974)."""
+    n = pattern.shape[1]
+    csc = pattern.tocsc()
+    groups: list[list[int]] = []
+    used_rows: list[set[int]] = []
+    for j in range(n):
+        rows = set(csc.indices[csc.indptr[j]:csc.indptr[j + 1]].tolist())
+        for g, taken in zip(groups, used_rows):
+            if not rows & taken:
+                g.append(j)
+                taken |= rows
+                break
+        else:
+            groups.append([j])
+            used_rows.append(set(rows))
+    return [np.array(g) for g in groups]
+
+
+def rms_or_max(v: np.ndarray, scale: np.ndarray) -> float:
+    """MATLAB's error norm: the max norm of ``v / scale``."""
+    return float(np.max(np.abs(v) / scale)) if v.size else 0.0
+
+
+def initial_step(f0, y0, threshold, rtol, power, hmax, htspan, t0, htry, normcontrol=False):
+    """MATLAB's first step from ``y'(t0)``: ``1 / (||f0 / wt|| / (0.8 rtol^power))``, capped."""
+    hmin = 16.0 * math.ulp(t0)
+    if htry == htry:  # given
+        return min(hmax, max(hmin, htry))
+    absh = min(hmax, htspan)
+    if normcontrol:
+        rh = (float(np.linalg.norm(f0)) / max(float(np.linalg.norm(y0)), float(np.max(threshold)))) / (0.8 * rtol**power)
+    else:
+        rh = float(np.max(np.abs(f0) / np.maximum(np.abs(y0), threshold))) / (0.8 * rtol**power)
+    if absh * rh > 1:
+        absh = 1.0 / rh
+    return max(absh, hmin)
+
+
+class Output:
+    """Collect MATLAB's output points from accepted steps and a per-step interpolant."""
+
+    def __init__(self, tspan: np.ndarray, y0: np.ndarray, refine: int):
+        self.tspan = tspan
+        self.every_step = tspan.size == 2
+        self.refine = refine
+        self.tdir = 1.0 if tspan[-1] > tspan[0] else -1.0
+        self.t = [float(tspan[0])]
+        self.y = [y0.copy()]
+        self.next = 1
+
+    def step(self, t: float, tnew: float, ynew: np.ndarray, interp) -> None:
+        """Record the step ``t -> tnew``; ``interp(times)`` returns states (len(times), n)."""
+        if self.every_step:
+            if self.refine > 1:
+                times = t + (tnew - t) * np.arange(1, self.refine) / self.refine
+                self.t.extend(times.tolist())
+                self.y.extend(interp(times))
+            self.t.append(tnew)
+            self.y.append(ynew.copy())
+            return
+        start = self.next
+        while self.next < self.tspan.size and self.tdir * (tnew - self.tspan[self.next]) >= 0:
+            self.next += 1
+        if self.next == start:
+            return
+        times = self.tspan[start:self.next]
+        inside = times != tnew
+        values = np.empty((times.size, ynew.size))
+        values[~inside] = ynew
+        if inside.any():
+            values[inside] = interp(times[inside])
+        self.t.extend(times.tolist())
+        self.y.extend(values)
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.array(self.t), np.vstack(self.y)

@@ -1,0 +1,72 @@
+"""The rest of MATLAB's ODE suite as functions: ``odelab.ode15s(fun, tspan, y0, ...)`` and co.
+
+Each takes MATLAB's arguments and ``odeset`` option names (``RelTol``, ``AbsTol``,
+``MaxStep``, ``InitialStep``, ``Refine``, and for the stiff solvers ``Jacobian``, ``JPattern``,
+``Vectorized``, ``Mass``; ``MaxOrder`` and ``BDF`` for ode15s) or odelab's snake_case names,
+and returns a :class:`~odelab.solution.Solution` whose ``stats`` count what MATLAB's
+``Stats`` prints (for the stiff solvers also Jacobians, LU decompositions, linear solves).
+"""
+
+from __future__ import annotations
+
+from odelab.solution import Solution
+from odelab.solvers.api import solve
+
+__all__ = ["ode15s", "ode23s", "ode23t", "ode23tb", "ode113", "ode78", "ode89"]
+
+
+def ode15s(fun, tspan, y0, **options) -> Solution:
+    """Solve a stiff ODE or an index-1 DAE ``M y' = f(t, y)`` with MATLAB's ``ode15s``.
+
+    Variable-order (1-5) numerical differentiation formulas (Shampine & Reichelt 1997).
+    Options: ``rtol``/``RelTol`` (1e-3), ``atol``/``AbsTol`` (1e-6), ``max_step``
+    (0.1*|tf - t0|), ``initial_step``, ``refine`` (1), ``max_steps``, ``max_order``/``MaxOrder``
+    (5), ``bdf``/``BDF`` (False: NDFs; True: the backward differentiation formulas),
+    ``jacobian`` (a constant matrix or ``J(t, y)``; default finite differences),
+    ``jpattern`` (sparsity of df/dy: fewer evaluations and sparse LU), ``vectorized``
+    (``fun(t, Y)`` accepts a matrix of states, one per column), ``mass`` (constant M,
+    singular for a DAE with consistent initial values).
+
+    Examples
+    --------
+    >>> import odelab
+    >>> vdp = lambda t, y: [y[1], 1000 * (1 - y[0] ** 2) * y[1] - y[0]]
+    >>> sol = odelab.ode15s(vdp, [0, 3000], [2, 0])
+    >>> sol.success, sol.stats.nsteps < 1000
+    (True, True)
+    """
+    return solve(fun, tspan, y0, method="ode15s", **options)
+
+
+def ode23s(fun, tspan, y0, **options) -> Solution:
+    """Solve a stiff ODE with MATLAB's ``ode23s``: a modified Rosenbrock (2,3) W-method.
+
+    One Jacobian per step, no Newton iteration: effective at crude tolerances. Options as
+    :func:`ode15s` without ``max_order``/``bdf``; ``mass`` must be nonsingular.
+    """
+    return solve(fun, tspan, y0, method="ode23s", **options)
+
+
+def ode23t(fun, tspan, y0, **options) -> Solution:
+    """MATLAB's ``ode23t`` name (trapezoidal rule, moderately stiff problems and DAEs)."""
+    return solve(fun, tspan, y0, method="ode23t", **options)
+
+
+def ode23tb(fun, tspan, y0, **options) -> Solution:
+    """MATLAB's ``ode23tb`` name (TR-BDF2, stiff problems at crude tolerances)."""
+    return solve(fun, tspan, y0, method="ode23tb", **options)
+
+
+def ode113(fun, tspan, y0, **options) -> Solution:
+    """MATLAB's ``ode113`` name (variable-order Adams, non-stiff, tight tolerances)."""
+    return solve(fun, tspan, y0, method="ode113", **options)
+
+
+def ode78(fun, tspan, y0, **options) -> Solution:
+    """MATLAB's ``ode78`` name (high-order explicit Runge-Kutta, tight tolerances)."""
+    return solve(fun, tspan, y0, method="ode78", **options)
+
+
+def ode89(fun, tspan, y0, **options) -> Solution:
+    """MATLAB's ``ode89`` name (high-order explicit Runge-Kutta, very tight tolerances)."""
+    return solve(fun, tspan, y0, method="ode89", **options)
