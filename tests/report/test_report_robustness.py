@@ -193,3 +193,31 @@ def test_infinity_in_one_result_json_skips_that_run_only(lab_runs, tmp_path):
         f"skipped {runs / 'exercise1' / 'ode23'}: result.json holds Infinity, which odelab never writes "
         "(it stores null)"]
     assert "ode45" in report.md  # the other case of the experiment is still reported
+
+
+def test_report_out_pointing_at_a_file_is_one_message(lab_runs, tmp_path):
+    from typer.testing import CliRunner
+
+    from odelab.cli import app
+
+    target = tmp_path / "notes.txt"
+    target.write_text("keep me")
+    for out, shown in ((target, f"`out` '{target}' is a file, not a folder"),
+                       (target / "report", f"`out` '{target / 'report'}' is inside '{target}', which is a file")):
+        result = CliRunner().invoke(app, ["report", "--runs", str(lab_runs), "--out", str(out), "exercise1"])
+        assert result.exit_code == 2, result.output
+        assert shown in result.output and "give a folder for the report" in result.output
+        assert "Traceback" not in result.output
+    assert target.read_text() == "keep me"
+
+
+def test_report_on_a_full_disk_is_one_message(lab_runs, tmp_path, monkeypatch):
+    import odelab.report.build as report_build
+
+    def full(path, data):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(report_build, "atomic_write", full)
+    with pytest.raises(InputError, match=r"^`out`: cannot write .*index\.html: No space left on device; free some "
+                                         r"space or give another folder with --out"):
+        build_report(lab_runs, tmp_path / "out", formats="html", experiments=["exercise1"])

@@ -143,6 +143,7 @@ def build_report(
     if not runs.is_dir():
         raise InputError(f"`runs` {str(runs)!r} is not a folder; run experiments first (`odelab run "
                          f"experiments/ --runs {runs}`) or give the results folder.", key="runs")
+    _check_out(out)  # before any figure is drawn
     html_env, md_env = environments(template_dir)
 
     groups, warnings = collect_runs(runs, experiments)
@@ -187,13 +188,25 @@ def build_report(
         texts[MARKDOWN_NAME] = render_template(md_env, "report.md.j2", context)
 
     written: list[Path] = []
-    if "md" in chosen:  # the figures first, so the Markdown never links a file not yet there
-        for figure in figures:
-            path = out / figure.path
-            atomic_write(path, figure.png)
-            written.append(path)
-    for name, text in texts.items():
-        path = out / name
-        atomic_write(path, text)
+    files = [(out / figure.path, figure.png) for figure in figures] if "md" in chosen else []
+    files += [(out / name, text) for name, text in texts.items()]  # the figures first, so the Markdown
+    for path, data in files:                                          # never links a file not yet there
+        try:
+            atomic_write(path, data)
+        except OSError as exc:  # a full disk, a read-only folder, a file where a folder should be
+            raise InputError(f"`out`: cannot write {path}: {exc.strerror or exc}; free some space or give "
+                             "another folder with --out (each report file is replaced whole or not at all).",
+                             key="out") from None
         written.append(path)
     return ReportResult(paths=tuple(written), warnings=tuple(warnings))
+
+
+def _check_out(out: Path) -> None:
+    """The report folder: a folder, or a path where one can be made (a clear message, not a traceback)."""
+    for part in (out, *out.parents):
+        if part.exists() or part.is_symlink():
+            if not part.is_dir():
+                what = "is" if part == out else f"is inside {str(part)!r}, which is"
+                raise InputError(f"`out` {str(out)!r} {what} a file, not a folder; give a folder for the report "
+                                 "(it is created if missing), e.g. --out report.", key="out")
+            return

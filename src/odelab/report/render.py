@@ -145,15 +145,55 @@ def _loader(template_dir: Path | None):
     return ChoiceLoader(loaders)
 
 
-def environments(template_dir: Path | None = None):
-    """The HTML environment (autoescape on) and the Markdown environment (Markdown escaping)."""
-    from jinja2 import Environment, StrictUndefined
+def _sandbox_class():
+    """Jinja's immutable sandbox, narrowed to what a report template needs to call.
 
+    A template is a file a course hands around, so it is treated as untrusted: Jinja's sandbox
+    already refuses ``_``-attributes (``''.__class__.__mro__``, ``cycler.__init__.__globals__``)
+    and changes to lists and dicts; on top of that a template may call only its own macros,
+    Jinja's harmless globals (range, dict, namespace, cycler, joiner, lipsum), methods of
+    strings, numbers and containers, and methods of the report's own view objects. So no
+    ``Path.write_text`` or ``ndarray.tofile`` through the stored runs in the context.
+    """
+    from jinja2.runtime import Macro
+    from jinja2.sandbox import ImmutableSandboxedEnvironment, safe_range
+    from jinja2.utils import Cycler, Joiner, Namespace, generate_lorem_ipsum
+
+    plain = (str, int, float, bool, list, tuple, dict, set, frozenset)
+    harmless = {safe_range, range, dict, Namespace, Cycler, Joiner, generate_lorem_ipsum}
+
+    class ReportSandbox(ImmutableSandboxedEnvironment):
+        def is_safe_callable(self, obj) -> bool:
+            if not super().is_safe_callable(obj):
+                return False
+            if isinstance(obj, Macro) or any(obj is h for h in harmless):
+                return True
+            owner = getattr(obj, "__self__", None)
+            if owner is None or isinstance(owner, type):
+                return False
+            if type(owner) in plain or isinstance(owner, (Cycler, Joiner, Namespace)):
+                return True
+            if type(owner).__module__ == "jinja2.runtime":  # loop.cycle(), super(), caller()
+                return True
+            return type(owner).__module__.startswith("odelab.report.")
+
+    return ReportSandbox
+
+
+def environments(template_dir: Path | None = None):
+    """The HTML environment (autoescape on) and the Markdown environment (Markdown escaping).
+
+    Both are sandboxed (see :func:`_sandbox_class`): the package's templates and a course's
+    ``--template`` folder are rendered the same way, and neither can run code.
+    """
+    from jinja2 import StrictUndefined
+
+    sandbox = _sandbox_class()
     loader = _loader(template_dir)
     common = {"loader": loader, "undefined": StrictUndefined, "trim_blocks": True, "lstrip_blocks": True,
               "keep_trailing_newline": True}
-    html = Environment(autoescape=True, **common)
-    md = Environment(autoescape=False, finalize=_md_finalize, **common)
+    html = sandbox(autoescape=True, **common)
+    md = sandbox(autoescape=False, finalize=_md_finalize, **common)
     for env in (html, md):
         env.filters.update(_FILTERS)
     md.filters["md"] = md_escape
