@@ -114,11 +114,30 @@ def _is_union_tag(seg) -> bool:
     )
 
 
+def _key_path(loc, data) -> tuple:
+    """The segments of pydantic's error location that are keys of the file (not union-member tags).
+
+    A segment is looked up in the file's data first, so a user's key that looks like a tag
+    (``"rtol[1]"``, ``"int"``) is still reported under its own name.
+    """
+    path = []
+    node = data
+    for seg in loc:
+        if isinstance(node, dict) and isinstance(seg, str) and seg in node:
+            node = node[seg]
+        elif isinstance(node, list) and isinstance(seg, int) and 0 <= seg < len(node):
+            node = node[seg]
+        elif _is_union_tag(seg):
+            continue
+        else:  # a required key that is missing, or below a value of the wrong type
+            node = None
+        path.append(seg)
+    return tuple(path)
+
+
 def _key(loc) -> str:
     parts: list[str] = []
     for seg in loc:
-        if _is_union_tag(seg):
-            continue
         if isinstance(seg, int):
             parts[-1 if parts else 0:] = [f"{parts[-1] if parts else ''}[{seg}]"]
         else:
@@ -130,7 +149,7 @@ def _model_fields_at(loc) -> list[str]:
     """Field names of the schema model that holds the key at ``loc`` (for did-you-mean)."""
     model: Any = schema.Experiment
     for seg in loc[:-1]:
-        if _is_union_tag(seg) or isinstance(seg, int):
+        if isinstance(seg, int):
             continue
         if isinstance(model, type) and issubclass(model, BaseModel):
             info = model.model_fields.get(seg)
@@ -174,10 +193,14 @@ _REQUIRED_HINT = {
 }
 
 
-def schema_error(exc: ValidationError, *, source: str, case: str | None) -> ExperimentError:
-    """Turn pydantic's errors into one message, one line per key, most useful first."""
+def schema_error(exc: ValidationError, *, source: str, case: str | None, data: Any = None) -> ExperimentError:
+    """Turn pydantic's errors into one message, one line per key, most useful first.
+
+    ``data`` is what was validated: with it, keys are named as the file spells them.
+    """
     by_key: dict[str, list[dict]] = {}
     for err in exc.errors():
+        err = {**err, "loc": _key_path(err["loc"], data)}
         by_key.setdefault(_key(err["loc"]), []).append(err)
     lines = []
     first_key = None
@@ -248,9 +271,10 @@ def load_experiment(path: str | Path) -> LoadedExperiment:
             case_name = override["name"]
             merged = merge(data, {k: v for k, v in override.items() if k != "name"})
         try:
-            model = schema.Experiment.model_validate(_normalize_solver(merged, src, case_name))
+            normalized = _normalize_solver(merged, src, case_name)
+            model = schema.Experiment.model_validate(normalized)
         except ValidationError as exc:
-            error = schema_error(exc, source=src, case=None)
+            error = schema_error(exc, source=src, case=None, data=normalized)
             raise _in_case(error, override, case_name) from None
         try:
             problem, resolved = compile_case(model, path)

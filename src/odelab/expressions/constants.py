@@ -204,26 +204,38 @@ def evaluate_parameters(
     return {name: values[name] for name in names}
 
 
+_CYCLE_SHOWN = 6  # a cycle of more parameters is shown by its first three and last two
+
+
 def _cycle_error(parsed, unresolved: list[str], key_of, source) -> InputError:
     """Follow unresolved dependencies from the first unresolved parameter until one repeats."""
     pending = set(unresolved)
     path = [unresolved[0]]
+    position = {unresolved[0]: 0}
     while True:
         name = path[-1]
         following = next(used for used, _ in parsed[name]._occurrences if used in pending)
-        if following in path:
-            cycle = path[path.index(following) :]
+        if following in position:
+            cycle = path[position[following] :]
             break
+        position[following] = len(path)
         path.append(following)
     keys = [f"`{key_of(n)}`" for n in cycle]
     if len(cycle) == 1:
         message = f"{keys[0]} depends on itself"
     elif len(cycle) == 2:
         message = f"{keys[0]} and {keys[1]} depend on each other"
-    else:
+    elif len(cycle) <= _CYCLE_SHOWN:
         message = (
             f"{', '.join(keys[:-1])} and {keys[-1]} depend on each other in a cycle "
             f"({' -> '.join([*cycle, cycle[0]])})"
+        )
+    else:  # a long cycle: its first and last few names, so the message stays one readable line
+        left = len(cycle) - 5
+        message = (
+            f"{', '.join(keys[:3])}, ... ({left} more) ..., {keys[-2]} and {keys[-1]} depend on each other in a "
+            f"cycle of {len(cycle)} parameters ({' -> '.join(cycle[:3])} -> ... -> {' -> '.join(cycle[-2:])} -> "
+            f"{cycle[0]})"
         )
     fix = "give it a number" if len(cycle) == 1 else "give one of them a number"
     return InputError(f"{message}; {fix}", key=key_of(cycle[0]), source=source)
