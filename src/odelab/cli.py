@@ -86,9 +86,8 @@ def run(
     json_out: Annotated[bool, typer.Option("--json", help="Print one JSON document instead of tables.")] = False,
     table: Annotated[bool, typer.Option("--table", help="Print the per-point error table of every case.")] = False,
     mat: Annotated[bool, typer.Option("--mat", help="Also store result.mat for MATLAB.")] = False,
-    max_steps: Annotated[int, typer.Option("--max-steps", min=0,
-                                           help="Stop an adaptive solve after this many steps (0: no limit).")]
-    = 200_000,
+    max_steps: Annotated[int, typer.Option("--max-steps", min=0, help=MAX_STEPS_HELP)] = 1_000_000,
+    limit: Annotated[Optional[list[str]], typer.Option("--limit", help=LIMIT_HELP, show_default=False)] = None,
     store: Annotated[bool, typer.Option("--store/--no-store", help="Write results to the results folder.")] = True,
 ) -> None:
     """Run experiments: solve every case, print the error tables and store the results."""
@@ -101,12 +100,13 @@ def run(
     # note in the output; Python's own warning lines would only repeat it.
     warnings.simplefilter("ignore")
     out, err = _consoles()
+    limits = _limits(max_steps, limit, err)
     files, problems = expand_paths(paths)
     bad = [f"{p}: {why}" for p, why in problems]
     loaded = []
     for file in files:
         try:
-            loaded.append(load_experiment(file))
+            loaded.append(load_experiment(file, limits=limits))
         except InputError as exc:
             bad.append(_error_text(exc))
     for exp, exc in check_experiment_names(loaded):  # two files that would share a results folder
@@ -119,6 +119,29 @@ def run(
     with _interruptible(err, total) as done:
         return _run_all(loaded, bad, out, err, runs=runs, json_out=json_out, table=table, mat=mat,
                         max_steps=max_steps, store=store, total=total, done=done)
+
+
+MAX_STEPS_HELP = ("Budget of steps per solve: an adaptive solve stops there, a fixed-step one over it is refused "
+                  "before it runs (0: no limit).")
+LIMIT_HELP = ("Raise (or lower) a work or memory budget, NAME=N: points (2000000 output points per case), refine "
+              "(100), cases (1000 per file), amplitudes (100), table_rows (10000); 0: no limit. Repeatable.")
+
+
+def _limits(max_steps: int, limit: list[str] | None, err):
+    """The run's budgets from --max-steps and --limit NAME=N (a bad --limit is a usage error, exit 2)."""
+    from dataclasses import replace
+
+    from odelab.exceptions import InputError
+    from odelab.experiment.limits import DEFAULT_LIMITS, parse_limit
+
+    limits = replace(DEFAULT_LIMITS, steps=max_steps)
+    for text in limit or []:
+        try:
+            limits = parse_limit(text, limits)
+        except InputError as exc:
+            err.print(f"[bold red]error:[/] {_escape(str(exc))}")
+            raise typer.Exit(EXIT_INPUT) from None
+    return limits
 
 
 class _Terminated(BaseException):
@@ -246,12 +269,15 @@ def report(
 @app.command()
 def validate(
     paths: Annotated[list[Path], typer.Argument(help="Experiment files or folders of them.", show_default=False)],
+    max_steps: Annotated[int, typer.Option("--max-steps", min=0, help=MAX_STEPS_HELP)] = 1_000_000,
+    limit: Annotated[Optional[list[str]], typer.Option("--limit", help=LIMIT_HELP, show_default=False)] = None,
 ) -> None:
-    """Check experiment files without running them."""
+    """Check experiment files without running them (with the budgets `odelab run` would use)."""
     from odelab.exceptions import InputError
     from odelab.experiment.loader import check_experiment_names, load_experiment
 
     out, err = _consoles()
+    limits = _limits(max_steps, limit, err)
     files, problems = expand_paths(paths)
     bad = len(problems)
     for path, why in problems:
@@ -259,7 +285,7 @@ def validate(
     loaded = []
     for file in files:
         try:
-            exp = load_experiment(file)
+            exp = load_experiment(file, limits=limits)
             for _, exc in check_experiment_names([*loaded, exp]):
                 raise exc
         except InputError as exc:

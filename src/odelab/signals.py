@@ -623,7 +623,7 @@ class Table(Signal):
         object.__setattr__(self, "values", u)
 
     @classmethod
-    def from_csv(cls, path: str | Path, *, label: str | None = None) -> Table:
+    def from_csv(cls, path: str | Path, *, label: str | None = None, max_rows: int | None = None) -> Table:
         """Read two columns (t, u) from a CSV file, with an optional header line.
 
         Commas, semicolons, tabs or spaces separate the columns; blank lines and lines that
@@ -667,6 +667,8 @@ class Table(Signal):
                 )
             times.append(numbers[0])
             vals.append(numbers[1])
+            if max_rows and len(times) > max_rows:  # stop reading: the caller's budget says why
+                raise InputError(f"The table file has more than {max_rows:,} rows.", source=str(path))
         if not times:
             raise InputError("The table file has no samples (two columns t, u).", source=str(path))
         if label is None:

@@ -170,8 +170,9 @@ SIGNAL_KEYS = {
 }
 
 
-def build_inputs(model: schema.Experiment, inputs: tuple[str, ...], path: Path, tspan: np.ndarray):
-    """One signal per declared input, from [inputs.<name>] tables."""
+def build_inputs(model: schema.Experiment, inputs: tuple[str, ...], path: Path, tspan: np.ndarray, *,
+                 max_rows: int | None = None):
+    """One signal per declared input, from [inputs.<name>] tables (tables of at most ``max_rows`` rows)."""
     specs = model.inputs or {}
     for name in specs:
         if name not in inputs:
@@ -188,7 +189,7 @@ def build_inputs(model: schema.Experiment, inputs: tuple[str, ...], path: Path, 
                                   "sine, pulse, table, expression, constant).", key=f"inputs.{name}")
         given = {k: v for k, v in spec.model_dump().items() if v is not None and k != "type"}
         signal, values = build_signal(spec.type, given, key=f"inputs.{name}", path=path, params=model_params(model),
-                                      what="input")
+                                      what="input", max_rows=max_rows)
         out.append(signal)
         resolved[name] = {"type": spec.type, **values}
 
@@ -201,7 +202,8 @@ def build_inputs(model: schema.Experiment, inputs: tuple[str, ...], path: Path, 
     return signals, input_fn, resolved
 
 
-def build_signal(kind: str, given: dict, *, key: str, path: Path, params: dict[str, float], what: str = "input"):
+def build_signal(kind: str, given: dict, *, key: str, path: Path, params: dict[str, float], what: str = "input",
+                 max_rows: int | None = None):
     """One :mod:`odelab.signals` signal of type ``kind`` from its keys (numbers already evaluated).
 
     Shared by [inputs] and the source blocks of diagrams. ``key`` is the table's key path
@@ -241,9 +243,12 @@ def build_signal(kind: str, given: dict, *, key: str, path: Path, params: dict[s
                 raise ExperimentError(f"`{key}.file`: {values['file']!r} does not exist (looked for {csv}).",
                                       key=f"{key}.file")
             try:
-                signal = sg.Table.from_csv(csv)
+                signal = sg.Table.from_csv(csv, max_rows=max_rows)
             except InputError as exc:  # named from the experiment file, which is what the user runs
                 text = exc.message[:1].lower() + exc.message[1:]
+                if max_rows and text.startswith("the table file has more than"):
+                    text += (f" The budget is {max_rows:,} rows per input table (each row is a breakpoint at which "
+                             f"the solver restarts); raise it with `odelab run --limit table_rows=N` if you mean it.")
                 raise ExperimentError(f"`{key}.file` {values['file']!r}: {text}", key=f"{key}.file") from None
         elif kind == "constant":
             signal = sg.Constant(float(values["value"]))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import difflib
+import math
 
 from odelab.exceptions import ExperimentError
 
@@ -43,4 +44,25 @@ def check_keys(given: dict, expected: tuple[str, ...], key: str, what: str, *, r
 
 
 def constant(value, key: str, params: dict[str, float]) -> float:
+    """A number, or an expression of the parameters, evaluated to one finite float.
+
+    Plain finite numbers skip the expression compiler, and an expression already evaluated
+    with the same parameter values is not compiled again: a file's cases share their matrices
+    and time settings, so loading stays linear in the file's size, not cases x entries.
+    """
+    if type(value) in (int, float) and math.isfinite(value):
+        return float(value)
+    if isinstance(value, str):
+        cache_key = (value, tuple(sorted(params.items())))
+        cached = _CONSTANTS.get(cache_key)
+        if cached is None:
+            cached = expr().evaluate_constant(value, values=params, key=key)
+            if len(_CONSTANTS) >= _CONSTANTS_MAX:
+                _CONSTANTS.clear()
+            _CONSTANTS[cache_key] = cached
+        return cached
     return expr().evaluate_constant(value, values=params, key=key)
+
+
+_CONSTANTS: dict[tuple, float] = {}  # successful evaluations only: errors are raised afresh, with their key
+_CONSTANTS_MAX = 100_000

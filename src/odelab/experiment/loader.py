@@ -20,6 +20,7 @@ from odelab.exceptions import ExperimentError, InputError
 from odelab.experiment import schema
 from odelab.experiment.cases import Case, LoadedExperiment, Problem
 from odelab.experiment.fields import check_keys, constant, expr
+from odelab.experiment.limits import DEFAULT_LIMITS, Limits, check_count, check_solve
 from odelab.experiment.reading import read_toml
 
 __all__ = ["Case", "LoadedExperiment", "Problem", "load_experiment", "merge", "slug"]
@@ -237,8 +238,8 @@ def schema_error(exc: ValidationError, *, source: str, case: str | None, data: A
 # --- loading ------------------------------------------------------------------------------
 
 
-def load_experiment(path: str | Path) -> LoadedExperiment:
-    """Read, validate and compile an experiment file into its cases.
+def load_experiment(path: str | Path, *, limits: Limits = DEFAULT_LIMITS) -> LoadedExperiment:
+    """Read, validate and compile an experiment file into its cases, within the work and memory ``limits``.
 
     Raises
     ------
@@ -261,8 +262,13 @@ def load_experiment(path: str | Path) -> LoadedExperiment:
     if not isinstance(name, str) or not name.strip():
         raise ExperimentError(f"`name` must be a non-empty string; got {_describe(name)}.", source=src, key="name")
 
+    try:
+        check_count("cases", len(cases_raw), "case", "[[case]] tables", limits)
+    except InputError as exc:
+        raise exc.located(source=src) from None
     _check_case_names(cases_raw, src)  # before any case is compiled
     cases = []
+    shared: dict = {}
     for index, override in enumerate(cases_raw):
         if override is None:
             merged = data
@@ -277,7 +283,8 @@ def load_experiment(path: str | Path) -> LoadedExperiment:
             error = schema_error(exc, source=src, case=None, data=normalized)
             raise _in_case(error, override, case_name) from None
         try:
-            problem, resolved = compile_case(model, path)
+            problem, resolved = compile_case(model, path, limits=limits, shared=shared,
+                                             raw_system=merged.get("system"))
         except InputError as exc:
             raise _in_case(exc.located(source=src), override, case_name) from None
         if case_name is None:
@@ -357,8 +364,13 @@ def _normalize_solver(config: dict, src: str, case: str | None) -> dict:
 # --- compiling a case -----------------------------------------------------------------------
 
 
-def compile_case(model: schema.Experiment, path: Path) -> tuple[Problem, dict]:
-    """Compile a validated case into a :class:`Problem` and its resolved configuration."""
+def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAULT_LIMITS, shared: dict | None = None,
+                 raw_system: Any = None) -> tuple[Problem, dict]:
+    """Compile a validated case into a :class:`Problem` and its resolved configuration.
+
+    ``shared`` (a dict kept across the cases of one file) with ``raw_system`` (the case's
+    [system] table as parsed) lets cases that share the base's system table share its build.
+    """
     ex = expr()
     params = ex.evaluate_parameters(model.parameters) if model.parameters else {}
     system = model.system
@@ -370,7 +382,15 @@ def compile_case(model: schema.Experiment, path: Path) -> tuple[Problem, dict]:
     if params:
         resolved["parameters"] = dict(params)
 
-    if system.kind == "state-space":
+    # A system table that the case does not change is shared with the base (see merge): build
+    # it once per file and parameter values, not once per case.
+    share = None
+    if shared is not None and raw_system is not None and system.kind in ("state-space", "ode") \
+            and system.function is None and model.blocks is None:
+        share = (id(raw_system), system.kind, tuple(sorted(params.items())), model.linearize is not None)
+    if share is not None and share in shared:
+        built = shared[share]
+    elif system.kind == "state-space":
         from odelab.experiment.build import build_state_space
 
         built = build_state_space(model, params)
@@ -389,8 +409,10 @@ def compile_case(model: schema.Experiment, path: Path) -> tuple[Problem, dict]:
         from odelab.experiment.build import build_ode
 
         built = build_ode(model, params)
+    if share is not None:
+        shared[share] = built
     states, inputs, outputs = built.states, built.inputs, built.outputs
-    resolved["system"] = built.resolved
+    resolved["system"] = dict(built.resolved)
 
     # initial state (a diagram's blocks carry theirs; [initial] may override some)
     check_keys(model.initial, states, "initial", "states", require_all=built.x0 is None)
@@ -398,7 +420,7 @@ def compile_case(model: schema.Experiment, path: Path) -> tuple[Problem, dict]:
                    for i, s in enumerate(states)], dtype=float)
     resolved["initial"] = {s: float(v) for s, v in zip(states, x0)}
 
-    tspan, time_resolved = _tspan(model.time, params)
+    tspan, time_resolved = _tspan(model.time, params, limits)
     resolved["time"] = time_resolved
 
     # inputs
@@ -416,7 +438,8 @@ def compile_case(model: schema.Experiment, path: Path) -> tuple[Problem, dict]:
     elif inputs:
         from odelab.experiment.build import build_inputs
 
-        signals, input_fn, resolved["inputs"] = build_inputs(model, inputs, path, tspan)
+        signals, input_fn, resolved["inputs"] = build_inputs(model, inputs, path, tspan,
+                                                             max_rows=limits.table_rows or None)
     elif model.inputs:
         raise ExperimentError(
             "[inputs] is given but the system declares no inputs: add `inputs = [...]` under [system].",
@@ -434,6 +457,8 @@ def compile_case(model: schema.Experiment, path: Path) -> tuple[Problem, dict]:
     except InputError as exc:
         raise ExperimentError(exc.message.replace(f"`{exc.key}`", f"`solver.{exc.key}`"),
                               key=f"solver.{exc.key}" if exc.key else "solver") from None
+    check_solve(method_kind=method.kind, tspan=tspan, options=normalize_options(options, method),
+                refine_default=getattr(method, "refine", 1) or 1, limits=limits)
     resolved["solver"] = {"method": method.name, **_plain(options)}
     if method.kind in ("adaptive", "implicit"):
         resolved["solver"].setdefault("rtol", 1e-3)
@@ -471,6 +496,8 @@ def compile_case(model: schema.Experiment, path: Path) -> tuple[Problem, dict]:
         resolved["units"] = _units(model.units, states, inputs, outputs, params)
     if model.linearize is not None:
         _check_linearize(model.linearize, states, inputs, outputs, built)
+        if model.linearize.amplitudes is not None:
+            check_count("amplitudes", len(model.linearize.amplitudes), "linearize.amplitudes", "amplitudes", limits)
         resolved["linearize"] = _plain(model.linearize.model_dump(exclude_none=True))
 
     problem = Problem(
@@ -544,7 +571,7 @@ def _plain(value):
     return value
 
 
-def _tspan(time: schema.Time, params: dict[str, float]) -> tuple[np.ndarray, dict]:
+def _tspan(time: schema.Time, params: dict[str, float], limits: Limits = DEFAULT_LIMITS) -> tuple[np.ndarray, dict]:
     if time.output is not None and time.points is not None:
         raise ExperimentError("give either `time.output` (the output times) or `time.points` (how many evenly "
                               "spaced ones), not both.", key="time.points")
@@ -555,6 +582,7 @@ def _tspan(time: schema.Time, params: dict[str, float]) -> tuple[np.ndarray, dic
                               key="time.stop")
     resolved: dict[str, Any] = {"start": start, "stop": stop}
     if time.output is not None:
+        check_count("points", len(time.output), "time.output", "output times", limits)
         out = np.array([constant(v, f"time.output[{i}]", params) for i, v in enumerate(time.output)])
         if out.size < 2:
             raise ExperimentError("`time.output` needs at least two times (MATLAB's vector tspan).",
@@ -573,6 +601,7 @@ def _tspan(time: schema.Time, params: dict[str, float]) -> tuple[np.ndarray, dic
     if time.points is not None:
         if time.points < 2:
             raise ExperimentError(f"`time.points` must be at least 2; got {time.points}.", key="time.points")
+        check_count("points", time.points, "time.points", "", limits, asked=f"is {time.points:,}")
         resolved["points"] = time.points
         return np.linspace(start, stop, time.points), resolved
     return np.array([start, stop]), resolved
