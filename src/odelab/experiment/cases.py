@@ -37,6 +37,7 @@ class Problem:
     linearize: Any = None  # the [linearize] section, if any
     parameters: dict[str, float] = field(default_factory=dict)
     diagram: Any = None  # the CompiledDiagram of a kind = "diagram" system
+    events: Any = None  # the compiled [events] (an experiment.events.EventSet), if any
 
 
 @dataclass(frozen=True, eq=False)

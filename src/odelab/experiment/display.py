@@ -88,6 +88,9 @@ def print_experiment(console: Console, exp, results, *, table: bool = False) -> 
         console.print("[dim]relative error undefined (reference zero or tiny; left out of the maximum) at this many "
                       f"points: {_shown('; '.join(undefined), lines=True)}[/]")
     for r in results:
+        if r.events:
+            print_events(console, r)
+    for r in results:
         if "linearization" in r.extra:
             print_linearization(console, r.case.name, r.extra["linearization"])
         if table and r.errors:
@@ -141,3 +144,27 @@ def print_linearization(console: Console, case: str, info: dict) -> None:
         + (f"{within:g}" if within is not None else "none of those tested")
         + (f" (interpolated: {info['threshold_amplitude']:.3g})" if info.get("threshold_amplitude") else "")
         + (f"; log-log slope of the error over these amplitudes: {slope:.2f}" if slope is not None else ""))
+
+
+EVENT_ROWS = 20  # events listed in the terminal; result.json and the report have them all
+
+
+def print_events(console: Console, r) -> None:
+    """The located events of a case: time (and exact time, if known), state, reset."""
+    states = list(r.case.problem.states)
+    exact = any("exact_t" in e for e in r.events)
+    t = Table(title=f"{r.case.name}: {len(r.events)} event{'s' if len(r.events) != 1 else ''}", title_justify="left",
+              show_edge=False, header_style="bold", box=None, pad_edge=False)
+    for col in ("#", "event", "t", *(("exact t", "|t - exact|") if exact else ()), *states, "reset"):
+        t.add_column(escape(col), justify="left" if col in ("event", "reset") else "right")
+    for i, e in enumerate(r.events[:EVENT_ROWS], start=1):
+        cells = [str(i), escape(e["name"]), f"{e['t']:.10g}"]
+        if exact:
+            cells += ([f"{e['exact_t']:.10g}", fmt(abs(e["t"] - e["exact_t"]))] if "exact_t" in e else ["-", "-"])
+        cells += [f"{e['state'][s]:.6g}" for s in states]
+        cells.append(escape(", ".join(f"{k} = {v:.6g}" for k, v in e["reset"].items()
+                                      if v != e["state"][k])) if "reset" in e else "")
+        t.add_row(*cells)
+    console.print(t)
+    if len(r.events) > EVENT_ROWS:
+        console.print(f"[dim]... and {len(r.events) - EVENT_ROWS} more events (all in result.json and the report)[/]")

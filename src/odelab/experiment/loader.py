@@ -451,15 +451,33 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
 
     method = get_method(model.solver.method, key="solver.method")
     options = {k: v for k, v in model.solver.model_dump().items() if k != "method" and v is not None}
+    runtime_options = _state_options(options, states, params)
     try:
         as_tspan(tspan)
-        resolve_options(method, normalize_options(options, method), tspan, len(states))
+        resolve_options(method, normalize_options(runtime_options, method), tspan, len(states))
     except InputError as exc:
         raise ExperimentError(exc.message.replace(f"`{exc.key}`", f"`solver.{exc.key}`"),
                               key=f"solver.{exc.key}" if exc.key else "solver") from None
     check_solve(method_kind=method.kind, tspan=tspan, options=normalize_options(options, method),
                 refine_default=getattr(method, "refine", 1) or 1, limits=limits)
     resolved["solver"] = {"method": method.name, **_plain(options)}
+    options = runtime_options
+
+    events = None
+    if model.events is not None:
+        from odelab.experiment.events import compile_events
+
+        if method.kind != "adaptive":
+            raise ExperimentError(f"[events] are located by ode23 and ode45 (MATLAB's Events); `solver.method` is "
+                                  f"{method.name!r}.", key="solver.method")
+        if inputs or model.linearize is not None:
+            raise ExperimentError("[events] work with systems without [inputs] and without [linearize]; remove one "
+                                  "of them.", key="events")
+        if model.reference.method not in ("auto", "exact", "none"):
+            raise ExperimentError(f"`reference.method` is {model.reference.method!r}, but with [events] the reference "
+                                  "is \"exact\" (from [exact]) or \"none\"; event times can have exact values with "
+                                  "`exact` in the event's table.", key="reference.method")
+        events, resolved["events"] = compile_events(model.events, states, params)
     if method.kind in ("adaptive", "implicit"):
         resolved["solver"].setdefault("rtol", 1e-3)
         resolved["solver"].setdefault("atol", 1e-6)
@@ -481,7 +499,7 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
     ref = model.reference
     kind = ref.method
     if kind == "auto":
-        kind = "exact" if exact_fn else ("lti" if built.linear and _all_exact(signals) else "none")
+        kind = "exact" if exact_fn else ("lti" if built.linear and _all_exact(signals) and events is None else "none")
     if kind == "exact" and exact_fn is None:
         raise ExperimentError("`reference.method` is \"exact\" but the file has no [exact] section: add one, "
                               "or use \"high-accuracy\".", key="reference.method")
@@ -504,7 +522,7 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
         states=states, inputs=inputs, outputs=outputs, fun=built.fun, tspan=tspan, x0=x0, method=method.name,
         options=options, output_fn=built.output_fn, input_fn=input_fn, exact_fn=exact_fn, reference=kind,
         reference_solver=(ref.solver, float(ref.rtol), float(ref.atol)), system=built.system, signals=signals,
-        linearize=model.linearize, parameters=params, diagram=built.diagram,
+        linearize=model.linearize, parameters=params, diagram=built.diagram, events=events,
     )
     return problem, resolved
 
@@ -522,6 +540,50 @@ def _units(units: dict[str, str], states, inputs, outputs, params) -> dict[str, 
             raise ExperimentError(f"`units.{name}` is {unit!r}; write a short unit on one line, e.g. "
                                   f"{name} = \"m\" or \"N\" or \"rad/s\".", key=f"units.{name}")
     return dict(units)
+
+
+def _state_options(options: dict, states: tuple[str, ...], params: dict[str, float]) -> dict:
+    """[solver] options written with state names or expressions, made what the solver takes.
+
+    ``nonnegative = ["h"]`` becomes 0-based indices; ``mass`` (a matrix of expressions of t, the
+    states and the parameters) becomes a constant matrix, or ``M(t, y)`` if it uses t or a state.
+    """
+    out = dict(options)
+    if "nonnegative" in out:
+        names = out["nonnegative"]
+        for i, name in enumerate(names):
+            if name not in states:
+                close = difflib.get_close_matches(name, states, n=1)
+                hint = f" Did you mean {close[0]!r}?" if close else ""
+                raise ExperimentError(f"`solver.nonnegative[{i}]` is {name!r}, not a state ({', '.join(states)}).{hint}",
+                                      key=f"solver.nonnegative[{i}]")
+        out["nonnegative"] = [states.index(name) for name in names]
+    if "mass" in out:
+        rows = out["mass"]
+        n = len(states)
+        if not (isinstance(rows, list) and len(rows) == n and all(isinstance(r, list) and len(r) == n for r in rows)):
+            raise ExperimentError(f"`solver.mass` must be a {n}-by-{n} matrix (one row per state), e.g. "
+                                  f"{[[1 if i == j else 0 for j in range(n)] for i in range(n)]}.", key="solver.mass")
+        ex = expr()
+        texts = [v for row in rows for v in row]
+        keys = [f"solver.mass[{i}][{j}]" for i in range(n) for j in range(n)]
+        try:
+            out["mass"] = np.array([constant(v, k, params) for v, k in zip(texts, keys)]).reshape(n, n)
+            if np.linalg.matrix_rank(out["mass"]) < n:
+                raise ExperimentError("`solver.mass` is singular: M y' = f with a singular M is a differential-"
+                                      "algebraic equation (DAE), which ode45/ode23 cannot solve (MATLAB uses ode15s "
+                                      "or ode23t).", key="solver.mass")
+        except ExperimentError:
+            raise
+        except InputError:  # uses t or a state: a function M(t, y)
+            F = ex.compile_vector(texts, args=["t", *states], constants=params, keys=keys)
+
+            def mass(t, y, _F=F, _n=n):
+                return np.asarray(_F(t, *y), dtype=float).reshape(_n, _n)
+
+            out["mass"] = mass
+            out.setdefault("mstate_dependence", "weak")
+    return out
 
 
 def _check_linearize(spec: schema.Linearize, states, inputs, outputs, built) -> None:

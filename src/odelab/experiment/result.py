@@ -32,6 +32,8 @@ class CaseResult:
     errors: dict[str, ErrorSummary] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     extra: dict[str, Any] = field(default_factory=dict)  # e.g. the linearisation study
+    events: list[dict[str, Any]] = field(default_factory=list)  # located events: name, t, state, ...
+    event_marks: np.ndarray | None = None  # per output row: 1-based number of its event, 0 for none
 
     @property
     def method(self) -> str:

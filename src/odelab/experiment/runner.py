@@ -27,6 +27,10 @@ def _integrate(problem, tspan, method, options):
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SolverWarning)
+        if problem.events is not None:
+            from odelab.experiment.events import solve_with_events
+
+            return solve_with_events(problem.fun, tspan, problem.x0, method, options, problem.events, problem.states)
         return _integrate_quietly(problem, tspan, method, options)
 
 
@@ -62,13 +66,18 @@ def run_case(case: Case, *, max_steps: int | None = None) -> CaseResult:
     if max_steps and "h" not in options:
         options.setdefault("max_steps", max_steps)
     start = time.perf_counter()
-    t, x, u, stats, status, message, warnings = _integrate(p, p.tspan, p.method, options)
+    events, marks = [], None
+    if p.events is not None:
+        t, x, stats, status, message, warnings, events, marks = _integrate(p, p.tspan, p.method, options)
+        u = None
+    else:
+        t, x, u, stats, status, message, warnings = _integrate(p, p.tspan, p.method, options)
     elapsed = time.perf_counter() - start
     if u is None and p.input_fn is not None:
         u = p.input_fn(t)
     y = p.output_fn(t, x, u) if p.output_fn is not None else None
     result = CaseResult(case=case, status=status, message=message, stats=stats, elapsed=elapsed, t=t, x=x, u=u,
-                        y=y, warnings=list(warnings))
+                        y=y, warnings=list(warnings), events=events, event_marks=marks)
     _reference(result)
     return result
 

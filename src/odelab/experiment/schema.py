@@ -21,7 +21,8 @@ __all__ = ["Experiment", "SOLVER_KEYS"]
 
 # [solver] keys, after MATLAB's names are mapped to odelab's (see odelab.solvers.options).
 SOLVER_KEYS = ("method", "rtol", "atol", "max_step", "initial_step", "refine", "norm_control", "h", "max_steps",
-               "max_order", "bdf", "vectorized")
+               "max_order", "bdf", "vectorized",
+               "nonnegative", "mass", "mstate_dependence")
 
 
 class _Section(BaseModel):
@@ -67,6 +68,9 @@ class Solver(_Section):
     max_order: StrictInt | None = None  # ode15s's MaxOrder
     bdf: Union[StrictBool, Literal["on", "off"], None] = None  # ode15s's BDF
     vectorized: Union[StrictBool, Literal["on", "off"], None] = None
+    nonnegative: list[StrictStr] | None = None  # state names; compiled to indices by the loader
+    mass: Matrix | None = None  # expressions of t, the states and the parameters
+    mstate_dependence: Literal["none", "weak", "strong"] | None = None
 
 
 class Reference(_Section):
@@ -137,3 +141,4 @@ class Experiment(_Section):
     linearize: Linearize | None = None
     blocks: dict[str, dict[str, Any]] | None = None  # kind = "diagram"; checked by experiment/diagram.py
     units: dict[str, StrictStr] | None = None  # [units]: x = "m", f = "N", t = "s": axis labels
+    events: dict[str, Any] | None = None  # checked and compiled by experiment/events.py

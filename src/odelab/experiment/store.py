@@ -122,11 +122,14 @@ def summary(result: CaseResult) -> dict[str, Any]:
         "warnings": list(result.warnings),
         "elapsed_s": result.elapsed,
         "extra": result.extra,
+        **({"events": result.events} if result.case.problem.events is not None else {}),
     })
 
 
 def _trajectory_csv(result: CaseResult) -> str:
     columns = {"t": result.t, **result.series()}
+    if result.event_marks is not None:  # 1-based number of the event (result.json "events") at that row
+        columns["event"] = result.event_marks
     for name, ref in result.reference.items():
         abs_err, rel_err = error_columns(columns[name], ref)
         columns[f"{name}_ref"] = ref

@@ -1,0 +1,138 @@
+"""[events] in experiment files: the bouncing ball's exact bounce times, resets, terminal stops, Zeno."""
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from odelab.exceptions import InputError
+from odelab.experiment.loader import load_experiment
+from odelab.experiment.runner import run_case, run_experiment
+from odelab.experiment.store import read_run, write_case
+
+ROOT = Path(__file__).resolve().parents[2]
+BALL = ROOT / "experiments" / "bouncing_ball.toml"
+G, CR, H0 = 9.81, 0.8, 10.0
+T1 = math.sqrt(2 * H0 / G)
+
+
+def exact_bounce(k):
+    return T1 * (1 + 2 * CR * (1 - CR**k) / (1 - CR))
+
+
+def variant(tmp_path, old, new, name="ball.toml"):
+    text = BALL.read_text()
+    assert old in text
+    path = tmp_path / name
+    path.write_text(text.replace(old, new))
+    return path
+
+
+def test_bouncing_ball_bounces_at_the_exact_times(tmp_path):
+    (r,) = run_experiment(BALL)
+    assert r.status == "success" and r.message == "ode45 reached t = 10 after 7 restarts."
+    times = np.array([e["t"] for e in r.events])
+    np.testing.assert_allclose(times, [exact_bounce(k) for k in range(7)], rtol=0, atol=1e-12)
+    assert [e["exact_t"] for e in r.events] == pytest.approx([exact_bounce(k) for k in range(7)], abs=1e-15)
+    for e in r.events:  # on the floor, falling; the reset turns the velocity around, times e
+        assert abs(e["state"]["h"]) < 1e-11 and e["state"]["v"] < 0
+        assert e["reset"]["v"] == -CR * e["state"]["v"] and e["reset"]["h"] == e["state"]["h"]
+    # the trajectory: the jump at each bounce appears as two rows at te, marked on the first
+    for number, e in enumerate(r.events, start=1):
+        rows = np.flatnonzero(r.t == e["t"])
+        assert rows.size == 2 and r.x[rows[0], 1] == e["state"]["v"] and r.x[rows[1], 1] == e["reset"]["v"]
+        assert r.event_marks[rows[0]] == number and r.event_marks[rows[1]] == 0
+    assert np.count_nonzero(r.event_marks) == 7
+    # between bounces the ball is in free fall: h >= 0 up to round-off
+    assert r.x[:, 0].min() > -1e-11
+    folder = write_case(r, tmp_path / "runs")
+    record = read_run(folder)
+    assert [e["name"] for e in record["events"]] == ["floor"] * 7
+    assert record["events"][3]["t"] == r.events[3]["t"] and record["events"][3]["state"]["v"] < 0
+    np.testing.assert_array_equal(record["trajectory"]["event"], r.event_marks)
+
+
+def test_a_terminal_event_without_reset_stops_the_case(tmp_path):
+    path = variant(tmp_path, 'reset = { v = "-cr*v" }        # restart with these states changed (hybrid systems)\n', "")
+    (r,) = run_experiment(path)
+    assert r.status == "success" and len(r.events) == 1
+    assert r.t[-1] == r.events[0]["t"] and abs(r.t[-1] - T1) < 1e-12
+    assert r.message == f"ode45 stopped at t = {r.t[-1]:.10g}: terminal event 'floor'."
+
+
+def test_a_non_terminal_event_is_listed_and_the_case_goes_on(tmp_path):
+    path = variant(tmp_path, "[events.floor]", '[events.half]\nwhen = "h - h0/2"\n\n[events.floor]')
+    (r,) = run_experiment(path)
+    names = [e["name"] for e in r.events]
+    assert names[:2] == ["half", "floor"] and r.t[-1] == 10
+    # h = 5 is reached at sqrt(h0/g), then rising and falling around each bounce's apex above 5
+    assert abs(r.events[0]["t"] - math.sqrt(H0 / G)) < 1e-12
+
+
+def test_a_zeno_cascade_ends_cleanly_at_max_events(tmp_path):
+    path = variant(tmp_path, "stop = 10", "stop = 20")
+    path.write_text(path.read_text().replace("[events.floor]", "[events]\nmax_events = 12\n\n[events.floor]"))
+    (r,) = run_experiment(path)
+    assert r.status == "success" and len(r.events) == 12
+    assert r.message.startswith("ode45 stopped at t = ") and "after max_events = 12 events (11 restarts)" in r.message
+    assert r.t[-1] == r.events[-1]["t"] and any("raise `events.max_events`" in w for w in r.warnings)
+
+
+def test_a_zeno_cascade_beyond_the_steps_is_caught(tmp_path):
+    # With the default max_events the bounces pile up until the first step after a restart
+    # spans a whole bounce; the case ends there instead of letting the ball fall through.
+    (r,) = run_experiment(variant(tmp_path, "stop = 10", "stop = 20"))
+    assert r.status == "success" and "Zeno" in r.message
+    assert r.t[-1] < (1 + CR) / (1 - CR) * T1 + 1e-3 and r.x[:, 0].min() > -1e-9
+    assert len(r.events) < 100 and any("Zeno cascade" in w for w in r.warnings)
+
+
+def test_events_with_a_vector_tspan(tmp_path):
+    (r,) = run_experiment(variant(tmp_path, "stop = 10", "stop = 10\npoints = 11"))
+    requested = np.linspace(0, 10, 11)
+    assert set(requested) <= set(r.t.tolist())
+    assert set(r.t.tolist()) - set(requested) == {e["t"] for e in r.events}
+    np.testing.assert_allclose([e["t"] for e in r.events], [exact_bounce(k) for k in range(7)], atol=1e-12)
+
+
+def test_nonnegative_and_mass_in_the_solver_table(tmp_path):
+    base = ('[system]\nstates = ["x", "v"]\n[system.equations]\nx = "v"\nv = "-4*x - x^3"\n'
+            '[initial]\nx = 1\nv = 0\n[time]\nstop = 5\n')
+    plain = tmp_path / "plain.toml"
+    plain.write_text(base.replace('v = "-4*x - x^3"', 'v = "(-4*x - x^3)/2"'))
+    massive = tmp_path / "mass.toml"
+    massive.write_text(base + '[solver]\nmass = [[1, 0], [0, "m"]]\nrtol = 1e-3\n[parameters]\nm = 2\n')
+    (a,) = run_experiment(plain)
+    (b,) = run_experiment(massive)
+    assert a.stats.nsteps == b.stats.nsteps
+    np.testing.assert_allclose(b.x, a.x, atol=1e-12)
+    moving = tmp_path / "moving.toml"
+    moving.write_text(base + '[solver]\nmass = [[1, 0], [0, "2 + 0*t"]]\n')
+    (c,) = run_experiment(moving)
+    np.testing.assert_allclose(c.x, a.x, atol=1e-12)
+    tank = tmp_path / "tank.toml"
+    tank.write_text('[system]\nstates = ["h"]\n[system.equations]\nh = "-abs(h)"\n[initial]\nh = 1\n[time]\nstop = 40\n'
+                    '[solver]\nnonnegative = ["h"]\n')
+    (d,) = run_experiment(tank)
+    assert d.x.min() == 0.0
+    assert load_experiment(tank).cases[0].config["solver"]["nonnegative"] == ["h"]
+
+
+@pytest.mark.parametrize("change, message", [
+    (("direction = \"falling\"", "direction = \"down\""), "`events.floor.direction` is 'down'; use \"rising\""),
+    (("terminal = true ", "terminal = false"), "`events.floor.reset` restarts the integration, so the event must be "
+                                               "terminal"),
+    (("reset = { v = ", "reset = { w = "), "`events.floor.reset.w`: 'w' is not one of the states (h, v)"),
+    (("when = \"h\"", "whenn = \"h\""), "`events.floor.whenn` is not an event key (when, direction, terminal, reset, "
+                                        "exact). Did you mean `when`?"),
+    (("method = \"ode45\"", "method = \"rk4\"\nh = 0.01"), "[events] are located by ode23 and ode45"),
+    (("[events.floor]", "[events]\nmax_events = 0\n[events.floor]"), "`events.max_events` must be a whole number >= 1"),
+    (("when = \"h\"", "when = \"hh\""), "unknown name `hh`"),
+])
+def test_bad_events_sections(tmp_path, change, message):
+    path = variant(tmp_path, *change)
+    with pytest.raises(InputError) as info:  # ExperimentError, or ExpressionError for an expression
+        load_experiment(path)
+    assert message in str(info.value)
