@@ -136,3 +136,19 @@ def test_bad_events_sections(tmp_path, change, message):
     with pytest.raises(InputError) as info:  # ExperimentError, or ExpressionError for an expression
         load_experiment(path)
     assert message in str(info.value)
+
+
+def test_odelab_run_lists_the_events(tmp_path):
+    from typer.testing import CliRunner
+
+    from odelab.cli import app
+
+    result = CliRunner().invoke(app, ["run", str(BALL), "--runs", str(tmp_path / "runs")])
+    assert result.exit_code == 0, result.output
+    assert "ode45: 7 events" in result.output
+    row = next(line for line in result.output.splitlines() if line.lstrip().startswith("1  floor"))
+    assert row.split()[:4] == ["1", "floor", "1.427843123", "1.427843123"] and "v = 11.2057" in row
+    out = CliRunner().invoke(app, ["run", str(BALL), "--json", "--no-store"])
+    case = json.loads(out.output)["experiments"][0]["cases"][0]
+    assert len(case["events"]) == 7 and case["events"][6]["name"] == "floor"
+    assert abs(case["events"][6]["t"] - exact_bounce(6)) < 1e-12

@@ -156,13 +156,13 @@ def print_events(console: Console, r) -> None:
     t = Table(title=f"{r.case.name}: {len(r.events)} event{'s' if len(r.events) != 1 else ''}", title_justify="left",
               show_edge=False, header_style="bold", box=None, pad_edge=False)
     for col in ("#", "event", "t", *(("exact t", "|t - exact|") if exact else ()), *states, "reset"):
-        t.add_column(escape(col), justify="left" if col in ("event", "reset") else "right")
+        t.add_column(_shown(col), justify="left" if col in ("event", "reset") else "right")
     for i, e in enumerate(r.events[:EVENT_ROWS], start=1):
-        cells = [str(i), escape(e["name"]), f"{e['t']:.10g}"]
+        cells = [str(i), _shown(e["name"]), f"{e['t']:.10g}"]
         if exact:
             cells += ([f"{e['exact_t']:.10g}", fmt(abs(e["t"] - e["exact_t"]))] if "exact_t" in e else ["-", "-"])
         cells += [f"{e['state'][s]:.6g}" for s in states]
-        cells.append(escape(", ".join(f"{k} = {v:.6g}" for k, v in e["reset"].items()
+        cells.append(_shown(", ".join(f"{k} = {v:.6g}" for k, v in e["reset"].items()
                                       if v != e["state"][k])) if "reset" in e else "")
         t.add_row(*cells)
     console.print(t)
