@@ -172,3 +172,16 @@ def test_hidden_temporary_folders_are_not_runs(tmp_path):
     for p in folder.iterdir():
         (left / p.name).write_bytes(p.read_bytes())
     assert list_runs(tmp_path / "runs") == [folder]
+
+
+@pytest.mark.parametrize("replacement, message", [
+    ('"points": 1e400', "result.json holds 1e400, which overflows a double"),
+    ('"points": ' + "[" * 100_000 + "]" * 100_000, "result.json nests arrays or objects too deeply"),
+])
+def test_hostile_numbers_and_nesting_in_result_json_are_broken_records(tmp_path, replacement, message):
+    first, _ = _two_runs(tmp_path)
+    folder = write_case(first, tmp_path / "runs")
+    path = folder / "result.json"
+    path.write_text(re.sub(r'"points": \d+', lambda m: replacement, path.read_text()))
+    with pytest.raises(ValueError, match=message):
+        read_run(folder)

@@ -256,7 +256,7 @@ def read_run(folder: Path) -> dict[str, Any]:
     """Read a stored case: result.json plus the trajectory columns (raises ValueError if broken)."""
     folder = Path(folder)
     with _locked(folder.parent, shared=True):  # never read a case while another run swaps it
-        record = json.loads((folder / "result.json").read_text(encoding="utf-8"), parse_constant=_no_constant)
+        record = _strict_json((folder / "result.json").read_text(encoding="utf-8"))
         text = (folder / "trajectory.csv").read_text(encoding="utf-8").splitlines()
     if not isinstance(record, dict) or record.get("format") != RESULT_FORMAT:
         raise ValueError(f"{folder / 'result.json'} is not an odelab result (format {RESULT_FORMAT})")
@@ -271,6 +271,21 @@ def read_run(folder: Path) -> dict[str, Any]:
     record["trajectory"] = {n: data[:, i] for i, n in enumerate(names)}
     record["folder"] = str(folder)
     return record
+
+
+def _strict_json(text: str) -> Any:
+    """result.json as odelab writes it: strict JSON, finite numbers, shallow (else ValueError)."""
+    try:
+        return json.loads(text, parse_constant=_no_constant, parse_float=_finite_float)
+    except RecursionError:
+        raise ValueError("result.json nests arrays or objects too deeply to be an odelab result") from None
+
+
+def _finite_float(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):  # 1e400 overflows to inf
+        raise ValueError(f"result.json holds {text}, which overflows a double; odelab never writes it")
+    return value
 
 
 def _no_constant(name: str):
