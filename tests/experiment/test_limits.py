@@ -119,3 +119,22 @@ def test_cases_share_the_build_of_an_unchanged_system(tmp_path, monkeypatch):
     assert systems[5].A[0, 0] == -3 and systems[0].A[0, 0] == -2
     assert calls.count("-k") == 2  # once per value of k, not once per entry and case (72 entries)
     assert "0" not in calls and "1" not in calls  # plain numbers never reach the compiler
+
+
+def test_cases_share_the_validated_time_table_and_its_output_times(tmp_path, monkeypatch):
+    from odelab.experiment import schema
+
+    output = ", ".join(f"{i / 100:g}" for i in range(1001))
+    text = (BASE + f"[time]\nstop = 10\noutput = [{output}]\n"
+            + "".join(f'\n[[case]]\nname = "c{c}"\nsolver.rtol = {10.0 ** -(c + 3)}\n' for c in range(4))
+            + '\n[[case]]\nname = "short"\ntime.stop = 1\ntime.output = [0, 1]\n')
+    validated = []
+    real = schema.Time.model_validate.__func__
+    monkeypatch.setattr(schema.Time, "model_validate", classmethod(lambda cls, v, *a, **k: validated.append(v)
+                                                                    or real(cls, v, *a, **k)))
+    exp = load_experiment(write(tmp_path, text))
+    assert len(validated) == 1  # the base's [time], once for the file
+    tspans = [c.problem.tspan for c in exp.cases]
+    assert all(t is tspans[0] for t in tspans[:4]) and tspans[0].size == 1001
+    assert tspans[4].tolist() == [0.0, 1.0]
+    assert not tspans[0].flags.writeable

@@ -269,6 +269,7 @@ def load_experiment(path: str | Path, *, limits: Limits = DEFAULT_LIMITS) -> Loa
     _check_case_names(cases_raw, src)  # before any case is compiled
     cases = []
     shared: dict = {}
+    base_sections = _validated_sections(data) if len(cases_raw) > 1 else {}
     for index, override in enumerate(cases_raw):
         if override is None:
             merged = data
@@ -278,13 +279,12 @@ def load_experiment(path: str | Path, *, limits: Limits = DEFAULT_LIMITS) -> Loa
             merged = merge(data, {k: v for k, v in override.items() if k != "name"})
         try:
             normalized = _normalize_solver(merged, src, case_name)
-            model = schema.Experiment.model_validate(normalized)
+            model = schema.Experiment.model_validate(_reuse_sections(normalized, data, base_sections))
         except ValidationError as exc:
             error = schema_error(exc, source=src, case=None, data=normalized)
             raise _in_case(error, override, case_name) from None
         try:
-            problem, resolved = compile_case(model, path, limits=limits, shared=shared,
-                                             raw_system=merged.get("system"))
+            problem, resolved = compile_case(model, path, limits=limits, shared=shared)
         except InputError as exc:
             raise _in_case(exc.located(source=src), override, case_name) from None
         if case_name is None:
@@ -294,6 +294,31 @@ def load_experiment(path: str | Path, *, limits: Limits = DEFAULT_LIMITS) -> Loa
                           file_hash=file_hash, config=config, problem=problem))
     title = data.get("title") if isinstance(data.get("title"), str) else name
     return LoadedExperiment(name=name, title=title, source=path, file_hash=file_hash, cases=tuple(cases))
+
+
+_SHAREABLE = ("system", "time", "reference")  # tables validated once when the cases leave them alone
+
+
+def _validated_sections(data: dict) -> dict[str, BaseModel]:
+    """The base's [system], [time] and [reference], each validated on its own (None where invalid).
+
+    A case that does not change such a table gets this validated (frozen) model in place of
+    the raw table, so a large matrix or output list is validated once per file, not per case.
+    """
+    out = {}
+    for key in _SHAREABLE:
+        raw = data.get(key)
+        if isinstance(raw, dict):
+            try:
+                out[key] = schema.Experiment.model_fields[key].annotation.model_validate(raw)
+            except ValidationError:  # reported, with its key, when a case is validated
+                pass
+    return out
+
+
+def _reuse_sections(normalized: dict, data: dict, sections: dict[str, BaseModel]) -> dict:
+    reused = {key: model for key, model in sections.items() if normalized.get(key) is data.get(key)}
+    return {**normalized, **reused} if reused else normalized
 
 
 def _check_case_names(cases_raw: list, src: str) -> None:
@@ -364,12 +389,12 @@ def _normalize_solver(config: dict, src: str, case: str | None) -> dict:
 # --- compiling a case -----------------------------------------------------------------------
 
 
-def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAULT_LIMITS, shared: dict | None = None,
-                 raw_system: Any = None) -> tuple[Problem, dict]:
+def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAULT_LIMITS,
+                 shared: dict | None = None) -> tuple[Problem, dict]:
     """Compile a validated case into a :class:`Problem` and its resolved configuration.
 
-    ``shared`` (a dict kept across the cases of one file) with ``raw_system`` (the case's
-    [system] table as parsed) lets cases that share the base's system table share its build.
+    ``shared`` (a dict kept across the cases of one file) lets cases that share the base's
+    validated [system] and [time] (see :func:`_validated_sections`) share their builds.
     """
     ex = expr()
     params = ex.evaluate_parameters(model.parameters) if model.parameters else {}
@@ -384,12 +409,14 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
 
     # A system table that the case does not change is shared with the base (see merge): build
     # it once per file and parameter values, not once per case.
+    # (keys hold the model's id; the value keeps the model alive, so the id cannot be reused)
+    params_key = tuple(sorted(params.items()))
     share = None
-    if shared is not None and raw_system is not None and system.kind in ("state-space", "ode") \
-            and system.function is None and model.blocks is None:
-        share = (id(raw_system), system.kind, tuple(sorted(params.items())), model.linearize is not None)
+    if shared is not None and system.kind in ("state-space", "ode") and system.function is None \
+            and model.blocks is None:
+        share = ("system", id(system), params_key, model.linearize is not None)
     if share is not None and share in shared:
-        built = shared[share]
+        built = shared[share][1]
     elif system.kind == "state-space":
         from odelab.experiment.build import build_state_space
 
@@ -410,7 +437,7 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
 
         built = build_ode(model, params)
     if share is not None:
-        shared[share] = built
+        shared[share] = (system, built)
     states, inputs, outputs = built.states, built.inputs, built.outputs
     resolved["system"] = dict(built.resolved)
 
@@ -420,7 +447,15 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
                    for i, s in enumerate(states)], dtype=float)
     resolved["initial"] = {s: float(v) for s, v in zip(states, x0)}
 
-    tspan, time_resolved = _tspan(model.time, params, limits)
+    time_share = ("time", id(model.time), params_key, limits) if shared is not None else None
+    if time_share is not None and time_share in shared:
+        tspan, time_resolved = shared[time_share][1]
+    else:
+        tspan, time_resolved = _tspan(model.time, params, limits)
+        tspan.flags.writeable = False  # shared by the cases that leave [time] alone
+        if time_share is not None:
+            shared[time_share] = (model.time, (tspan, time_resolved))
+    time_resolved = dict(time_resolved)
     resolved["time"] = time_resolved
 
     # inputs
