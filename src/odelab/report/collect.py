@@ -80,6 +80,7 @@ class StoredRun:
     extra: dict[str, Any]
     trajectory: dict[str, np.ndarray]
     folder: Path
+    events: tuple[dict, ...] = ()  # located events (result.json "events"), see report/events.py
 
     @property
     def ok(self) -> bool:
@@ -235,7 +236,29 @@ def parse_record(record: dict[str, Any]) -> StoredRun:
         extra=extra,
         trajectory=trajectory,
         folder=Path(str(record.get("folder", ""))),
+        events=parse_events(record.get("events")),
     )
+
+
+def parse_events(raw) -> tuple[dict, ...]:
+    """Check result.json's ``events``: a list of tables with a name, a time and a state."""
+    if raw is None:
+        return ()
+    if not isinstance(raw, list):
+        raise ValueError("`events` must be a list")
+    out = []
+    for i, e in enumerate(raw):
+        if not (isinstance(e, dict) and isinstance(e.get("name"), str) and isinstance(e.get("t"), (int, float))
+                and not isinstance(e.get("t"), bool) and isinstance(e.get("state"), dict)):
+            raise ValueError(f"`events[{i}]` must be a table with a name, a time t and a state")
+        for key in ("exact_t",):
+            if key in e and (isinstance(e[key], bool) or not isinstance(e[key], (int, float))):
+                raise ValueError(f"`events[{i}].{key}` must be a number")
+        if "reset" in e and not isinstance(e["reset"], dict):
+            raise ValueError(f"`events[{i}].reset` must be a table")
+        out.append(e)
+    return tuple(out)
+
 
 
 def _read(folder: Path) -> StoredRun:

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from odelab.report.collect import ExperimentRuns, QuantityErrors, StoredRun
+from odelab.report.events import event_table
 from odelab.report.figures import error_figure, linearisation_figures, solution_figure
 from odelab.report.setups import SetUp, describe_signal, inputs_text, plot_quantities, setups, units_of
 
@@ -185,6 +186,7 @@ class Section:
     error_figure: Any = None
     step_tables: list[StepTable] = field(default_factory=list)
     linearisations: list[LinearisationView] = field(default_factory=list)
+    event_tables: list = field(default_factory=list)  # report.events.EventTable per case with events
     settings: list[tuple[str, str]] = field(default_factory=list)  # (case, resolved TOML)
     lab_note: LabNote | None = None
     layout: str = ""  # "by-quantity", "by-setup" or "states": how the figures are laid out
@@ -480,6 +482,7 @@ def build_sections(groups: list[ExperimentRuns]) -> tuple[list[Section], list[st
                 cols = [r.column(c) for c in (name, f"{name}_ref", f"{name}_abs_err", f"{name}_rel_err")]
                 if all(c is not None for c in cols) and r.t.size:
                     section.step_tables.append(StepTable(r.case, r.method, name, r.t, *cols))
+        section.event_tables = [t for t in (event_table(r) for r in runs) if t is not None]
         section.settings = _settings(runs)
         for r in runs:
             lin = r.extra.get("linearization")

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from odelab.report.collect import StoredRun
+from odelab.report.events import event_markers, exact_time_lines
 from odelab.report.plots import (
     INPUT,
     LINEARISED,
@@ -124,21 +125,28 @@ def solution_figure(stem: str, groups: list[SetUp], shown: list[str], layout: st
             style = LineStyle(SERIES_COLORS[j % len(SERIES_COLORS)], _MARKERS[j % len(_MARKERS)],
                               _LINESTYLES[j % len(_LINESTYLES)], 1.1)
             lines.append(_line(r.t, y, f"{name} ({r.method})", style, zorder=2 + j))
+            lines.extend(event_markers(r, name, first=j == 0))
             if ref is not None:
                 lines.append(_line(r.t, ref, reference_label(kind) if j == 0 else "_nolegend_", REFERENCE,
                                    zorder=REFERENCE_ZORDER, marker=False))
         common = {units.get(n) for n in shown}
         ylabel = axis_label("value", common.pop()) if len(common) == 1 else "value"
         stats = f"{r.nsteps} steps, {r.nfailed if r.nfailed is not None else 'n/a'} failed, {r.nfevals} fevals"
-        panels = [Panel(f"{case_label(r)}: {stats}", t_label, ylabel, tuple(lines), legend_outside=True)]
+        panels = [Panel(f"{case_label(r)}: {stats}", t_label, ylabel, tuple(lines), legend_outside=True,
+                        reflines=exact_time_lines(r))]
         caption = ("Every state against t, as MATLAB's documentation plots the rigid body: hollow markers at the "
                    f"output points, thin black lines the {reference_label(kind)}. {case_label(r)}: {stats_text(r)}.")
+        if r.events:
+            caption += (" Red triangles mark the located events" + (", dotted vertical lines their exact times"
+                                                                      if exact_time_lines(r) else "") + ".")
         return FigureSpec(f"{stem}-solution", caption, f"{stem}: solution against time", tuple(panels),
                           columns=1, panel_height=2.8)
     if layout == "by-quantity" or len(groups) == 1:
         g = groups[0]
         panels = [Panel(name, t_label, axis_label(name, units.get(name)),
-                        tuple(_solver_lines(g, name, kind, points=True))) for name in shown]
+                        tuple(_solver_lines(g, name, kind, points=True))
+                        + tuple(m for r in g.runs for m in event_markers(r, name, first=r is g.runs[0])),
+                        reflines=exact_time_lines(g.runs[0])) for name in shown]
         panels += [Panel("", t_label, axis_label(name, units.get(name)),
                          tuple(x for x in [_input_line(g.runs[0], name)] if x), height=0.6, legend=False)
                    for name in inputs]
