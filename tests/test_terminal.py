@@ -59,3 +59,19 @@ def test_error_messages_quoting_user_text_are_shown_safely(tmp_path):
     assert result.exit_code == 2
     assert "\x1b" not in result.output and "❌" not in result.output
     assert ":x:" in result.output
+
+
+def test_every_table_of_a_run_shows_hostile_names_safely(tmp_path):
+    """The events table and --table's per-point tables too: titles, case, quantity and event names."""
+    text = (ROOT / "experiments" / "bouncing_ball.toml").read_text(encoding="utf-8")
+    text = text.replace('title = "A bouncing ball"', 'title = "\\u001b[2J ball"', 1)
+    text = text.replace("[events.floor]", '[events."fl\\u001b]52;c;aGk=\\u0007oor"]', 1)
+    text += '\n[[case]]\nname = "\\u009b31m:x:"\n'
+    path = tmp_path / "ball.toml"
+    path.write_text(text, encoding="utf-8")
+    result = CliRunner().invoke(app, ["run", str(path), "--table", "--no-store"])
+    assert result.exit_code == 0, result.output
+    for raw in ("\x1b", "\x9b", "\x07", "❌"):
+        assert raw not in result.output
+    assert "\\x9b31m:x:: 7 events" in result.output
+    assert "fl\\x1b]52;c;aGk=\\x07oor" in result.output and "\\x1b[2J ball" in result.output

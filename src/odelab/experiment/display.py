@@ -153,7 +153,8 @@ def print_events(console: Console, r) -> None:
     """The located events of a case: time (and exact time, if known), state, reset."""
     states = list(r.case.problem.states)
     exact = any("exact_t" in e for e in r.events)
-    t = Table(title=f"{r.case.name}: {len(r.events)} event{'s' if len(r.events) != 1 else ''}", title_justify="left",
+    t = Table(title=f"{_shown(r.case.name)}: {len(r.events)} event{'s' if len(r.events) != 1 else ''}",
+              title_justify="left",
               show_edge=False, header_style="bold", box=None, pad_edge=False)
     for col in ("#", "event", "t", *(("exact t", "|t - exact|") if exact else ()), *states, "reset"):
         t.add_column(_shown(col), justify="left" if col in ("event", "reset") else "right")
