@@ -138,3 +138,11 @@ def test_cases_share_the_validated_time_table_and_its_output_times(tmp_path, mon
     assert all(t is tspans[0] for t in tspans[:4]) and tspans[0].size == 1001
     assert tspans[4].tolist() == [0.0, 1.0]
     assert not tspans[0].flags.writeable
+
+
+@pytest.mark.parametrize("method", ["ode45", "ode15s", "Radau"])
+def test_max_step_budget_holds_for_every_adaptive_kind(tmp_path, method):
+    path = write(tmp_path, BASE + f'[time]\nstop = 10\n[solver]\nmethod = "{method}"\nmax_step = 1e-9\n')
+    with pytest.raises(ExperimentError, match=r"`solver.max_step` = 1e-09 over a span of 10 takes at least 1e\+10 "
+                                              r"steps; the budget is 1,000,000 steps per solve"):
+        load_experiment(path)

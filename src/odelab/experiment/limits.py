@@ -103,7 +103,8 @@ def fixed_step_count(tspan: np.ndarray, h: float) -> float:
 def check_solve(*, method_kind: str, tspan: np.ndarray, options: dict, refine_default: int, limits: Limits) -> None:
     """Estimate a solve's steps and output points from the file alone; refuse one over budget.
 
-    Fixed-step methods: the grid is known, ceil(span / h) steps. Adaptive methods: a
+    Fixed-step methods: the grid is known, ceil(span / h) steps. Adaptive methods (explicit,
+    implicit, SciPy's): a
     ``max_step`` forces at least span / max_step steps, each giving ``refine`` output points
     when no output times are given. Nothing is allocated here.
     """
@@ -120,8 +121,7 @@ def check_solve(*, method_kind: str, tspan: np.ndarray, options: dict, refine_de
             raise _refuse("solver.h", f"= {h:g} over a span of {span:g} stores {points:.3g} output points", "points",
                           points, limits, fix=" (or give fewer output times in time.output or time.points)")
         return
-    if method_kind != "adaptive":
-        return
+    # every other kind (MATLAB's explicit and implicit solvers, SciPy's) adapts its step
     refine = options.get("refine", refine_default)
     if isinstance(refine, (int, float)) and not isinstance(refine, bool) and not limits.allows("refine", refine):
         raise _refuse("solver.refine", f"is {refine:g}", "refine", refine, limits,
