@@ -185,3 +185,17 @@ def test_hostile_numbers_and_nesting_in_result_json_are_broken_records(tmp_path,
     path.write_text(re.sub(r'"points": \d+', lambda m: replacement, path.read_text()))
     with pytest.raises(ValueError, match=message):
         read_run(folder)
+
+
+def test_a_symlink_in_place_of_a_case_folder_is_replaced_not_followed(tmp_path):
+    first, _ = _two_runs(tmp_path)
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "keep.txt").write_text("not odelab's")
+    folder = tmp_path / "runs" / "exercise1" / "ode23"
+    folder.parent.mkdir(parents=True)
+    folder.symlink_to(elsewhere, target_is_directory=True)
+    write_case(first, tmp_path / "runs")
+    assert not folder.is_symlink() and read_run(folder)["points"] == first.t.size
+    assert [p.name for p in elsewhere.iterdir()] == ["keep.txt"]  # nothing written or removed there
+    assert sorted(p.name for p in folder.parent.iterdir()) == ["ode23"]

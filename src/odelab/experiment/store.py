@@ -206,12 +206,21 @@ def commit_folder(folder: Path, files: dict[str, str | bytes], *, durable: bool 
             if durable:
                 _fsync_folder(parent)
             if old is not None:
-                shutil.rmtree(old, ignore_errors=True)
+                _remove(old)
                 old = None
     finally:
         for leftover in (tmp, old):
             if leftover is not None:
-                shutil.rmtree(leftover, ignore_errors=True)
+                _remove(leftover)
+
+
+def _remove(path: Path) -> None:
+    """Remove a replaced case folder; a symlink planted in its place is removed, never followed."""
+    if path.is_symlink():
+        with contextlib.suppress(OSError):
+            path.unlink()
+    else:
+        shutil.rmtree(path, ignore_errors=True)
 
 
 def _fsync_folder(folder: Path) -> None:
