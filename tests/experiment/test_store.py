@@ -120,8 +120,11 @@ def test_a_failed_swap_puts_the_previous_case_back(tmp_path, monkeypatch):
 
     real_rename = store.os.rename
 
+    renames = []
+
     def failing_rename(src, dst):  # the swap of the new folder in fails; putting the old one back works
-        if ".old." not in str(src):
+        renames.append((Path(src).name, Path(dst).name))
+        if str(src).endswith(".tmp") and ".old." not in str(src):
             raise PermissionError(13, "Permission denied")
         real_rename(src, dst)
 
@@ -131,6 +134,9 @@ def test_a_failed_swap_puts_the_previous_case_back(tmp_path, monkeypatch):
     monkeypatch.undo()
     assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
     assert sorted(p.name for p in folder.parent.iterdir()) == ["ode23"]
+    away, new_in, back = renames  # the old case away, the new one in (failed), the old one back
+    assert away[0] == "ode23" and away[1].startswith(".ode23.old.") and back == (away[1], "ode23")
+    assert new_in[0].startswith(".ode23.") and new_in[1] == "ode23"
 
 
 def test_a_new_run_without_mat_does_not_keep_the_old_result_mat(tmp_path):

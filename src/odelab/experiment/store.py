@@ -19,6 +19,7 @@ import json
 import math
 import os
 import platform
+import secrets
 import shutil
 import tempfile
 from datetime import datetime, timezone
@@ -192,9 +193,10 @@ def commit_folder(folder: Path, files: dict[str, str | bytes], *, durable: bool 
                     fh.flush()
                     os.fsync(fh.fileno())
         with _locked(parent):
-            if folder.exists():
-                old = Path(tempfile.mkdtemp(dir=parent, prefix=f".{folder.name}.old.", suffix=_TMP_SUFFIX))
-                os.replace(folder, old)  # an empty folder may be replaced by a rename
+            if folder.exists() or folder.is_symlink():
+                # a fresh hidden name (random; we hold the lock): the previous case, or whatever was there
+                old = parent / f".{folder.name}.old.{secrets.token_hex(8)}{_TMP_SUFFIX}"
+                os.rename(folder, old)
             try:
                 os.rename(tmp, folder)
             except BaseException:
