@@ -283,3 +283,15 @@ def test_two_files_with_the_same_name_are_refused(tmp_path):
     assert result.exit_code == 2
     assert (f"{tmp_path / 'b.toml'}: experiment is also named 'lab' and would be stored in the same results folder 'lab' "
             f"as 'lab' from {tmp_path / 'a.toml'}") in result.output
+
+
+def test_backend_option_says_which_engine_ran(tmp_path):
+    result = invoke("run", EXPERIMENTS / "rigid_body.toml", "--runs", tmp_path, "--backend", "compiled")
+    assert result.exit_code == 0, result.output
+    assert "ode45 (compiled)" in result.output
+    record = json.loads((tmp_path / "rigid_body" / "ode45" / "result.json").read_text())
+    assert record["backend"] == "compiled" and record["stats"] == {"nsteps": 21, "nfailed": 0, "nfevals": 127}
+    assert json.loads(invoke("run", EXPERIMENTS / "rigid_body.toml", "--no-store", "--json").output)[
+        "experiments"][0]["cases"][0]["backend"] == "python"  # auto: a lab-sized run stays on Python
+    bad = invoke("run", EXPERIMENTS / "rigid_body.toml", "--no-store", "--backend", "numba")
+    assert bad.exit_code == 2 and "`--backend` is 'numba'; use auto, python or compiled." in bad.output

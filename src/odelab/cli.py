@@ -89,6 +89,8 @@ def run(
     max_steps: Annotated[int, typer.Option("--max-steps", min=0, help=MAX_STEPS_HELP)] = 1_000_000,
     limit: Annotated[Optional[list[str]], typer.Option("--limit", help=LIMIT_HELP, show_default=False)] = None,
     store: Annotated[bool, typer.Option("--store/--no-store", help="Write results to the results folder.")] = True,
+    backend: Annotated[Optional[str], typer.Option(
+        "--backend", help="auto, python or compiled (numba); overrides [solver] backend.", show_default=False)] = None,
 ) -> None:
     """Run experiments: solve every case, print the error tables and store the results."""
     import warnings
@@ -101,6 +103,9 @@ def run(
     warnings.simplefilter("ignore")
     out, err = _consoles()
     limits = _limits(max_steps, limit, err)
+    if backend is not None and backend not in ("auto", "python", "compiled"):
+        err.print(f"[bold red]error:[/] `--backend` is {_escape(repr(backend))}; use auto, python or compiled.")
+        raise typer.Exit(EXIT_INPUT)
     files, problems = expand_paths(paths)
     bad = [f"{p}: {why}" for p, why in problems]
     loaded = []
@@ -118,7 +123,7 @@ def run(
     total = sum(len(e.cases) for e in loaded)
     with _interruptible(err, total) as done:
         return _run_all(loaded, bad, out, err, runs=runs, json_out=json_out, table=table, mat=mat,
-                        max_steps=max_steps, store=store, total=total, done=done)
+                        max_steps=max_steps, store=store, total=total, done=done, backend=backend)
 
 
 MAX_STEPS_HELP = ("Budget of steps per solve: an adaptive solve stops there, a fixed-step one over it is refused "
@@ -169,7 +174,8 @@ def _interruptible(err, total: int):
         signal.signal(signal.SIGTERM, previous)
 
 
-def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, store, total, done) -> None:
+def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, store, total, done, backend=None
+             ) -> None:
     from odelab.exceptions import InputError
     from odelab.experiment.runner import run_case
 
@@ -185,7 +191,7 @@ def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, st
             for case in exp.cases:
                 progress.update(task, description=_escape(f"{exp.name}/{case.name}"))
                 try:
-                    result = run_case(case, max_steps=max_steps or None)
+                    result = run_case(case, max_steps=max_steps or None, backend=backend)
                 except InputError as exc:  # found only when running, e.g. no equilibrium for an input
                     message = _error_text(exc.located(source=str(case.source)))
                     bad.append(message)

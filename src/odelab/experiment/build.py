@@ -78,12 +78,18 @@ def build_ode(model: schema.Experiment, params: dict[str, float]) -> Built:
         sys_obj = NonlinearSystem.from_expressions(
             {s: system.equations[s] for s in states}, inputs=inputs,
             outputs=dict(system.outputs) if system.outputs else None, parameters=params)
+    compiled = None
     if not inputs:
+        from odelab.solvers.compiled import CompiledSystem
+
         def fun(t, x, _F=F):
             return _F(t, *x)
 
+        compiled = CompiledSystem.from_equations(states, [system.equations[s] for s in states], params,
+                                                 keys=[f"system.equations.{s}" for s in states])
+
     return Built(states=states, inputs=inputs, outputs=outputs, fun=fun, output_fn=output_fn, resolved=resolved,
-                 linear=False, system=sys_obj)
+                 linear=False, system=sys_obj, compiled=compiled)
 
 
 def _matrix(value, key: str, params: dict[str, float]) -> np.ndarray | None:
@@ -150,12 +156,17 @@ def build_state_space(model: schema.Experiment, params: dict[str, float]) -> Bui
         return y
 
     fun = None
+    compiled = None
     if ss.nu == 0:
+        from odelab.solvers.compiled import CompiledSystem
+
         def fun(t, x):
             return A @ x
 
+        compiled = CompiledSystem.linear(A, ss.states)
+
     return Built(states=ss.states, inputs=ss.inputs, outputs=ss.outputs, fun=fun, output_fn=output_fn,
-                 resolved=resolved, linear=True, system=ss)
+                 resolved=resolved, linear=True, system=ss, compiled=compiled)
 
 
 # Keys each signal type takes, with their defaults (the rest are errors, not silently ignored).

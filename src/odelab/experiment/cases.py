@@ -38,6 +38,8 @@ class Problem:
     parameters: dict[str, float] = field(default_factory=dict)
     diagram: Any = None  # the CompiledDiagram of a kind = "diagram" system
     events: Any = None  # the compiled [events] (an experiment.events.EventSet), if any
+    backend: str = "auto"  # [solver] backend: "auto", "python" or "compiled"
+    compiled: Any = None  # an odelab.solvers.compiled.CompiledSystem where the system allows one
 
 
 @dataclass(frozen=True, eq=False)
@@ -75,3 +77,4 @@ class Built:
     x0: Any = None  # initial state set by the system itself (a diagram's blocks)
     signals: tuple = ()  # input signals set by the system itself (a diagram's sources)
     diagram: Any = None  # the CompiledDiagram, for drawings and reports
+    compiled: Any = None  # CompiledSystem for the compiled backend (expression systems without inputs)

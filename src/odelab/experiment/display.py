@@ -58,7 +58,8 @@ def print_experiment(console: Console, exp, results, *, table: bool = False) -> 
     for r in results:
         s = r.stats
         status = "[green]ok[/]" if r.status == "success" else "[bold red]FAILED[/]"
-        head = [_shown(r.case.name), r.method, str(r.t.size), str(s.nsteps),
+        method = r.method if r.backend == "python" else f"{r.method} ({r.backend})"
+        head = [_shown(r.case.name), method, str(r.t.size), str(s.nsteps),
                 "-" if s.nfailed is None else str(s.nfailed), str(s.nfevals)]
         if not r.errors:
             summary.add_row(*head, "-", "-", "-", *(["-"] if peak else []), status)

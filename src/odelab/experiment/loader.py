@@ -485,7 +485,8 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
     from odelab.solvers.registry import get_method
 
     method = get_method(model.solver.method, key="solver.method")
-    options = {k: v for k, v in model.solver.model_dump().items() if k != "method" and v is not None}
+    options = {k: v for k, v in model.solver.model_dump().items() if k not in ("method", "backend") and v is not None}
+    backend = model.solver.backend
     runtime_options = _state_options(options, states, params)
     try:
         as_tspan(tspan)
@@ -513,6 +514,11 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
                                   "is \"exact\" (from [exact]) or \"none\"; event times can have exact values with "
                                   "`exact` in the event's table.", key="reference.method")
         events, resolved["events"] = compile_events(model.events, states, params)
+    if backend != "auto":
+        resolved["solver"]["backend"] = backend
+        from odelab.experiment.backend import check_backend
+
+        check_backend(backend, method, built.compiled, "solver.backend", options, events)
     if method.kind in ("adaptive", "implicit"):
         resolved["solver"].setdefault("rtol", 1e-3)
         resolved["solver"].setdefault("atol", 1e-6)
@@ -557,7 +563,8 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
         states=states, inputs=inputs, outputs=outputs, fun=built.fun, tspan=tspan, x0=x0, method=method.name,
         options=options, output_fn=built.output_fn, input_fn=input_fn, exact_fn=exact_fn, reference=kind,
         reference_solver=(ref.solver, float(ref.rtol), float(ref.atol)), system=built.system, signals=signals,
-        linearize=model.linearize, parameters=params, diagram=built.diagram, events=events,
+        linearize=model.linearize, parameters=params, diagram=built.diagram, events=events, backend=backend,
+        compiled=built.compiled,
     )
     return problem, resolved
 

@@ -34,6 +34,7 @@ class CaseResult:
     extra: dict[str, Any] = field(default_factory=dict)  # e.g. the linearisation study
     events: list[dict[str, Any]] = field(default_factory=list)  # located events: name, t, state, ...
     event_marks: np.ndarray | None = None  # per output row: 1-based number of its event, 0 for none
+    backend: str = "python"  # the engine that ran: "python" or "compiled"
 
     @property
     def method(self) -> str:

@@ -15,48 +15,59 @@ from odelab.solution import Stats
 __all__ = ["CaseResult", "run_case", "run_experiment"]
 
 
-def _integrate(problem, tspan, method, options):
+def _integrate(problem, tspan, method, options, backend="python"):
     """Solve (no inputs) or simulate (inputs, restarting at their discontinuities).
 
-    A failed integration is reported in the case's result, so the solvers' SolverWarning is
-    not repeated here.
+    Returns ``(t, x, u, stats, status, message, warnings, backend)``, the last being the
+    engine that ran (with [events]: ``solve_with_events``'s tuple, always on Python) ("python" or "compiled", see :mod:`odelab.experiment.backend`). A failed
+    integration is reported in the case's result, so the solvers' SolverWarning is not
+    repeated here.
     """
     import warnings
 
-    from odelab.exceptions import SolverWarning
+    from odelab.exceptions import InputError, SolverWarning
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SolverWarning)
         if problem.events is not None:
             from odelab.experiment.events import solve_with_events
 
+            if backend == "compiled":
+                raise InputError("`--backend compiled` cannot run this case: the compiled loop does not locate "
+                                 "[events] (they call back into Python). Use --backend auto.")
             return solve_with_events(problem.fun, tspan, problem.x0, method, options, problem.events, problem.states)
-        return _integrate_quietly(problem, tspan, method, options)
+        return _integrate_quietly(problem, tspan, method, options, backend)
 
 
-def _integrate_quietly(problem, tspan, method, options):
+def _integrate_quietly(problem, tspan, method, options, backend="python"):
     if problem.signals:
+        from odelab.experiment.backend import solve_problem
         from odelab.systems.simulate import simulate
 
+        if backend == "compiled":
+            solve_problem(problem, tspan, method, options, backend)  # raises: it cannot run inputs
         r = simulate(problem.system, tspan, problem.x0, u=list(problem.signals), method=method, **options)
-        return r.t, r.x, r.u, r.stats, r.status, r.message, ()
+        return r.t, r.x, r.u, r.stats, r.status, r.message, (), "python"
     from odelab.exceptions import InputError
-    from odelab.solvers.api import solve
+    from odelab.experiment.backend import solve_problem
 
     try:
-        sol = solve(problem.fun, tspan, problem.x0, method=method, **options)
+        sol, ran = solve_problem(problem, tspan, method, options, backend)
     except InputError as exc:
         if exc.key != "fun":
             raise
         # The user's function returned something unusable (wrong shape, complex): a failed
         # case with the reason, like any other fault of the right-hand side.
         message = f"{method} could not start: {exc.message.replace('`fun`', 'the system function')}"
-        return (tspan[:1].copy(), problem.x0.reshape(1, -1), None, Stats(0, 0, 1), "failed", message, ())
-    return sol.t, sol.y, None, sol.stats, sol.status, sol.message, sol.warnings
+        return (tspan[:1].copy(), problem.x0.reshape(1, -1), None, Stats(0, 0, 1), "failed", message, (), "python")
+    return sol.t, sol.y, None, sol.stats, sol.status, sol.message, sol.warnings, ran
 
 
-def run_case(case: Case, *, max_steps: int | None = None) -> CaseResult:
-    """Run one case and compute its error table (never raises for a failed integration)."""
+def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = None) -> CaseResult:
+    """Run one case and compute its error table (never raises for a failed integration).
+
+    ``backend`` ("auto", "python", "compiled") overrides the case's ``[solver] backend``.
+    """
     p = case.problem
     if p.linearize is not None:
         from odelab.experiment.linearization import run_linearization_case
@@ -67,17 +78,20 @@ def run_case(case: Case, *, max_steps: int | None = None) -> CaseResult:
         options.setdefault("max_steps", max_steps)
     start = time.perf_counter()
     events, marks = [], None
+    ran = "python"
     if p.events is not None:
-        t, x, stats, status, message, warnings, events, marks = _integrate(p, p.tspan, p.method, options)
+        t, x, stats, status, message, warnings, events, marks = _integrate(p, p.tspan, p.method, options,
+                                                                           backend or p.backend)
         u = None
     else:
-        t, x, u, stats, status, message, warnings = _integrate(p, p.tspan, p.method, options)
+        t, x, u, stats, status, message, warnings, ran = _integrate(p, p.tspan, p.method, options,
+                                                                    backend or p.backend)
     elapsed = time.perf_counter() - start
     if u is None and p.input_fn is not None:
         u = p.input_fn(t)
     y = p.output_fn(t, x, u) if p.output_fn is not None else None
     result = CaseResult(case=case, status=status, message=message, stats=stats, elapsed=elapsed, t=t, x=x, u=u,
-                        y=y, warnings=list(warnings), events=events, event_marks=marks)
+                        y=y, warnings=list(warnings), events=events, event_marks=marks, backend=ran)
     _reference(result)
     return result
 
@@ -103,7 +117,7 @@ def _reference(result: CaseResult) -> None:
             kind = "high-accuracy"
         solver, rtol, atol = p.reference_solver
         options = {"rtol": rtol, "atol": atol}
-        rt, rx, ru, _, status, message, _ = _integrate(p, t, solver, options)
+        rt, rx, ru, _, status, message, _, _ = _integrate(p, t, solver, options)
         if status != "success" or rt.size != t.size:
             result.warnings.append(f"the high-accuracy reference ({solver}, rtol {rtol:g}) failed: {message}")
             return
@@ -125,7 +139,8 @@ def _reference(result: CaseResult) -> None:
             + ", ".join(undefined) + "; left out of the maximum")
 
 
-def run_experiment(path_or_experiment, *, max_steps: int | None = None) -> list[CaseResult]:
+def run_experiment(path_or_experiment, *, max_steps: int | None = None, backend: str | None = None
+                   ) -> list[CaseResult]:
     """Load (if given a path) and run every case of an experiment."""
     exp = path_or_experiment if isinstance(path_or_experiment, LoadedExperiment) else load_experiment(path_or_experiment)
-    return [run_case(case, max_steps=max_steps) for case in exp.cases]
+    return [run_case(case, max_steps=max_steps, backend=backend) for case in exp.cases]

@@ -105,6 +105,7 @@ def summary(result: CaseResult) -> dict[str, Any]:
         "case": case.name,
         "title": case.title,
         "method": p.method,
+        "backend": result.backend,
         "status": result.status,
         "message": result.message,
         "points": int(result.t.size),

@@ -1,0 +1,189 @@
+"""The compiled backend: expression systems and MATLAB's stepping loop compiled together.
+
+An experiment's equations (or a state-space model's A) are a closed, checked language, so
+odelab can generate one Python module holding the right-hand side and the stepping loops of
+:mod:`odelab.solvers.engine`, and compile it with numba (the field's standard JIT for numeric
+Python). The module is cached on disk by a hash of its text (:mod:`.cache`): the first run of a
+system compiles it (a few seconds), later runs load it in a fraction of a second.
+
+The loop takes exactly the steps of the Python engine and gives the same values to round-off
+(``tests/solvers/test_compiled.py`` checks every shipped experiment): the same initial step,
+error norm, controller, ``Refine`` and ``tspan`` output rules, vector tolerances, NormControl,
+``max_steps`` and the fixed-step methods, with the same status codes and messages.
+
+numba is imported only when this backend runs. :data:`BACKENDS` are the choices of
+``[solver] backend`` and ``odelab run --backend``; ``"auto"`` (the runner's rule) keeps short
+runs on the Python path, which has no compile cost, and moves long ones here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from odelab.exceptions import InputError
+from odelab.solution import Solution, Stats
+
+__all__ = ["BACKENDS", "AUTO_STEPS", "CompiledSystem", "unavailable", "solve_compiled"]
+
+BACKENDS = ("auto", "python", "compiled")
+
+#: ``backend = "auto"`` moves a run to the compiled path once it needs more than this many
+#: steps: about 0.2 s on the Python path, the time a warm compiled load takes.
+AUTO_STEPS = 10_000
+
+
+@dataclass(frozen=True, eq=False)
+class CompiledSystem:
+    """What the compiled backend needs to build a system's right-hand side.
+
+    Build it with :meth:`from_equations` (``d(state)/dt`` expressions with parameters) or
+    :meth:`linear` (``x' = A x``). Parameter values are passed at run time, not compiled in,
+    so a sweep over parameters reuses one build.
+    """
+
+    kind: str  # "equations" or "linear"
+    states: tuple[str, ...]
+    parameters: tuple[str, ...] = ()
+    values: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    equations: tuple = ()  # (text, TOML key) per state
+
+    @classmethod
+    def from_equations(cls, states: Sequence[str], equations: Sequence, parameters: Mapping[str, float] | None = None,
+                       keys: Sequence[str | None] | None = None) -> "CompiledSystem":
+        """An equations system: ``equations[i]`` (text or ParsedExpression) is d(states[i])/dt.
+
+        The texts are parsed and checked when the module is generated (only if this backend
+        runs); names other than ``t``, the states and the parameters are refused then.
+        """
+        keys = tuple(keys) if keys is not None else (None,) * len(equations)
+        parameters = dict(parameters or {})
+        return cls(kind="equations", states=tuple(states), parameters=tuple(parameters),
+                   values=np.array([float(v) for v in parameters.values()], dtype=float),
+                   equations=tuple(zip(equations, keys)))
+
+    def _parsed(self) -> list:
+        from odelab.expressions import parse_expression
+
+        parsed = [parse_expression(text, key=key) for text, key in self.equations]
+        known = {"t", *self.states, *self.parameters}
+        for p in parsed:
+            unknown = sorted(set(p.names) - known)
+            if unknown:
+                raise InputError(f"`{p.key or p.text}` uses `{unknown[0]}`, which is not a state, a parameter "
+                                 "or t.", key=p.key)
+        return parsed
+
+    @classmethod
+    def linear(cls, A, states: Sequence[str]) -> "CompiledSystem":
+        """``x' = A x`` (a state-space model without inputs)."""
+        A = np.asarray(A, dtype=float)
+        return cls(kind="linear", states=tuple(states), values=np.ascontiguousarray(A).ravel().copy())
+
+    def source(self) -> str:
+        """The generated module's text (right-hand side and loops)."""
+        from odelab.solvers.compiled import cache, codegen
+
+        if self.kind == "linear":
+            rhs = codegen.linear_source()
+        else:
+            rhs = codegen.equations_source(self.states, self.parameters, self._parsed())
+        return cache.module_text(codegen.PRELUDE, rhs)
+
+    def module(self):
+        """The module holding the compiled ``rhs`` (compiled or loaded from the cache on first use)."""
+        from odelab.solvers.compiled import cache
+
+        return cache.load_module(self.source())
+
+
+def unavailable() -> str | None:
+    """Why the compiled backend cannot run here (numba missing), or None if it can."""
+    try:
+        import importlib.util
+
+        if importlib.util.find_spec("numba") is None:
+            return "numba is not installed (pip install numba)"
+    except (ImportError, ValueError):  # pragma: no cover
+        return "numba cannot be imported"
+    return None
+
+
+def solve_compiled(system: CompiledSystem, tspan, y0, method: str = "ode45", **options) -> Solution:
+    """Solve ``system`` with an odelab method (ode23, ode45, fixed-step) on the compiled path.
+
+    Same arguments, options and result as :func:`odelab.solvers.api.solve` with the
+    system's right-hand side; SciPy's methods are not available here.
+    """
+    from odelab.solvers import api
+    from odelab.solvers.options import as_tspan, as_y0, normalize_options, resolve_options
+    from odelab.solvers.registry import get_method
+
+    m = get_method(method)
+    if m.kind not in ("adaptive", "fixed"):
+        raise InputError(f"the compiled backend runs odelab's explicit Runge-Kutta methods (ode23, ode45, "
+                         f"fixed-step); {m.name} is {'SciPy' + chr(39) + 's' if m.kind == 'scipy' else 'not one'}: use backend "
+                         "\"python\".", key="backend")
+    reason = unavailable()
+    if reason:
+        raise InputError(f"the compiled backend needs numba: {reason}.", key="backend")
+    tspan_arr = as_tspan(tspan)
+    y0_arr = as_y0(y0)
+    n = y0_arr.size
+    if n != len(system.states):
+        raise InputError(f"`y0` has {n} values but the system has {len(system.states)} states.", key="y0")
+    opts = resolve_options(m, normalize_options(options, m), tspan_arr, n)
+    from odelab.solvers.compiled.cache import load_kernels
+
+    kernels = load_kernels()
+    rhs = system.module().rhs
+    p = np.ascontiguousarray(system.values, dtype=float)
+    tab = m.tableau
+    t0 = float(tspan_arr[0])
+    f0 = np.empty(n)
+    y0_arr = np.array(y0_arr, dtype=float, order="C")  # writable and contiguous, as the signatures say
+    rhs(t0, y0_arr.copy(), p, f0)
+    if not np.all(np.isfinite(f0)):
+        return api._failed_at_start(m, tspan_arr, y0_arr, opts, f"the derivative at t = {t0:g} is not finite "
+                                    f"({api._fmt_vec(f0)}): check the right-hand side at the initial state")
+    if m.kind == "fixed":
+        grid, keep = api.fixed_grid(tspan_arr, opts.h)
+        ys, nsteps, nfevals, status, t_stop = kernels.loop("fixed")(rhs, _c(grid), y0_arr, p, _c(tab.A), _c(tab.b), _c(tab.c))
+        done = nsteps + 1
+        mask = keep[:done].copy()
+        mask[done - 1] = True
+        t, y = grid[:done][mask], ys[:done][mask]
+        message = api._status_message(status, m, t_stop, opts.h, y, y0_arr, opts, None, tspan_arr)
+        return Solution(t=t, y=y, stats=Stats(nsteps=nsteps, nfailed=0, nfevals=nfevals),
+                        status="success" if status == 0 else "failed", message=message, method=m.name)
+
+    refine = opts.refine
+    if tspan_arr.size == 2 and refine > 1:
+        fractions = np.arange(1, refine) / refine
+        weights = np.ascontiguousarray(
+            (tab.dense @ np.cumprod(np.broadcast_to(fractions, (tab.dense.shape[1], refine - 1)), axis=0)).T)
+    else:
+        weights = np.zeros((0, tab.c.size))
+    threshold = np.broadcast_to(np.atleast_1d(np.asarray(opts.atol / opts.rtol, dtype=float)), (n,)).copy()
+    htry = float(opts.initial_step)
+    capacity = tspan_arr.size if tspan_arr.size > 2 else 1 + refine * 64
+    (t_out, y_out, count, nsteps, nfailed, nfevals, status, t_stop, h_stop) = kernels.loop("adaptive")(
+        rhs, _c(tspan_arr), y0_arr, f0, p, _c(tab.A), _c(tab.c), _c(tab.error_weights), _c(tab.dense), _c(weights),
+        float(m.power), float(m.shrink_min), float(opts.rtol), threshold, float(opts.max_step), htry, int(refine),
+        bool(opts.norm_control), int(opts.max_steps), int(capacity))
+    t = t_out[:count]
+    y = y_out[:count]
+    if count < t_out.size // 2:  # do not keep a mostly empty buffer alive
+        t, y = t.copy(), y.copy()
+    message = api._status_message(status, m, t_stop, h_stop, y, y0_arr, opts, None, tspan_arr)
+    return Solution(t=t, y=y, stats=Stats(nsteps=nsteps, nfailed=nfailed, nfevals=nfevals + 1),
+                    status="success" if status == 0 else "failed", message=message, method=m.name,
+                    warnings=opts.warnings)
+
+
+
+def _c(a) -> np.ndarray:
+    """A writable, C-contiguous float64 copy: the loops' signatures are exact."""
+    return np.array(a, dtype=float, order="C")

@@ -1,0 +1,337 @@
+"""The stepping loops of the compiled backend (numba), shared by every system.
+
+:mod:`odelab.solvers.compiled.cache` copies this file into the cache folder and imports it
+from there, so numba's ``cache=True`` keeps its machine code beside it: the loops are compiled
+once per machine (and numba version), not once per system. A system's own module holds only
+its right-hand side ``rhs(t, y, p, out)`` with the signature :data:`RHS`, and is passed to the
+loops as a first-class function (one indirect call per stage, a few nanoseconds).
+
+The loops are :func:`odelab.solvers.engine.integrate_adaptive` and ``integrate_fixed``
+statement for statement, with every array operation written out as a loop in the order of the
+mathematics (stage ``y + sum_k hA[i, k] K[k]``, the error ``sum_k E[k] K[k]``, Refine's
+``h * W K + y``): the same steps, the same accept/reject decisions and the same values to
+round-off (numpy's BLAS may sum in another order, so the last bits can differ). The output
+arrays grow geometrically (doubling), so a long run costs amortised O(1) per output row and
+no list of small arrays.
+"""
+
+import numpy as _np
+from numba import njit as _njit
+from numba import types as _types
+
+_F8 = _types.float64
+_V = _types.float64[::1]
+_M = _types.float64[:, ::1]
+_I8 = _types.int64
+
+#: The signature of every generated right-hand side: rhs(t, y, p, out) writes dy/dt into out.
+RHS = _types.void(_F8, _V, _V, _V)
+_RHS_ARG = _types.FunctionType(RHS)
+
+STATUS_SUCCESS = 0
+STATUS_STEP_UNDERFLOW = 1
+STATUS_NONFINITE = 2
+STATUS_MAX_STEPS = 3
+
+
+@_njit(cache=True, error_model="numpy")
+def _grow(t_out, y_out, needed):
+    capacity = t_out.shape[0]
+    while capacity < needed:
+        capacity *= 2
+    t_new = _np.empty(capacity)
+    y_new = _np.empty((capacity, y_out.shape[1]))
+    count = t_out.shape[0]
+    t_new[:count] = t_out
+    y_new[:count] = y_out
+    return t_new, y_new
+
+
+def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min, rtol, threshold, hmax, htry, refine,
+             norm_control, max_steps, capacity):
+    s = c.shape[0]
+    n = y0.shape[0]
+    t0 = tspan[0]
+    tfinal = tspan[tspan.shape[0] - 1]
+    ntspan = tspan.shape[0]
+    tdir = 1.0 if tfinal > t0 else -1.0
+    last = s - 1
+    ndense = dense.shape[1]
+    K = _np.empty((s, n))
+    K[0, :] = f0
+    hA = _np.empty_like(A)
+    stage = _np.empty(n)
+    y = y0.copy()
+    ynew = _np.empty(n)
+    absy = _np.abs(y0)
+    absynew = _np.empty(n)
+    fE = _np.empty(n)
+    M = _np.empty((n, ndense))
+    powers = _np.empty(ndense)
+    thr = threshold[0]
+
+    t = t0
+    normy = 0.0
+    if norm_control:
+        for j in range(n):
+            normy += y0[j] * y0[j]
+        normy = _np.sqrt(normy)
+    normynew = normy
+
+    hmin = 16.0 * _np.spacing(abs(t))
+    if htry != htry:
+        absh = min(hmax, abs(tspan[1] - t0))
+        if norm_control:
+            nf = 0.0
+            for j in range(n):
+                nf += f0[j] * f0[j]
+            rh = (_np.sqrt(nf) / max(normy, thr)) / (0.8 * rtol ** power)
+        else:
+            rh = 0.0
+            for j in range(n):
+                q = abs(f0[j]) / max(absy[j], threshold[j])
+                if q > rh or q != q:
+                    rh = q
+            rh = rh / (0.8 * rtol ** power)
+        if absh * rh > 1.0:
+            absh = 1.0 / rh
+        absh = max(absh, hmin)
+    else:
+        absh = min(hmax, max(hmin, htry))
+
+    t_out = _np.empty(capacity)
+    y_out = _np.empty((capacity, n))
+    t_out[0] = t0
+    y_out[0, :] = y0
+    count = 1
+    refine_output = ntspan == 2
+    nxt = 1
+
+    nsteps = 0
+    nfailed = 0
+    nfevals = 0
+    status = STATUS_SUCCESS
+    h = tdir * absh
+    tnew = t
+    err = 0.0
+    while True:
+        hmin = 16.0 * _np.spacing(abs(t))
+        absh = min(hmax, max(hmin, absh))
+        h = tdir * absh
+        done = False
+        if 1.1 * absh >= abs(tfinal - t):
+            h = tfinal - t
+            absh = abs(h)
+            done = True
+
+        nofailed = True
+        while True:
+            for i in range(s):
+                for k in range(s):
+                    hA[i, k] = A[i, k] * h
+            for i in range(1, last):
+                for j in range(n):
+                    acc = 0.0
+                    for k in range(i):
+                        acc += hA[i, k] * K[k, j]
+                    stage[j] = y[j] + acc
+                _rhs(t + c[i] * h, stage, p, K[i])
+            tnew = t + h
+            if done:
+                tnew = tfinal
+            h = tnew - t
+            for j in range(n):
+                acc = 0.0
+                for k in range(last):
+                    acc += hA[last, k] * K[k, j]
+                ynew[j] = y[j] + acc
+            _rhs(tnew, ynew, p, K[last])
+            nfevals += last
+
+            for j in range(n):
+                acc = 0.0
+                for k in range(s):
+                    acc += E[k] * K[k, j]
+                fE[j] = acc
+            if norm_control:
+                nn = 0.0
+                ne = 0.0
+                for j in range(n):
+                    nn += ynew[j] * ynew[j]
+                    ne += fE[j] * fE[j]
+                normynew = _np.sqrt(nn)
+                err = absh * (_np.sqrt(ne) / max(normy, normynew, thr))
+            else:
+                emax = 0.0
+                nan = False
+                for j in range(n):
+                    absynew[j] = abs(ynew[j])
+                    # np.maximum's rule: a NaN operand gives NaN (it reaches err below)
+                    sc = absy[j] if absy[j] >= absynew[j] else absynew[j]
+                    sc = sc if sc >= threshold[j] else threshold[j]
+                    q = abs(fE[j]) / sc
+                    if q != q or absy[j] != absy[j] or absynew[j] != absynew[j]:
+                        nan = True
+                    elif q > emax:
+                        emax = q
+                if nan:
+                    emax = _np.nan
+                err = absh * emax
+
+            if err > rtol:
+                nfailed += 1
+                if absh <= hmin:
+                    status = STATUS_STEP_UNDERFLOW
+                    break
+                if nofailed:
+                    nofailed = False
+                    absh = max(hmin, absh * max(shrink_min, 0.8 * (rtol / err) ** power))
+                else:
+                    absh = max(hmin, 0.5 * absh)
+                h = tdir * absh
+                done = False
+            elif err <= rtol:
+                break
+            else:
+                status = STATUS_NONFINITE
+                break
+        if status != STATUS_SUCCESS:
+            break
+        nsteps += 1
+
+        if refine_output:
+            needed = count + refine
+            if needed > t_out.shape[0]:
+                t_out, y_out = _grow(t_out[:count], y_out[:count], needed)
+            if refine > 1:
+                for r in range(refine - 1):
+                    t_out[count] = t + h * ((r + 1) / refine)
+                    for j in range(n):
+                        acc = 0.0
+                        for k in range(s):
+                            acc += weights[r, k] * K[k, j]
+                        y_out[count, j] = h * acc + y[j]
+                    count += 1
+            t_out[count] = tnew
+            y_out[count, :] = ynew
+            count += 1
+        else:
+            while nxt < ntspan:
+                tn = tspan[nxt]
+                if tdir * (tnew - tn) < 0:
+                    break
+                t_out[count] = tn
+                if tn == tnew:
+                    y_out[count, :] = ynew
+                else:
+                    x = (tn - t) / h
+                    pw = 1.0
+                    for m in range(ndense):
+                        pw *= x
+                        powers[m] = pw
+                    for j in range(n):
+                        for m in range(ndense):
+                            acc = 0.0
+                            for k in range(s):
+                                acc += K[k, j] * (h * dense[k, m])
+                            M[j, m] = acc
+                    for j in range(n):
+                        acc = 0.0
+                        for m in range(ndense):
+                            acc += M[j, m] * powers[m]
+                        y_out[count, j] = y[j] + acc
+                count += 1
+                nxt += 1
+
+        if done:
+            break
+        if max_steps > 0 and nsteps >= max_steps:
+            status = STATUS_MAX_STEPS
+            t = tnew
+            break
+
+        if nofailed:
+            temp = 1.25 * (err / rtol) ** power
+            if temp > 0.2:
+                absh = absh / temp
+            else:
+                absh = 5.0 * absh
+
+        t = tnew
+        for j in range(n):
+            y[j] = ynew[j]
+        if norm_control:
+            normy = normynew
+        else:
+            for j in range(n):
+                absy[j] = absynew[j]
+        for j in range(n):
+            K[0, j] = K[last, j]
+
+    return t_out, y_out, count, nsteps, nfailed, nfevals, status, t, abs(h)
+
+
+def _fixed(_rhs, grid, y0, p, A, b, c):
+    s = c.shape[0]
+    n = y0.shape[0]
+    K = _np.empty((s, n))
+    hA = _np.empty_like(A)
+    hb = _np.empty(s)
+    stage = _np.empty(n)
+    ys = _np.empty((grid.shape[0], n))
+    ys[0, :] = y0
+    y = y0.copy()
+    nsteps = 0
+    nfevals = 0
+    status = STATUS_SUCCESS
+    t = grid[0]
+    for step in range(grid.shape[0] - 1):
+        t = grid[step]
+        h = grid[step + 1] - t
+        for i in range(s):
+            hb[i] = h * b[i]
+            for k in range(s):
+                hA[i, k] = h * A[i, k]
+        _rhs(t, y, p, K[0])
+        for i in range(1, s):
+            for j in range(n):
+                acc = 0.0
+                for k in range(i):
+                    acc += hA[i, k] * K[k, j]
+                stage[j] = y[j] + acc
+            _rhs(t + c[i] * h, stage, p, K[i])
+        nfevals += s
+        total = 0.0
+        for j in range(n):
+            acc = 0.0
+            for k in range(s):
+                acc += hb[k] * K[k, j]
+            stage[j] = y[j] + acc
+            total += stage[j]
+        if not _np.isfinite(total):
+            status = STATUS_NONFINITE
+            break
+        for j in range(n):
+            y[j] = stage[j]
+            ys[step + 1, j] = y[j]
+        nsteps += 1
+        t = grid[step + 1]
+    return ys, nsteps, nfevals, status, t
+
+
+# Each loop is compiled (or loaded from numba's cache) when first asked for: a fixed-step run
+# never pays for the adaptive loop's compile, nor the other way round.
+_SIGNATURES = {
+    "adaptive": (_RHS_ARG, _V, _V, _V, _V, _M, _V, _V, _M, _M, _F8, _F8, _F8, _V, _F8, _F8, _I8, _types.boolean, _I8,
+                 _I8),
+    "fixed": (_RHS_ARG, _V, _V, _V, _M, _V, _V),
+}
+_LOOPS = {"adaptive": _adaptive, "fixed": _fixed}
+_COMPILED = {}
+
+
+def loop(name):
+    """The compiled loop ``"adaptive"`` or ``"fixed"``."""
+    if name not in _COMPILED:
+        _COMPILED[name] = _njit(_SIGNATURES[name], cache=True, error_model="numpy")(_LOOPS[name])
+    return _COMPILED[name]

@@ -1,0 +1,205 @@
+"""The compiled backend takes the Python engine's steps and gives its values to round-off."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import odelab
+from odelab.exceptions import InputError
+from odelab.expressions import compile_vector
+from odelab.experiment.loader import load_experiment
+from odelab.experiment.runner import run_case
+from odelab.solvers.compiled import AUTO_STEPS, CompiledSystem, solve_compiled
+
+ROOT = Path(__file__).resolve().parents[2]
+SHIPPED = sorted((ROOT / "experiments").glob("*.toml"))
+RIGID = CompiledSystem.from_equations(["y1", "y2", "y3"], ["y2*y3", "-y1*y3", "a*y1*y2"], {"a": -0.51})
+
+
+def rigid(t, y):
+    return np.array([y[1] * y[2], -y[0] * y[2], -0.51 * y[0] * y[1]])
+
+
+def assert_same_run(a, b, rtol, atol):
+    """Same steps, same output times, values equal to round-off in units of the tolerance."""
+    assert a.stats == b.stats
+    assert a.status == b.status and a.message == b.message
+    assert a.t.shape == b.t.shape and a.y.shape == b.y.shape
+    np.testing.assert_allclose(a.t, b.t, rtol=1e-9, atol=1e-12)  # see the shipped-case test
+    # round-off accumulated over the run, relative to the size of the solution (a different step
+    # would differ by about the tolerance, 1e-6 here, not 1e-10)
+    assert np.max(np.abs(a.y - b.y)) < 1e-9 * max(1.0, np.max(np.abs(b.y)))
+
+
+def compiled_cases():
+    out = []
+    for path in SHIPPED:
+        for case in load_experiment(path).cases:
+            if case.problem.compiled is not None:
+                out.append(pytest.param(path, case.name, id=f"{path.stem}-{case.name}"))
+    return out
+
+
+@pytest.mark.parametrize("path, name", compiled_cases())
+def test_every_shipped_case_runs_the_same_steps_compiled(path, name):
+    case = next(c for c in load_experiment(path).cases if c.name == name)
+    python = run_case(case, backend="python")
+    compiled = run_case(case, backend="compiled")
+    assert (python.backend, compiled.backend) == ("python", "compiled")
+    assert compiled.stats == python.stats
+    assert compiled.t.shape == python.t.shape
+    # The next step size is a power of the error estimate, a sum with cancellation: the last
+    # bits of its sum order (numpy's BLAS versus the compiled loop) move the step, and so the
+    # output times, by ~1e-12 relative. Values: differences in units of the case's tolerance.
+    np.testing.assert_allclose(compiled.t, python.t, rtol=1e-9, atol=1e-12)
+    opts = case.problem.options
+    rtol, atol = opts.get("rtol", 1e-3), np.asarray(opts.get("atol", 1e-6))
+    scale = atol + rtol * np.abs(python.x) if "h" not in opts else 1e-12 * (1 + np.abs(python.x))
+    assert np.max(np.abs(compiled.x - python.x) / scale) < 1e-6
+    for q, e in python.errors.items():
+        assert compiled.errors[q].max_rel == pytest.approx(e.max_rel, rel=1e-6)
+
+
+def test_the_shipped_lab_has_compiled_cases():
+    names = {p.values[1] for p in compiled_cases()}
+    assert {"ode23", "ode45"} <= names  # Exercise 1 and the rigid body at least
+
+
+@pytest.mark.parametrize("method", ["ode23", "ode45"])
+@pytest.mark.parametrize("options", [
+    {},
+    {"refine": 1},
+    {"refine": 7},
+    {"atol": [1e-8, 1e-9, 1e-10]},
+    {"norm_control": True, "atol": 1e-8},
+    {"initial_step": 1e-3, "max_step": 0.5},
+])
+@pytest.mark.parametrize("tspan", [[0, 60], list(np.linspace(0, 60, 97)), [60, 0]])
+def test_rigid_body_options_match_the_python_engine(method, options, tspan):
+    a = solve_compiled(RIGID, tspan, [0, 1, 1], method, rtol=1e-6, **options)
+    b = odelab.solve(rigid, tspan, [0, 1, 1], method, rtol=1e-6, **options)
+    assert_same_run(a, b, 1e-6, options.get("atol", 1e-6) if not isinstance(options.get("atol"), list)
+                    else np.array(options["atol"]))
+    if len(tspan) > 2:
+        np.testing.assert_array_equal(a.t, np.asarray(tspan, dtype=float))
+
+
+def test_matlab_rigid_body_stats():
+    sol = solve_compiled(RIGID, [0, 12], [0, 1, 1], "ode45", RelTol=1e-4, AbsTol=[1e-4, 1e-4, 1e-5])
+    assert (sol.stats.nsteps, sol.stats.nfailed, sol.stats.nfevals) == (21, 0, 127)
+    assert sol.t.size == 85
+
+
+def test_long_run_grows_its_output_arrays():
+    a = solve_compiled(RIGID, [0, 1200], [0, 1, 1], "ode45", rtol=1e-6, atol=1e-9)
+    b = odelab.solve(rigid, [0, 1200], [0, 1, 1], "ode45", rtol=1e-6, atol=1e-9)
+    assert a.stats == b.stats and a.t.size == 4 * a.stats.nsteps + 1  # far beyond the first buffer
+    np.testing.assert_allclose(a.t, b.t, rtol=1e-9)
+
+
+@pytest.mark.parametrize("method", ["euler", "rk4"])
+def test_fixed_step_methods(method):
+    tspan = [0, 10]
+    a = solve_compiled(RIGID, tspan, [0, 1, 1], method, h=0.01)
+    b = odelab.solve(rigid, tspan, [0, 1, 1], method, h=0.01)
+    assert a.stats == b.stats == odelab.solution.Stats(1000, 0, 1000 * (1 if method == "euler" else 4))
+    np.testing.assert_array_equal(a.t, b.t)
+    np.testing.assert_allclose(a.y, b.y, rtol=1e-12, atol=1e-14)
+    c = solve_compiled(RIGID, np.linspace(0, 10, 11), [0, 1, 1], method, h=0.3)
+    d = odelab.solve(rigid, np.linspace(0, 10, 11), [0, 1, 1], method, h=0.3)
+    np.testing.assert_array_equal(c.t, d.t)
+    np.testing.assert_allclose(c.y, d.y, rtol=1e-12, atol=1e-14)
+
+
+def test_failures_give_the_python_engine_messages():
+    blowup = CompiledSystem.from_equations(["y"], ["y^2 + sqrt(c)"], {"c": 0.0})
+    a = solve_compiled(blowup, [0, 2], [1.0], "ode45")
+    b = odelab.solve(lambda t, y: y**2, [0, 2], [1.0], "ode45")
+    assert a.status == b.status == "failed"
+    assert a.stats == b.stats and a.message == b.message
+    assert "failed at t = 0.9999" in a.message and "finite-time blow-up" in a.message
+    stopped = solve_compiled(RIGID, [0, 100], [0, 1, 1], "ode45", max_steps=7)
+    assert stopped.stats.nsteps == 7 and "after max_steps = 7 steps" in stopped.message
+    nan = solve_compiled(CompiledSystem.from_equations(["y"], ["y^2 + sqrt(c)"], {"c": -1.0}), [0, 1], [1.0], "ode23")
+    assert nan.status == "failed" and nan.message == ("ode23 could not start: the derivative at t = 0 is not finite "
+                                                      "([nan]): check the right-hand side at the initial state.")
+
+
+def test_every_function_of_the_language_matches_numpy():
+    texts = ["sin(X) + cos(Y) - tan(X/3)", "asin(X/4) + acos(-X/5) + atan(Y) + atan2(X, Y)",
+             "sinh(X/2) * cosh(Y/3) / tanh(X + 0.1)", "exp(-X) + log(abs(Y)) + log10(abs(X) + 1) + sqrt(abs(Y))",
+             "sign(X) + floor(Y) + ceil(X) + heaviside(X) + step(Y)", "min(X, Y, 0.5) + max(X, Y) + where(X > Y, X, Y)",
+             "(0 < X < 1) + (X >= Y) + (X == Y) + (X != 0) + X^2 - Y**3 + 2^X", "1/X + X/0 + (-1)^0.5 + pi + e"]
+    texts = [t.replace("X", "s0").replace("Y", "s1") for t in texts]
+    system = CompiledSystem.from_equations([f"s{i}" for i in range(len(texts))], texts)
+    F = compile_vector(texts, args=["t", *(f"s{i}" for i in range(len(texts)))])
+    module = system.module()
+    rng = np.random.default_rng(1)
+    samples = [*rng.uniform(-3, 3, (200, 2)), (0.0, 0.0), (1.0, 1.0), (-0.0, 2.0), (np.nan, 1.0), (np.inf, -1.0)]
+    for x, y in samples:
+        state = np.zeros(len(texts))
+        state[:2] = x, y
+        out = np.empty(len(texts))
+        module.rhs(0.0, state, np.zeros(0), out)
+        np.testing.assert_allclose(out, F(0.0, *state), rtol=1e-13, atol=1e-15, equal_nan=True)
+
+
+def test_the_cache_is_keyed_by_the_generated_text(compiled_cache):
+    same = CompiledSystem.from_equations(["y1", "y2", "y3"], ["y2*y3", "-y1*y3", "a*y1*y2"], {"a": 2.0})
+    assert same.module() is RIGID.module()  # parameter values are run-time data: one build
+    other = CompiledSystem.from_equations(["y"], ["-2*y^2"])
+    source = other.source()
+    assert "    _out[0] = ((-2.0) * _np.power(y, 2.0))\n" in source
+    assert other.module() is not RIGID.module()
+    files = sorted((compiled_cache / "compiled").glob("odelab_compiled_*.py"))
+    assert other.module().__file__ in map(str, files)
+    assert files[0].read_text(encoding="utf-8").startswith("# Generated by odelab")
+
+
+def test_generated_source_holds_only_validated_names():
+    with pytest.raises(Exception, match="not an allowed function"):
+        CompiledSystem.from_equations(["y"], ["__import__('os')"]).source()
+    with pytest.raises(InputError, match="`eq.y` uses `k`, which is not a state, a parameter or t"):
+        CompiledSystem.from_equations(["y"], ["-k*y"], keys=["eq.y"]).source()
+
+
+def test_scipy_methods_are_refused():
+    with pytest.raises(InputError, match="RK45 is SciPy's"):
+        solve_compiled(RIGID, [0, 1], [0, 1, 1], "RK45")
+
+
+LONG = """
+title = "Rigid body, a long run"
+[parameters]
+a = -0.51
+[system]
+states = ["y1", "y2", "y3"]
+[system.equations]
+y1 = "y2*y3"
+y2 = "-y1*y3"
+y3 = "a*y1*y2"
+[initial]
+y1 = 0
+y2 = 1
+y3 = 1
+[time]
+stop = 6000
+[solver]
+method = "ode45"
+rtol = 1e-6
+atol = 1e-9
+refine = 1
+"""
+
+
+def test_auto_keeps_lab_runs_on_python_and_moves_long_runs(tmp_path):
+    short = load_experiment(ROOT / "experiments" / "rigid_body.toml").cases[0]
+    assert run_case(short).backend == "python"
+    (tmp_path / "long.toml").write_text(LONG, encoding="utf-8")
+    case = load_experiment(tmp_path / "long.toml").cases[0]
+    result = run_case(case)
+    assert result.backend == "compiled" and result.stats.nsteps > AUTO_STEPS
+    assert run_case(case, backend="python").stats == result.stats
+    capped = run_case(case, max_steps=500)
+    assert capped.backend == "python" and capped.stats.nsteps == 500
