@@ -114,14 +114,18 @@ def test_fixed_step_methods(method):
 
 def test_failures_give_the_python_engine_messages():
     blowup = CompiledSystem.from_equations(["y"], ["y^2 + sqrt(c)"], {"c": 0.0})
-    a = solve_compiled(blowup, [0, 2], [1.0], "ode45")
-    b = odelab.solve(lambda t, y: y**2, [0, 2], [1.0], "ode45")
+    with pytest.warns(odelab.SolverWarning, match="finite-time blow-up"):
+        a = solve_compiled(blowup, [0, 2], [1.0], "ode45")
+    with pytest.warns(odelab.SolverWarning):
+        b = odelab.solve(lambda t, y: y**2, [0, 2], [1.0], "ode45")
     assert a.status == b.status == "failed"
     assert a.stats == b.stats and a.message == b.message
     assert "failed at t = 0.9999" in a.message and "finite-time blow-up" in a.message
-    stopped = solve_compiled(RIGID, [0, 100], [0, 1, 1], "ode45", max_steps=7)
+    with pytest.warns(odelab.SolverWarning):
+        stopped = solve_compiled(RIGID, [0, 100], [0, 1, 1], "ode45", max_steps=7)
     assert stopped.stats.nsteps == 7 and "after max_steps = 7 steps" in stopped.message
-    nan = solve_compiled(CompiledSystem.from_equations(["y"], ["y^2 + sqrt(c)"], {"c": -1.0}), [0, 1], [1.0], "ode23")
+    with pytest.warns(odelab.SolverWarning):
+        nan = solve_compiled(CompiledSystem.from_equations(["y"], ["y^2 + sqrt(c)"], {"c": -1.0}), [0, 1], [1.0], "ode23")
     assert nan.status == "failed" and nan.message == ("ode23 could not start: the derivative at t = 0 is not finite "
                                                       "([nan]): check the right-hand side at the initial state.")
 
@@ -164,9 +168,11 @@ def test_generated_source_holds_only_validated_names():
         CompiledSystem.from_equations(["y"], ["-k*y"], keys=["eq.y"]).source()
 
 
-def test_scipy_methods_are_refused():
+def test_scipy_methods_and_python_callbacks_are_refused():
     with pytest.raises(InputError, match="RK45 is SciPy's"):
         solve_compiled(RIGID, [0, 1], [0, 1, 1], "RK45")
+    with pytest.raises(InputError, match="does not run `events`"):
+        solve_compiled(RIGID, [0, 1], [0, 1, 1], "ode45", events=lambda t, y: y[0])
 
 
 LONG = """

@@ -17,9 +17,9 @@ from odelab.exceptions import ExperimentError, InputError
 __all__ = ["check_backend", "why_not_compiled", "solve_problem"]
 
 
-def why_not_compiled(method, compiled) -> str | None:
-    """Why the compiled backend cannot run this method and system (None if it can)."""
-    from odelab.solvers.compiled import unavailable
+def why_not_compiled(method, compiled, options=None) -> str | None:
+    """Why the compiled backend cannot run this method, system and options (None if it can)."""
+    from odelab.solvers.compiled import PYTHON_ONLY_OPTIONS, unavailable
 
     if compiled is None:
         return ("it compiles systems written as expressions without inputs (equations, or a state-space model "
@@ -27,6 +27,9 @@ def why_not_compiled(method, compiled) -> str | None:
     if method.kind not in ("adaptive", "fixed"):
         return (f"it runs odelab's explicit Runge-Kutta methods (ode23, ode45, fixed-step), and {method.name} is "
                 + ("SciPy's" if method.kind == "scipy" else "not one of them"))
+    python_only = [name for name in PYTHON_ONLY_OPTIONS if (options or {}).get(name) is not None]
+    if python_only:
+        return f"`{python_only[0]}` calls back into Python"
     reason = unavailable()
     if reason:
         return reason
@@ -52,10 +55,10 @@ def solve_problem(problem, tspan, method_name: str, options: dict, backend: str)
 
     method = get_method(method_name)
     if backend == "compiled":
-        reason = why_not_compiled(method, problem.compiled)
+        reason = why_not_compiled(method, problem.compiled, options)
         if reason:
             raise InputError(f"`--backend compiled` cannot run this case: {reason}. Use --backend auto.")
-    if backend == "python" or why_not_compiled(method, problem.compiled):
+    if backend == "python" or why_not_compiled(method, problem.compiled, options):
         return solve(problem.fun, tspan, problem.x0, method=method_name, **options), "python"
     from odelab.solvers.compiled import AUTO_STEPS, solve_compiled
 

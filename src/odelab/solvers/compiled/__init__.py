@@ -30,6 +30,9 @@ __all__ = ["BACKENDS", "AUTO_STEPS", "CompiledSystem", "unavailable", "solve_com
 
 BACKENDS = ("auto", "python", "compiled")
 
+#: Solver options that call back into Python (or are not in the compiled loop yet).
+PYTHON_ONLY_OPTIONS = ("events", "nonnegative", "mass", "output_fcn", "args")
+
 #: ``backend = "auto"`` moves a run to the compiled path once it needs more than this many
 #: steps: about 0.2 s on the Python path, the time a warm compiled load takes.
 AUTO_STEPS = 10_000
@@ -115,8 +118,17 @@ def solve_compiled(system: CompiledSystem, tspan, y0, method: str = "ode45", **o
     """Solve ``system`` with an odelab method (ode23, ode45, fixed-step) on the compiled path.
 
     Same arguments, options and result as :func:`odelab.solvers.api.solve` with the
-    system's right-hand side; SciPy's methods are not available here.
+    system's right-hand side; SciPy's methods are not available here. A failed integration
+    returns the partial solution and issues a SolverWarning, as :func:`~odelab.solve` does.
     """
+    from odelab.solvers import api
+
+    sol = _solve_compiled(system, tspan, y0, method, options)
+    api._warn_if_failed(sol, 3)
+    return sol
+
+
+def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dict) -> Solution:
     from odelab.solvers import api
     from odelab.solvers.options import as_tspan, as_y0, normalize_options, resolve_options
     from odelab.solvers.registry import get_method
@@ -134,7 +146,14 @@ def solve_compiled(system: CompiledSystem, tspan, y0, method: str = "ode45", **o
     n = y0_arr.size
     if n != len(system.states):
         raise InputError(f"`y0` has {n} values but the system has {len(system.states)} states.", key="y0")
+    if np.iscomplexobj(y0_arr):
+        raise InputError("the compiled backend integrates real states; `y0` is complex: use backend \"python\".",
+                         key="y0")
     opts = resolve_options(m, normalize_options(options, m), tspan_arr, n)
+    python_only = [name for name in PYTHON_ONLY_OPTIONS if getattr(opts, name, None) not in (None, ())]
+    if python_only:
+        raise InputError(f"the compiled backend does not run `{python_only[0]}` (it calls Python); use backend "
+                         "\"python\".", key=python_only[0])
     from odelab.solvers.compiled.cache import load_kernels
 
     kernels = load_kernels()
