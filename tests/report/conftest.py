@@ -101,6 +101,23 @@ def lab_report(lab_runs, tmp_path_factory) -> Report:
     return build(lab_runs, tmp_path_factory.mktemp("report"))
 
 
+def shipped_names() -> list[str]:
+    """The experiment names of ``experiments/*.toml``: the lab's own report."""
+    import tomllib
+
+    names = []
+    for path in sorted(EXPERIMENTS.glob("*.toml")):
+        name = tomllib.loads(path.read_text(encoding="utf-8")).get("name", path.stem)
+        names.append(name)
+    return names
+
+
+@pytest.fixture(scope="session")
+def shipped_report(lab_runs, tmp_path_factory) -> Report:
+    """The report of the shipped experiments alone: what `odelab run experiments/ && odelab report` gives."""
+    return build(lab_runs, tmp_path_factory.mktemp("shipped-report"), experiments=shipped_names())
+
+
 @pytest.fixture(scope="session")
 def special_runs(tmp_path_factory, lab_runs) -> Path:
     """Exercise 1's runs, a hostile experiment, a failing one, and four broken case folders."""

@@ -75,7 +75,15 @@ class PageReport:
     screenshot: bytes = b""
     full_screenshot: bytes = b""
     pdf: bytes = b""
+    narrow_screenshot: bytes = b""
     evaluations: dict = field(default_factory=dict)
+
+    @property
+    def pdf_pages(self) -> int:
+        """Pages of the printed PDF (Chromium writes each page object uncompressed)."""
+        import re
+
+        return len(re.findall(rb"/Type\s*/Page(?![a-zA-Z])", self.pdf))
 
     @property
     def remote_requests(self) -> list[str]:
@@ -215,19 +223,53 @@ def _record(report: PageReport, event: dict) -> None:
 # Every <details> shows its content when printing (the stylesheet's print rules): measured with
 # the print media type emulated, each closed <details> must lay out its content.
 PRINT_CHECK = """(() => {
-  const closed = [...document.querySelectorAll('details:not([open])')];
+  // sections the print stylesheet leaves out on purpose (.no-print: the screen-only appendix) do not count
+  const closed = [...document.querySelectorAll('details:not([open])')].filter(d => !d.closest('.no-print'));
   const hidden = closed.filter(d => {
     const content = [...d.children].filter(c => c.tagName !== 'SUMMARY');
     return content.length && content.every(c => c.getBoundingClientRect().height === 0);
   });
   return {closed: closed.length, hidden: hidden.length};
 })()"""
+# Where figures and tables sit: a figure is clipped if it reaches past the page's width or is
+# drawn at another aspect ratio than its PNG; a table is clipped if it reaches past the page
+# and is not inside a frame that scrolls it (.table-wrap).
+LAYOUT_CHECK = """(() => {
+  const page = document.documentElement.clientWidth;
+  const out = {width: page, scrollWidth: document.documentElement.scrollWidth, figures: [], tables: []};
+  for (const img of document.querySelectorAll('figure img')) {
+    const r = img.getBoundingClientRect();
+    if (r.width === 0) continue;
+    const natural = img.naturalWidth / img.naturalHeight, shown = r.width / r.height;
+    out.figures.push({alt: img.alt, left: r.left, right: r.right, height: r.height,
+                      squashed: Math.abs(natural - shown) > 0.02 * natural});
+  }
+  for (const t of document.querySelectorAll('table')) {
+    const r = t.getBoundingClientRect();
+    if (r.width === 0) continue;
+    const wrap = t.closest('.table-wrap');
+    const framed = wrap !== null && ['auto', 'scroll'].includes(getComputedStyle(wrap).overflowX)
+      && wrap.getBoundingClientRect().right <= page + 1;
+    out.tables.push({id: t.className || (t.querySelector('th') || {}).textContent || '', right: r.right,
+                     framed: framed});
+  }
+  return out;
+})()"""
+# A4 with the report's print margins (12 mm each side), in CSS pixels: the width printing lays out.
+A4_CONTENT_WIDTH = round((210 - 24) / 25.4 * 96)
+A4_CONTENT_HEIGHT = round((297 - 28) / 25.4 * 96)
 IMAGE_CHECK = """[...document.images].filter(i => !(i.complete && i.naturalWidth > 0)).map(i => i.alt || i.src.slice(0, 60))"""
 
 
 def load_page(binary: str, page: Path, profile: Path, *, width: int = 1280, height: int = 4000,
-              settle: float = 1.0) -> PageReport:
-    """Open ``page`` from disk, record problems, screenshot it and print it to PDF."""
+              settle: float = 1.0, narrow: int = 400) -> PageReport:
+    """Open ``page`` from disk, record problems, screenshot it and print it to PDF.
+
+    ``evaluations`` gets ``"print"`` (collapsed sections laid out in print), ``"layout"``
+    (figures and tables at ``width``), ``"print_layout"`` (the same under the print stylesheet
+    at the width of an A4 page's content) and ``"narrow"`` (at ``narrow`` px, a phone, with
+    ``narrow_screenshot``).
+    """
     url = page.resolve().as_uri()
     report = PageReport(url)
     browser = Chromium(binary, profile)
@@ -261,12 +303,29 @@ def load_page(binary: str, page: Path, profile: Path, *, width: int = 1280, heig
         full = browser.send("Page.captureScreenshot", {"format": "png", "captureBeyondViewport": True, "clip": clip},
                             session=session)
         report.full_screenshot = base64.b64decode(full["data"])
+
+        def evaluate(expression):
+            value = browser.send("Runtime.evaluate", {"expression": expression, "returnByValue": True},
+                                 session=session)
+            return value.get("result", {}).get("value")
+
+        def viewport(w, h, mobile=False):
+            browser.send("Emulation.setDeviceMetricsOverride",
+                         {"width": w, "height": h, "deviceScaleFactor": 1, "mobile": mobile}, session=session)
+
+        report.evaluations["layout"] = evaluate(LAYOUT_CHECK)
         browser.send("Emulation.setEmulatedMedia", {"media": "print"}, session=session)
-        printed = browser.send("Runtime.evaluate", {"expression": PRINT_CHECK, "returnByValue": True},
-                               session=session)
-        report.evaluations["print"] = printed.get("result", {}).get("value")
+        report.evaluations["print"] = evaluate(PRINT_CHECK)
+        viewport(A4_CONTENT_WIDTH, A4_CONTENT_HEIGHT)
+        report.evaluations["print_layout"] = evaluate(LAYOUT_CHECK)
         browser.send("Emulation.setEmulatedMedia", {"media": ""}, session=session)
-        pdf = browser.send("Page.printToPDF", {"printBackground": True}, session=session)
+        viewport(narrow, 900, mobile=True)
+        report.evaluations["narrow"] = evaluate(LAYOUT_CHECK)
+        shot = browser.send("Page.captureScreenshot", {"format": "png"}, session=session)
+        report.narrow_screenshot = base64.b64decode(shot["data"])
+        viewport(width, height)
+        pdf = browser.send("Page.printToPDF", {"printBackground": True, "preferCSSPageSize": True},
+                           session=session)
         report.pdf = base64.b64decode(pdf["data"])
         for event in browser.events(0.2):
             if event.get("sessionId") == session:

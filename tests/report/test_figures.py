@@ -39,7 +39,8 @@ def test_every_method_has_its_own_colour_marker_and_dash():
 
 
 def test_exercise1_reference_is_drawn_thin_black_and_on_top(sections):
-    (panel,) = sections["exercise1"].solution_figure.panels
+    panel, error = sections["exercise1"].solution_figure.panels  # side by side: solution, error
+    assert sections["exercise1"].error_figure is None and error.ylabel == "y: |f - y| / |f|"
     by_label = {line.label: line for line in panel.lines}
     assert list(by_label) == ["ode23, 12 points", "ode45, 41 points", "exact"]
     exact = by_label["exact"]
@@ -52,30 +53,35 @@ def test_exercise1_reference_is_drawn_thin_black_and_on_top(sections):
 def test_exercise2_shows_output_states_and_input_with_units(sections):
     spec = sections["exercise2"].solution_figure
     assert spec.columns == 3 and spec.legend  # one column per input, one legend for the figure
-    assert [p.ylabel for p in spec.panels] == [u for u in ("y (V)", "x (m)", "v (m/s)", "f (N)") for _ in range(3)]
+    # rows: the output, its error, the states, the input under them
+    assert [p.ylabel for p in spec.panels] == [u for u in ("y (V)", "y: |f - y| / max |f|", "x (m)", "v (m/s)",
+                                                           "f (N)") for _ in range(3)]
+    assert sections["exercise2"].error_figure is None  # merged as the second row
     assert [p.title for p in spec.panels[:3]] == ["step: f steps 0 -> 1 at t = 0", "sine: f = sin(0.2 t)",
                                                    "ramp: f = t"]
-    inputs = spec.panels[9:]
+    inputs = spec.panels[12:]
     assert all(p.height < 1 and [ln.color for ln in p.lines] == [INPUT.color] for p in inputs)
-    assert all(p.xlabel == "t (s)" for p in inputs) and all(p.xlabel == "" for p in spec.panels[:9])
+    assert all(p.xlabel == "t (s)" for p in inputs) and all(p.xlabel == "" for p in spec.panels[:12])
+    assert all(p.yscale == "log" for p in spec.panels[3:6])
     step_y = {ln.label: ln for ln in spec.panels[0].lines}
     assert set(step_y) == {"ode45", "ode23", "rk4", "exact (LTI)"}
-    # the error panels plot what the headline measures: relative to the peak, as y starts at 0
-    assert [p.ylabel for p in sections["exercise2"].error_figure.panels] == ["y: |f - y| / max |f|"] * 3
 
 
 def test_linearisation_colours_mean_the_same_in_every_figure(sections):
     section = sections["linearisation"]
     lines = [ln for p in section.solution_figure.panels for ln in p.lines]
-    lines += [ln for lin in section.linearisations for p in lin.figures[0].panels for ln in p.lines]
+    lines += [ln for lin in section.linearisations for p in lin.figures[0].panels[:-1] for ln in p.lines]
     nonlinear = [ln for ln in lines if ln.label.startswith("nonlinear model")]
     linearised = [ln for ln in lines if ln.label.startswith("linearised model")]
     assert nonlinear and linearised
     assert {ln.color for ln in nonlinear} == {REFERENCE.color}
     assert {(ln.color, ln.linestyle) for ln in linearised} == {(LINEARISED.color, "--")}
     assert section.error_figure is None  # the amplitude study shows the linearisation error
-    error = section.linearisations[0].figures[1].panels[0]
-    assert error.xlabel == "step amplitude of f (N)" and error.ylabel == "max |nonlinear - linear| / peak"
+    (figure,) = section.linearisations[0].figures
+    assert len(figure.panels) == 8  # seven amplitudes, then the error against amplitude
+    error = figure.panels[-1]
+    assert error.xlabel == "step of f (N)" and error.ylabel == "error / peak"
+    assert error.xscale == error.yscale == "log" and [r.value for r in error.reflines][0] == 0.05
 
 
 def test_no_title_label_or_legend_is_cut_off(sections):
@@ -90,7 +96,7 @@ def test_no_title_label_or_legend_is_cut_off(sections):
             finally:
                 plt.close(fig)
             checked += 1
-    assert checked >= 12
+    assert checked >= 8
 
 
 def test_the_check_finds_a_cut_off_title():

@@ -60,7 +60,63 @@ def test_report_loads_offline_with_no_console_errors_and_no_failed_requests(lab_
     # printing: every collapsed section's content is laid out under the print stylesheet
     printed = page.evaluations["print"]
     assert printed["closed"] >= 5 and printed["hidden"] == 0, printed
-    assert page.pdf.startswith(b"%PDF") and page.pdf.count(b"/Type /Page") >= 5
+    assert page.pdf.startswith(b"%PDF") and page.pdf_pages >= 5
+
+
+# The lab's report (the shipped experiments plus the two test experiments) on A4.
+MAX_PRINTED_PAGES = 15
+
+
+def clipped(layout: dict) -> list[str]:
+    """Figures past the page's right edge or drawn out of proportion; tables past it and not scrolled."""
+    width = layout["width"] + 1
+    out = [f"figure {f['alt']!r}" + (" squashed" if f["squashed"] else f" reaches {f['right']:.0f} px")
+           for f in layout["figures"] if f["squashed"] or f["right"] > width or f["left"] < -1]
+    out += [f"table {t['id']!r} reaches {t['right']:.0f} px" for t in layout["tables"]
+            if t["right"] > width and not t["framed"]]
+    return out
+
+
+def test_report_prints_short_with_no_figure_or_table_clipped(shipped_report, tmp_path):
+    """The lab's report (every shipped experiment) on A4, as Chromium prints it."""
+    from report_browser import A4_CONTENT_HEIGHT, A4_CONTENT_WIDTH
+
+    page = load_page(CHROMIUM, shipped_report.out / "index.html", tmp_path / "profile")
+    keep("report-400px.png", page.narrow_screenshot)
+    keep("report.pdf", page.pdf)
+    assert 5 <= page.pdf_pages <= MAX_PRINTED_PAGES, page.pdf_pages
+    printed = page.evaluations["print_layout"]
+    assert printed["width"] == A4_CONTENT_WIDTH and len(printed["figures"]) >= 7
+    assert clipped(printed) == []
+    # a figure fits on one page (the stylesheet keeps it whole)
+    assert max(f["height"] for f in printed["figures"]) < A4_CONTENT_HEIGHT
+    assert clipped(page.evaluations["layout"]) == []
+
+
+def test_report_reads_on_a_400_px_phone(lab_report, tmp_path):
+    page = load_page(CHROMIUM, lab_report.out / "index.html", tmp_path / "profile", narrow=400)
+    narrow = page.evaluations["narrow"]
+    assert narrow["width"] == 400
+    assert narrow["scrollWidth"] <= 400  # the page itself never scrolls sideways
+    assert clipped(narrow) == []  # wide tables scroll inside their frame
+    assert all(f["right"] - f["left"] <= 400 for f in narrow["figures"])
+
+
+def test_the_layout_check_finds_a_clipped_figure_and_table(tmp_path):
+    """Not vacuous: an image stretched past the page and a wide table outside a frame are caught."""
+    import base64
+
+    png = base64.b64encode(__import__("odelab.report.plots", fromlist=["render_png"]).render_png(
+        __import__("odelab.report.plots", fromlist=["FigureSpec"]).FigureSpec("x", "", "x", ()))).decode()
+    bad = tmp_path / "clipped.html"
+    bad.write_text(
+        "<!DOCTYPE html><html><head><title>clipped</title></head><body>"
+        f"<figure><img src='data:image/png;base64,{png}' alt='wide' style='width:900px;height:50px'></figure>"
+        "<table><tr>" + "<td>0.123456789</td>" * 40 + "</tr></table></body></html>")
+    page = load_page(CHROMIUM, bad, tmp_path / "profile", narrow=400)
+    found = clipped(page.evaluations["narrow"])
+    assert any(c.startswith("figure 'wide'") for c in found) and any(c.startswith("table") for c in found)
+    assert page.evaluations["narrow"]["scrollWidth"] > 400
 
 
 def test_hostile_names_run_no_script(special_report, tmp_path):

@@ -30,7 +30,15 @@ import numpy as np
 
 from odelab.report.collect import ExperimentRuns, QuantityErrors, StoredRun
 from odelab.report.events import event_table
-from odelab.report.figures import error_figure, linearisation_figures, solution_figure
+from odelab.report.figures import (
+    error_figure,
+    linearisation_figures,
+    side_by_side,
+    solution_figure,
+    stacked,
+    with_error_row,
+)
+from odelab.report.settings import settings_diff, toml_text
 from odelab.report.setups import SetUp, describe_signal, inputs_text, plot_quantities, setups, units_of
 
 __all__ = [
@@ -95,11 +103,11 @@ class StepTable:
                 None if math.isnan(rel) else rel)
 
     def print_rows(self, limit: int) -> set[int]:
-        """Rows a printed report keeps: all up to ``limit``, else the first and last three and the maxima."""
+        """Rows a printed report keeps: all up to ``limit``, else the first and last and the maxima."""
         n = len(self)
         if n <= limit:
             return set(range(n))
-        keep = {0, 1, 2, n - 3, n - 2, n - 1}
+        keep = {0, n - 1}
         for column in (self.abs_err, self.rel_err):
             if np.any(np.isfinite(column)):
                 keep.add(int(np.nanargmax(column)))
@@ -124,6 +132,11 @@ class CaseView:
     errors: list[QuantityErrors]
     inputs_text: str  # the input signals, for cases that differ by input
     summary_errors: list[QuantityErrors]  # the quantities the figures show (outputs, if any)
+
+    @property
+    def notes(self) -> list[str]:
+        """The run's warnings, less the undefined-relative-error counts its error table already shows."""
+        return [w for w in self.run.warnings if not w.startswith("relative error undefined")]
 
     def __getattr__(self, name: str) -> Any:  # the stored fields: case, method, status, nsteps...
         return getattr(self.run, name)
@@ -189,6 +202,7 @@ class Section:
     event_tables: list = field(default_factory=list)  # report.events.EventTable per case with events
     settings: list[tuple[str, str]] = field(default_factory=list)  # (case, resolved TOML)
     lab_note: LabNote | None = None
+    solver_text: str = ""  # "ode23, ode45 (rtol 0.001, atol 1e-06); rk4 (h 0.05)": what a grader checks
     layout: str = ""  # "by-quantity", "by-setup" or "states": how the figures are laid out
 
     @property
@@ -240,23 +254,31 @@ def _interval(run: StoredRun) -> str:
 
 
 def _toml(config: dict) -> str:
-    import tomli_w
-
-    def clean(value):
-        if isinstance(value, dict):
-            return {str(k): clean(v) for k, v in value.items() if v is not None}
-        if isinstance(value, list):
-            return [clean(v) for v in value if v is not None]
-        return value
-
     try:
-        # arrays inline, as a person writes them, not one value per line
-        return _inline_arrays(tomli_w.dumps(clean(config)))
+        return toml_text(config)
     except (TypeError, ValueError):  # a hand-edited record: show it as JSON instead
         return json.dumps(config, indent=2, default=str)
 
 
 # --- linearisation ------------------------------------------------------------------------------
+
+
+def _solver_text(runs: list[StoredRun]) -> str:
+    """The methods and their options, grouped: 'ode23, ode45 (rtol 0.001, atol 1e-06); rk4 (h 0.05)'."""
+    groups: dict[str, list[str]] = {}
+    for r in runs:
+        solver = r.config.get("solver") if isinstance(r.config.get("solver"), dict) else {}
+        options = ", ".join(f"{k} {_value_text(v)}" for k, v in solver.items() if k != "method" and v is not None)
+        methods = groups.setdefault(options, [])
+        if r.method not in methods:
+            methods.append(r.method)
+    return "; ".join(", ".join(m) + (f" ({o})" if o else "") for o, m in groups.items())
+
+
+def _value_text(value: Any) -> str:
+    if isinstance(value, list):
+        return "[" + " ".join(_value_text(v) for v in value) + "]"
+    return f"{value:g}" if isinstance(value, (int, float)) and not isinstance(value, bool) else str(value)
 
 
 def _settings(runs: list[StoredRun]) -> list[tuple[str, str]]:
@@ -267,23 +289,8 @@ def _settings(runs: list[StoredRun]) -> list[tuple[str, str]]:
         if i == 0:
             out.append((r.case, _toml(r.config)))
             continue
-        diff = {k: v for k, v in r.config.items() if k not in ("case", "name") and base.get(k) != v}
-        diff.update({k: None for k in base if k not in r.config and k not in ("case", "name")})
-        out.append((r.case, _toml({k: v for k, v in diff.items() if v is not None}) or "(nothing)\n"))
+        out.append((r.case, settings_diff(base, r.config)))
     return out
-
-
-_MULTILINE_ARRAY = re.compile(r"\[\n((?:[ \t]+[^\n]*,\n)+)[ \t]*\]")
-
-
-def _inline_arrays(text: str) -> str:
-    """tomli_w writes one array item per line; join them, innermost arrays first."""
-    while True:
-        joined = _MULTILINE_ARRAY.sub(lambda m: "[" + ", ".join(x.strip().rstrip(",")
-                                                               for x in m.group(1).splitlines()) + "]", text)
-        if joined == text:
-            return text
-        text = joined
 
 
 def _float_list(value: Any, what: str) -> list[float]:
@@ -477,6 +484,19 @@ def build_sections(groups: list[ExperimentRuns]) -> tuple[list[Section], list[st
         section.solution_figure = solution_figure(anchor, groups, shown, layout, units)
         if not all(r.reference == "linearization" for r in runs):  # else the amplitude study shows the error
             section.error_figure = error_figure(anchor, groups, referenced, layout, units)
+        if layout == "by-quantity":
+            pair = (stacked(section.solution_figure, section.error_figure, above=len(shown)) if runs[0].inputs
+                    else side_by_side(section.solution_figure, section.error_figure))
+            if pair is not None:
+                section.solution_figure, section.error_figure = pair, None
+        elif layout == "states":
+            merged = stacked(section.solution_figure, section.error_figure)
+            if merged is not None:
+                section.solution_figure, section.error_figure = merged, None
+        elif layout == "by-setup":
+            merged = with_error_row(section.solution_figure, section.error_figure)
+            if merged is not None:
+                section.solution_figure, section.error_figure = merged, None
         for r in runs:
             for name in referenced:
                 cols = [r.column(c) for c in (name, f"{name}_ref", f"{name}_abs_err", f"{name}_rel_err")]
@@ -484,6 +504,7 @@ def build_sections(groups: list[ExperimentRuns]) -> tuple[list[Section], list[st
                     section.step_tables.append(StepTable(r.case, r.method, name, r.t, *cols))
         section.event_tables = [t for t in (event_table(r) for r in runs) if t is not None]
         section.settings = _settings(runs)
+        section.solver_text = _solver_text(runs)
         for r in runs:
             lin = r.extra.get("linearization")
             if lin is None:

@@ -40,7 +40,8 @@ from odelab.report.plots import (
 )
 from odelab.report.setups import SetUp, case_label, reference_label, reference_union, stats_text, what_differs
 
-__all__ = ["AGAINST", "error_figure", "linearisation_figures", "solution_figure"]
+__all__ = ["AGAINST", "error_figure", "linearisation_figures", "side_by_side", "solution_figure", "stacked",
+           "with_error_row"]
 
 _MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
 _LINESTYLES = ("-", "--", "-.", ":")
@@ -173,7 +174,7 @@ def solution_figure(stem: str, groups: list[SetUp], shown: list[str], layout: st
                + f" against t; cases that differ only in their solver share a panel, every solver against {against}. "
                f"The input is drawn under the responses it drives. {MARKERS_NOTE}")
     return FigureSpec(f"{stem}-solution", caption, f"{stem}: responses and inputs against time", tuple(panels),
-                      columns=len(rows) if transpose else len(groups), panel_height=1.9, legend=True)
+                      columns=len(rows) if transpose else len(groups), panel_height=1.6, legend=True)
 
 
 def _basis(run: StoredRun, name: str) -> str:
@@ -261,15 +262,7 @@ def linearisation_figures(stem: str, lin: Any, units: dict[str, str]) -> list[Fi
             title += f", {comp['status']}"
         name = names[0] if len(names) == 1 else "value"
         panels.append(Panel(title, t_label, axis_label(name, units.get(name)), tuple(lines), legend=False))
-    if panels:
-        cols = 4 if len(panels) >= 7 else 3 if len(panels) >= 5 else 2 if len(panels) >= 2 else 1
-        figures.append(FigureSpec(
-            f"{stem}-linearised-responses",
-            "Nonlinear model (black, solid) and linearised model (purple, dashed) for each step amplitude of the "
-            "input; each title gives the step and the error of the linearised model, relative to the peak incremental "
-            "response.",
-            f"{lin.case}: nonlinear and linearised responses, one panel per amplitude", tuple(panels),
-            columns=cols, panel_height=1.7, legend=True))
+    responses = panels
     lines = []
     amplitudes = np.array(lin.amplitudes, dtype=float)
     for j, name in enumerate(lin.error_names):
@@ -291,14 +284,75 @@ def linearisation_figures(stem: str, lin: Any, units: dict[str, str]) -> list[Fi
                  if lin.slope is not None else "")
         drive = next((v for k, v in lin.settings if k == "input stepped"), "")
         xunit = units.get(drive) if drive else None
+        error_panel = Panel("linearisation error", axis_label(f"step of {drive}" if drive else "step", xunit),
+                            "error / peak", tuple(lines), xscale="log", yscale="log",
+                            reflines=tuple(refs), note="no positive error to show on a log scale", legend=False)
+        error_caption = (f"The last panel: the error of the linearised model, max |nonlinear - linear| divided by "
+                         f"the peak incremental response, against the step amplitude, with the threshold "
+                         f"{lin.threshold:g}.{slope}")
+    else:
+        error_panel, error_caption = None, ""
+    panels = responses + ([error_panel] if error_panel is not None else [])
+    if panels:
+        n = len(panels)
+        cols = 4 if n >= 7 else 3 if n >= 5 else 2 if n >= 2 else 1
+        caption = ("Nonlinear model (black, solid) and linearised model (purple, dashed) for each step amplitude of "
+                   "the input; each title gives the step and the error of the linearised model, relative to the peak "
+                   "incremental response." if responses else "") + (" " + error_caption if error_caption else "")
         figures.append(FigureSpec(
-            f"{stem}-linearisation-error",
-            "Error of the linearised model, max |nonlinear - linear| divided by the peak incremental response, "
-            f"against the step amplitude (log-log), with the threshold {lin.threshold:g}.{slope}",
-            f"{lin.case}: linearisation error against amplitude", (
-                Panel("error of the linearised model", axis_label(f"step amplitude of {drive}" if drive else
-                                                                  "step amplitude", xunit),
-                      "max |nonlinear - linear| / peak", tuple(lines), xscale="log", yscale="log",
-                      reflines=tuple(refs), note="no positive error to show on a log scale"),),
-            columns=1, panel_height=2.6))
+            f"{stem}-linearisation", caption.strip(),
+            f"{lin.case}: nonlinear and linearised responses per amplitude, and the error against amplitude",
+            tuple(panels), columns=cols, panel_height=1.6 if cols >= 3 else 2.0, legend=bool(responses)))
     return figures
+
+
+def stacked(solution: FigureSpec | None, error: FigureSpec | None, above: int = 1) -> FigureSpec | None:
+    """One column: the first ``above`` solution panels, the error panels, then the rest (the inputs).
+
+    The rigid body's states over their errors; a single set-up's outputs over their errors over its input.
+    """
+    if solution is None or error is None or solution.columns != 1 or len(solution.panels) < above:
+        return None
+    import dataclasses
+
+    error_panels = tuple(dataclasses.replace(p, height=0.9) for p in error.panels)
+    panels = solution.panels[:above] + error_panels + solution.panels[above:]
+    return dataclasses.replace(solution, panels=panels, columns=1, panel_height=2.0,
+                               caption=f"Top: {solution.caption} Bottom: {error.caption}",
+                               alt=f"{solution.alt}; {error.alt}")
+
+
+def side_by_side(solution: FigureSpec | None, error: FigureSpec | None) -> FigureSpec | None:
+    """One quantity, no inputs (Exercise 1): the solution and its error as one figure of two panels.
+
+    Half a printed page instead of a whole one, and the error sits next to the curve it measures.
+    Returns None when the two do not fit that shape (the caller keeps them apart).
+    """
+    if solution is None or error is None or len(solution.panels) != 1 or len(error.panels) != 1:
+        return None
+    return FigureSpec(solution.name, f"Left: {solution.caption} Right: {error.caption}",
+                      f"{solution.alt}; {error.alt}", solution.panels + error.panels, columns=2, panel_height=2.6)
+
+
+def with_error_row(solution: FigureSpec | None, error: FigureSpec | None) -> FigureSpec | None:
+    """Small multiples (one column per set-up): the error panels as the row under the outputs.
+
+    One figure instead of two, each error right under the response it measures. Returns None
+    unless the error figure has exactly one panel per column of the solution figure.
+    """
+    if solution is None or error is None or not solution.legend:
+        return None
+    columns = solution.columns
+    k, rest = divmod(len(error.panels), columns)  # error panels come set-up by set-up, k quantities each
+    if rest or k == 0 or len(solution.panels) < 2 * k * columns:
+        return None
+    import dataclasses
+
+    panels: tuple = ()
+    for j in range(k):  # row j of the solution (quantity j), then its error row
+        row = tuple(dataclasses.replace(error.panels[g * k + j], title="", xlabel="", height=0.9, legend=False)
+                    for g in range(columns))
+        panels += solution.panels[j * columns:(j + 1) * columns] + row
+    panels += solution.panels[k * columns:]
+    return dataclasses.replace(solution, panels=panels, caption=f"{solution.caption} Under each response: {error.caption}",
+                               alt=f"{solution.alt}, with the error")

@@ -240,7 +240,7 @@ def _draw_panel(ax, panel: Panel, columns: int = 1) -> None:
         _limit_decades(ax, panel, log_x)
     # characters that fit over one panel: titles wrap rather than run off the figure
     size = 9.5 if columns <= 2 else 8.5
-    width = max(18, int(84 / max(columns, 1)))
+    width = max(18, int((90 if columns <= 3 else 84) / max(columns, 1)))
     ax.set_title("\n".join(textwrap.wrap(panel.title, width)) if panel.title else "", fontsize=size)
     ax.set_xlabel(panel.xlabel)
     ax.set_ylabel(panel.ylabel)
