@@ -174,7 +174,7 @@ def solution_figure(stem: str, groups: list[SetUp], shown: list[str], layout: st
                + f" against t; cases that differ only in their solver share a panel, every solver against {against}. "
                f"The input is drawn under the responses it drives. {MARKERS_NOTE}")
     return FigureSpec(f"{stem}-solution", caption, f"{stem}: responses and inputs against time", tuple(panels),
-                      columns=len(rows) if transpose else len(groups), panel_height=1.6, legend=True)
+                      columns=len(rows) if transpose else len(groups), panel_height=1.5, legend=True)
 
 
 def _basis(run: StoredRun, name: str) -> str:
