@@ -187,3 +187,12 @@ def test_parse_record_names_the_bad_field():
         parse_record({**record, "errors": ["y"]})
     with pytest.raises(ValueError, match="`t` column"):
         parse_record({**record, "trajectory": {"y": np.array([1.0])}})
+
+
+def test_markdown_shows_control_characters_as_escapes():
+    """report.md is read with cat and less: an ESC sequence in a title must not reach the terminal."""
+    from odelab.report.render import md_code, md_escape, md_fence
+
+    assert md_escape("\x1b]52;c;aGk=\x07 ball") == "\\\\x1b]52;c;aGk=\\\\x07 ball"
+    assert md_code("a\x1b[2Jb") == "`a\\x1b[2Jb`"
+    assert md_fence('title = "\x9b31m"\nx = 1\n') == '```\ntitle = "\\x9b31m"\nx = 1\n```'

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from odelab.exceptions import InputError
+from odelab.terminal import visible
 
 __all__ = ["MarkdownText", "TEMPLATE_NAMES", "environments", "md_code", "md_escape", "md_fence", "md_html",
            "md_raw", "render_template", "sci"]
@@ -47,7 +48,7 @@ def md_escape(value: Any) -> MarkdownText:
     """``value`` as literal text in Markdown, on one line (safe inside a table cell)."""
     if isinstance(value, MarkdownText):
         return value
-    text = " ".join(str(value).split())  # newlines would end a table row
+    text = visible(" ".join(str(value).split()))  # newlines would end a table row; ESC would reach a terminal
     text = _MD_SPECIAL.sub(r"\\\1", text)
     text = _MD_LINK_BRACKET.sub(r"\\]", text)
     text = _MD_LINK_DEFINITION.sub(r"\1\\]", text)
@@ -57,6 +58,7 @@ def md_escape(value: Any) -> MarkdownText:
 
 def md_fence(text: str, info: str = "") -> MarkdownText:
     """A fenced code block that ``text`` cannot close early (its fence outruns any backtick run)."""
+    text = visible(text, lines=True)  # report.md is read with cat and less too
     longest = max((len(m) for m in re.findall(r"`+", text)), default=0)
     fence = "`" * max(3, longest + 1)
     body = text if text.endswith("\n") else text + "\n"
@@ -65,7 +67,7 @@ def md_fence(text: str, info: str = "") -> MarkdownText:
 
 def md_code(value: Any) -> MarkdownText:
     """``value`` as an inline code span (backslashes are literal there, so it is fenced, not escaped)."""
-    text = " ".join(str(value).split())
+    text = visible(" ".join(str(value).split()))
     longest = max((len(m) for m in re.findall(r"`+", text)), default=0)
     fence = "`" * (longest + 1)
     pad = " " if text.startswith("`") or text.endswith("`") else ""
