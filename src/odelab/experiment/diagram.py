@@ -71,7 +71,7 @@ def _value(kind: str, value, key: str, params: dict[str, float]):
     raise AssertionError(kind)  # pragma: no cover - a Key with an unknown kind
 
 
-def _source(name: str, spec: dict, path: Path, params: dict[str, float]):
+def _source(name: str, spec: dict, path: Path, params: dict[str, float], max_rows: int | None = None):
     from odelab.systems.diagram.blocks import Source
 
     kind = spec["type"]
@@ -89,7 +89,7 @@ def _source(name: str, spec: dict, path: Path, params: dict[str, float]):
             given[k] = _value("expression" if k == "expression" else "text", v, f"{key}.{k}", params)
         else:
             given[k] = _value("number", v, f"{key}.{k}", params)
-    signal, values = build_signal(kind, given, key=key, path=path, params=params, what="block")
+    signal, values = build_signal(kind, given, key=key, path=path, params=params, what="block", max_rows=max_rows)
     shown = ", ".join(f"{k} {v:g}" if isinstance(v, float) else f"{k} {v}" for k, v in values.items())
     return Source(signal, kind=kind, label=f"{kind}" + (f"\n{shown}" if shown else ""))
 
@@ -129,7 +129,8 @@ def _block(name: str, spec: dict, params: dict[str, float]):
     return block
 
 
-def build_diagram(model: schema.Experiment, params: dict[str, float], path: Path, t0: float) -> Built:
+def build_diagram(model: schema.Experiment, params: dict[str, float], path: Path, t0: float, *,
+                  max_rows: int | None = None) -> Built:
     """A system from [blocks]: linear diagrams become StateSpace systems, others NonlinearSystem."""
     from odelab.systems.diagram.compile import CompiledDiagram
     from odelab.systems.diagram.graph import wire
@@ -167,7 +168,8 @@ def build_diagram(model: schema.Experiment, params: dict[str, float], path: Path
             raise ExperimentError(f"`{key}.type` is {_got(kind)}; block types are {', '.join(types)}.{hint}",
                                   key=f"{key}.type")
         try:
-            blocks[name] = _source(name, spec, path, params) if kind in SIGNAL_KEYS else _block(name, spec, params)
+            blocks[name] = (_source(name, spec, path, params, max_rows) if kind in SIGNAL_KEYS
+                            else _block(name, spec, params))
         except InputError as exc:
             raise exc.located(key=key) from None
     compiled = CompiledDiagram(wire(blocks, outputs), states=system.states, t0=t0)  # DiagramError: keyed

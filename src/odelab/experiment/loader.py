@@ -424,7 +424,8 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
     elif system.kind == "diagram":
         from odelab.experiment.diagram import build_diagram
 
-        built = build_diagram(model, params, path, constant(model.time.start, "time.start", params))
+        built = build_diagram(model, params, path, constant(model.time.start, "time.start", params),
+                              max_rows=limits.table_rows or None)
     elif model.blocks is not None:
         raise ExperimentError("[blocks] is given but the system is not a diagram: add kind = \"diagram\" under "
                               "[system].", key="blocks")
