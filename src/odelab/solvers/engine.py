@@ -174,11 +174,15 @@ def integrate_adaptive(
 
     # Dense output: every accepted step's start, size, state and stages, in buffers that
     # double when full (one slice assignment per step, no stacking at the end).
+    # With a two-element tspan every step adds exactly `refine` output points, the last one its
+    # end, so the steps' starts and sizes are read off the output afterwards and only the stages
+    # are stored here; a vector tspan also stores each step's start.
     step_t: list[float] = []
     step_h: list[float] = []
     capacity = 64
     step_y = np.empty((capacity, n), dtype=y0.dtype)
     step_K = np.empty((capacity, s, n), dtype=y0.dtype)
+    stored = 0
     te: list[float] = []
     ye: list[np.ndarray] = []
     ie: list[int] = []
@@ -219,7 +223,8 @@ def integrate_adaptive(
                 nfevals += last
 
                 fE = E.dot(K)
-                nn_reject = False
+                if have_nonneg:
+                    nn_reject = False
                 if norm_control:
                     normynew = float(np.linalg.norm(ynew))
                     err = absh * (float(np.linalg.norm(fE)) / max(normy, normynew, float(threshold)))
@@ -252,7 +257,7 @@ def integrate_adaptive(
                         break
                     if nofailed:
                         nofailed = False
-                        if nn_reject:
+                        if have_nonneg and nn_reject:
                             absh = max(hmin, 0.5 * absh)
                         else:
                             absh = max(hmin, absh * max(shrink_min, 0.8 * (rtol / err) ** power))
@@ -303,14 +308,17 @@ def integrate_adaptive(
                         done = True
                         status = STATUS_TERMINAL_EVENT
 
-            if nsteps > capacity:
+            if stored == capacity:
                 capacity *= 2
-                step_y = np.concatenate([step_y, np.empty_like(step_y)])
                 step_K = np.concatenate([step_K, np.empty_like(step_K)])
-            step_t.append(t)
-            step_h.append(h)
-            step_y[nsteps - 1] = y
-            step_K[nsteps - 1] = K
+                if not refine_output:
+                    step_y = np.concatenate([step_y, np.empty_like(step_y)])
+            step_K[stored] = K
+            if not refine_output:
+                step_t.append(t)
+                step_h.append(h)
+                step_y[stored] = y
+            stored += 1
             if output_fcn is not None:
                 n_before = len(t_out)
                 k_before = len(y_out)
@@ -379,9 +387,17 @@ def integrate_adaptive(
         exception = exc
 
     y_arr = np.vstack(y_out) if len(y_out) > 1 else y0.reshape(1, n).copy()
-    done_steps = len(step_t)
-    steps = (np.array(step_t), np.array(step_h), step_y[:done_steps], step_K[:done_steps]) if done_steps else None
-    return (np.array(t_out), y_arr, nsteps, nfailed, nfevals, status, t, abs(h), exception, (te, ye, ie), steps)
+    steps = None
+    if stored and refine_output:
+        t_arr = np.array(t_out)
+        ends = t_arr[::refine]  # t0 and every step's end
+        steps = (ends[:-1], np.diff(ends), y_arr[::refine][:-1], step_K[:stored])
+    elif stored:
+        t_arr = np.array(t_out)
+        steps = (np.array(step_t), np.array(step_h), step_y[:stored], step_K[:stored])
+    else:
+        t_arr = np.array(t_out)
+    return (t_arr, y_arr, nsteps, nfailed, nfevals, status, t, abs(h), exception, (te, ye, ie), steps)
 
 
 
