@@ -135,8 +135,9 @@ def solution_figure(stem: str, groups: list[SetUp], shown: list[str], layout: st
         stats = f"{r.nsteps} steps, {r.nfailed if r.nfailed is not None else 'n/a'} failed, {r.nfevals} fevals"
         panels = [Panel(f"{case_label(r)}: {stats}", t_label, ylabel, tuple(lines), legend_outside=True,
                         reflines=exact_time_lines(r))]
+        against_ref = f", thin black lines the {reference_label(kind)}" if kind != "none" else ""
         caption = ("Every state against t, as MATLAB's documentation plots the rigid body: hollow markers at the "
-                   f"output points, thin black lines the {reference_label(kind)}. {case_label(r)}: {stats_text(r)}.")
+                   f"output points{against_ref}. {case_label(r)}: {stats_text(r)}.")
         if r.events:
             caption += (" Red triangles mark the located events" + (", dotted vertical lines their exact times"
                                                                       if exact_time_lines(r) else "") + ".")
