@@ -205,3 +205,34 @@ def test_a_symlink_in_place_of_a_case_folder_is_replaced_not_followed(tmp_path):
     assert not folder.is_symlink() and read_run(folder)["points"] == first.t.size
     assert [p.name for p in elsewhere.iterdir()] == ["keep.txt"]  # nothing written or removed there
     assert sorted(p.name for p in folder.parent.iterdir()) == ["ode23"]
+
+
+def test_long_runs_store_a_binary_trajectory_instead_of_the_csv(tmp_path, monkeypatch):
+    from odelab.experiment import store
+
+    result = run_case(load_experiment(ROOT / "experiments" / "rigid_body.toml").cases[0])
+    csv_record = read_run(write_case(result, tmp_path / "csv"))
+    assert csv_record["trajectory_file"] == "trajectory.csv"
+    monkeypatch.setattr(store, "LONG_RUN_ROWS", result.t.size - 1)  # 85 rows: "long" for this test
+    folder = write_case(result, tmp_path / "npz")
+    assert sorted(p.name for p in folder.iterdir()) == ["resolved.toml", "result.json", "trajectory.npz"]
+    record = read_run(folder)
+    assert record["trajectory_file"] == "trajectory.npz"
+    assert list(record["trajectory"]) == list(csv_record["trajectory"]) == [
+        "t", "y1", "y2", "y3", "y1_ref", "y1_abs_err", "y1_rel_err", "y2_ref", "y2_abs_err", "y2_rel_err",
+        "y3_ref", "y3_abs_err", "y3_rel_err"]
+    for name, values in csv_record["trajectory"].items():  # the CSV's repr round-trips: the same doubles
+        np.testing.assert_array_equal(record["trajectory"][name], values)
+    np.testing.assert_array_equal(record["trajectory"]["y2"], result.x[:, 1])
+    (folder / "trajectory.npz").write_bytes(b"PK\x03\x04 truncated")
+    with pytest.raises(ValueError, match="trajectory.npz is not a readable odelab trajectory"):
+        read_run(folder)
+
+
+def test_the_run_step_budget_says_how_to_lift_it(tmp_path):
+    case = load_experiment(ROOT / "experiments" / "rigid_body.toml").cases[0]
+    result = run_case(case, max_steps=5)
+    assert result.status == "failed" and result.stats.nsteps == 5
+    assert result.message.endswith(
+        "It was odelab run's step budget that stopped it (--max-steps, 5 steps): lift it with --max-steps 50 "
+        "(or --max-steps 0 for no limit), or set max_steps in [solver].")

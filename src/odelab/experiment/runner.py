@@ -87,6 +87,11 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
         t, x, u, stats, status, message, warnings, ran = _integrate(p, p.tspan, p.method, options,
                                                                     backend or p.backend)
     elapsed = time.perf_counter() - start
+    if (status != "success" and max_steps and "max_steps" not in p.options and "h" not in p.options
+            and stats.nsteps >= max_steps):
+        message += (f" It was odelab run's step budget that stopped it (--max-steps, {max_steps} steps): lift it "
+                    f"with --max-steps {10 * max_steps} (or --max-steps 0 for no limit), or set max_steps in "
+                    "[solver].")
     if u is None and p.input_fn is not None:
         u = p.input_fn(t)
     y = p.output_fn(t, x, u) if p.output_fn is not None else None

@@ -128,7 +128,13 @@ def summary(result: CaseResult) -> dict[str, Any]:
     })
 
 
-def _trajectory_csv(result: CaseResult) -> str:
+#: Runs with more output rows than this store their trajectory as ``trajectory.npz`` (binary,
+#: 8 bytes a value, written and read at disk speed) instead of ``trajectory.csv``: a CSV of a
+#: million rows is too big for a spreadsheet and costs seconds to format and parse.
+LONG_RUN_ROWS = 100_000
+
+
+def _trajectory_columns(result: CaseResult) -> tuple[list[str], np.ndarray]:
     columns = {"t": result.t, **result.series()}
     if result.event_marks is not None:  # 1-based number of the event (result.json "events") at that row
         columns["event"] = result.event_marks
@@ -138,10 +144,29 @@ def _trajectory_csv(result: CaseResult) -> str:
         columns[f"{name}_abs_err"] = abs_err
         columns[f"{name}_rel_err"] = rel_err
     names = list(columns)
-    data = np.column_stack([np.asarray(columns[n], dtype=float) for n in names])
+    data = np.empty((np.size(result.t), len(names)))
+    for i, n in enumerate(names):  # filled in place: no list of columns, no extra copy
+        data[:, i] = np.asarray(columns[n], dtype=float)
+    return names, data
+
+
+def _trajectory_csv(names: list[str], data: np.ndarray) -> str:
     lines = [",".join(names)]
-    lines.extend(",".join("" if v != v else repr(float(v)) for v in row) for row in data.tolist())
+    lines.extend(",".join("" if v != v else repr(v) for v in row) for row in data.tolist())
     return "\n".join(lines) + "\n"
+
+
+def _trajectory_npz(names: list[str], data: np.ndarray) -> bytes:
+    import io
+
+    buf = io.BytesIO()
+    np.savez(buf, names=np.array(names, dtype=str), data=data)
+    return buf.getvalue()
+
+
+def trajectory_file(result: CaseResult) -> str:
+    """The name of the case's trajectory file: trajectory.csv, or trajectory.npz for long runs."""
+    return "trajectory.npz" if np.size(result.t) > LONG_RUN_ROWS else "trajectory.csv"
 
 
 def write_case(result: CaseResult, runs: Path, *, mat: bool = False, durable: bool = True) -> Path:
@@ -162,7 +187,12 @@ def write_case(result: CaseResult, runs: Path, *, mat: bool = False, durable: bo
         "versions": dict(versions()),
         "config": case.config,
     })
-    files = {"trajectory.csv": _trajectory_csv(result), "resolved.toml": _resolved_toml(result, tomli_w)}
+    names, data = _trajectory_columns(result)
+    trajectory = trajectory_file(result)
+    record["trajectory_file"] = trajectory
+    files = {trajectory: (_trajectory_npz if trajectory.endswith(".npz") else _trajectory_csv)(names, data),
+             "resolved.toml": _resolved_toml(result, tomli_w)}
+    del data
     if mat:
         files["result.mat"] = _mat_bytes(result)
     files["result.json"] = json.dumps(record, indent=2, allow_nan=False) + "\n"
@@ -269,20 +299,40 @@ def read_run(folder: Path) -> dict[str, Any]:
     folder = Path(folder)
     with _locked(folder.parent, shared=True):  # never read a case while another run swaps it
         record = _strict_json((folder / "result.json").read_text(encoding="utf-8"))
-        text = (folder / "trajectory.csv").read_text(encoding="utf-8").splitlines()
+        binary = (folder / "trajectory.npz").is_file()
+        if binary:
+            names, data = _read_npz(folder / "trajectory.npz")
+        else:
+            text = (folder / "trajectory.csv").read_text(encoding="utf-8").splitlines()
     if not isinstance(record, dict) or record.get("format") != RESULT_FORMAT:
         raise ValueError(f"{folder / 'result.json'} is not an odelab result (format {RESULT_FORMAT})")
     for key in ("experiment", "case", "status", "method", "stats"):
         if key not in record:
             raise ValueError(f"{folder / 'result.json'} has no {key!r}")
-    if not text:
-        raise ValueError(f"{folder / 'trajectory.csv'} is empty")
-    names = text[0].split(",")
-    rows = [[float(v) if v else math.nan for v in line.split(",")] for line in text[1:] if line]
-    data = np.array(rows, dtype=float).reshape(len(rows), len(names))
+    if not binary:
+        if not text:
+            raise ValueError(f"{folder / 'trajectory.csv'} is empty")
+        names = text[0].split(",")
+        rows = [[float(v) if v else math.nan for v in line.split(",")] for line in text[1:] if line]
+        data = np.array(rows, dtype=float).reshape(len(rows), len(names))
     record["trajectory"] = {n: data[:, i] for i, n in enumerate(names)}
     record["folder"] = str(folder)
     return record
+
+
+def _read_npz(path: Path) -> tuple[list[str], np.ndarray]:
+    """A binary trajectory: column names and an (N, columns) float array (ValueError if broken)."""
+    import zipfile
+
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            names = [str(n) for n in npz["names"]]
+            data = np.asarray(npz["data"], dtype=float)
+    except (OSError, KeyError, zipfile.BadZipFile, EOFError) as exc:
+        raise ValueError(f"{path} is not a readable odelab trajectory ({exc})") from None
+    if data.ndim != 2 or data.shape[1] != len(names):
+        raise ValueError(f"{path} holds {data.shape} values for {len(names)} columns")
+    return names, data
 
 
 def _strict_json(text: str) -> Any:
