@@ -331,7 +331,25 @@ def clipped_texts(fig) -> list[str]:
 
 
 def render_png(spec: FigureSpec) -> bytes:
-    """Draw ``spec`` and return the PNG file's bytes (the figure is closed before returning)."""
+    """The PNG file's bytes of ``spec``: from the figure cache, or drawn (and then cached).
+
+    The same data gives the same file, run after run (no timestamp in the metadata), so the
+    cache keyed by the data (:mod:`odelab.report.figcache`) returns exactly what drawing would.
+    """
+    from odelab.report import figcache
+
+    key = figcache.figure_key(spec)
+    png = figcache.load(key)
+    if png is None:
+        png = _draw_png(spec)
+        figcache.store(key, png)
+    return png
+
+
+def _draw_png(spec: FigureSpec) -> bytes:
+    # Drawn twice, as before the cache: laid out at the screen's dpi (draw_figure), then at
+    # DPI by savefig. A single draw at DPI lays the ticks out differently (denser, crowded
+    # labels), so the cache, not a single draw, is what saves the time.
     plt = _pyplot()
     fig = draw_figure(spec)
     try:
