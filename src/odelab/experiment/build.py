@@ -12,6 +12,8 @@ from typing import Callable
 
 import numpy as np
 
+from odelab.expressions.matlab import is_matrix_string, split_matrix
+
 from odelab.exceptions import ExperimentError, InputError
 from odelab.experiment import schema
 from odelab.experiment.cases import Built
@@ -95,6 +97,11 @@ def build_ode(model: schema.Experiment, params: dict[str, float]) -> Built:
 def _matrix(value, key: str, params: dict[str, float]) -> np.ndarray | None:
     if value is None:
         return None
+    if is_matrix_string(value):  # MATLAB's "[0 1; -k/m -b/m]": rows at ;, elements at spaces or commas
+        try:
+            value = split_matrix(value)
+        except ValueError as exc:
+            raise ExperimentError(f"`{key}` is {value!r}: {exc}.", key=key) from None
     if not isinstance(value, list):
         return np.array([[constant(value, key, params)]])
     if all(not isinstance(v, list) for v in value):

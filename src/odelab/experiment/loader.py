@@ -222,7 +222,14 @@ def schema_error(exc: ValidationError, *, source: str, case: str | None, data: A
             lines.append(f"`{key}` is required" + (f": {hint}." if hint else "."))
         elif "literal_error" in kinds:
             expected = err.get("ctx", {}).get("expected", "")
-            lines.append(f"`{key}` is {_describe(err['input'])}; it must be one of {expected}.")
+            choices = re.findall(r"'([^']*)'", expected)
+            given = err["input"]
+            # MATLAB names (sin for sine) and typos: the closest allowed word, or the one it starts
+            close = difflib.get_close_matches(given, choices, n=1, cutoff=0.6) if isinstance(given, str) else []
+            close = close or ([c for c in choices if c.startswith(given)][:1] if isinstance(given, str) and given
+                              else [])
+            hint = f" Did you mean {close[0]!r}?" if close else ""
+            lines.append(f"`{key}` is {_describe(given)}; it must be one of {expected}.{hint}")
         else:
             expected = sorted({_EXPECTED.get(e["type"], e["msg"]) for e in errs})
             if "a number" in expected and "a whole number" in expected:
@@ -676,6 +683,22 @@ def _plain(value):
     return value
 
 
+def _matlab_range(text: str, params: dict[str, float], limits: Limits) -> np.ndarray:
+    """``time.output = "0:0.1:15"``: MATLAB's colon range (start:step:stop or start:stop) as output times."""
+    from odelab.expressions.matlab import colon_range, range_parts
+
+    parts = range_parts(text)
+    if parts is None:
+        raise ExperimentError(f"`time.output` is {text!r}; give a list of times ([0, 0.5, 1]) or a MATLAB range "
+                              "such as \"0:0.1:15\" (start:step:stop).", key="time.output")
+    a, d, b = (constant(p, "time.output", params) for p in parts)
+    if d == 0 or (b - a) * d < 0:
+        raise ExperimentError(f"`time.output` is {text!r}: the step {d:g} never reaches {b:g} from {a:g}; "
+                              "give a step with the sign of stop - start.", key="time.output")
+    check_count("points", int(abs((b - a) / d)) + 1, "time.output", "output times", limits)
+    return colon_range(a, d, b)
+
+
 def _tspan(time: schema.Time, params: dict[str, float], limits: Limits = DEFAULT_LIMITS) -> tuple[np.ndarray, dict]:
     if time.output is not None and time.points is not None:
         raise ExperimentError("give either `time.output` (the output times) or `time.points` (how many evenly "
@@ -686,9 +709,12 @@ def _tspan(time: schema.Time, params: dict[str, float], limits: Limits = DEFAULT
         raise ExperimentError(f"`time.stop` equals `time.start` ({start:g}): the time span has zero length.",
                               key="time.stop")
     resolved: dict[str, Any] = {"start": start, "stop": stop}
-    if time.output is not None:
+    if isinstance(time.output, str):
+        out = _matlab_range(time.output, params, limits)
+    elif time.output is not None:
         check_count("points", len(time.output), "time.output", "output times", limits)
         out = np.array([constant(v, f"time.output[{i}]", params) for i, v in enumerate(time.output)])
+    if time.output is not None:
         if out.size < 2:
             raise ExperimentError("`time.output` needs at least two times (MATLAB's vector tspan).",
                                   key="time.output")

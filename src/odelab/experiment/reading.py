@@ -84,7 +84,9 @@ def parse_toml(raw: bytes, src: str) -> dict:
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ExperimentError(f"TOML syntax error: {exc}.", source=src) from None
+        from odelab.experiment.habits import toml_error_message  # MATLAB habits get what to write instead
+
+        raise ExperimentError(toml_error_message(text, exc), source=src) from None
     except RecursionError:  # tomllib recurses once per level of [ and {: hundreds of levels overflow it
         raise _too_deep(None, src) from None
     depth = nesting_depth(data)

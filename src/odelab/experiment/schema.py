@@ -49,7 +49,7 @@ class Time(_Section):
 
     start: Value = 0
     stop: Value
-    output: list[Value] | None = None
+    output: Union[list[Value], StrictStr, None] = None  # a list, or a MATLAB range "0:0.1:15"
     points: StrictInt | None = None
 
 

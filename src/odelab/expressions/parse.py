@@ -305,6 +305,11 @@ def _parse_tree(reader: _Reader) -> ast.Expression:
             offset = exc.offset - 1
         else:  # at the end of the text
             offset = len(python)
+        from odelab.expressions.matlab import syntax_hint
+
+        hint = syntax_hint(reader.text, reader.key)
+        if hint is not None:  # a MATLAB habit: say what to write instead of Python's message
+            raise reader.error(hint, column=0) from None
         raise reader.error(f"syntax error: {exc.msg}", offset) from None
     except (RecursionError, MemoryError):
         raise reader.error(_too_deep_message(), column=0) from None
@@ -373,6 +378,11 @@ def _check_call(reader: _Reader, node: ast.Call) -> list[ast.AST]:
         )
     name = func.id
     if name not in FUNCTIONS:
+        from odelab.expressions.matlab import indexing_hint
+
+        matlab = indexing_hint(name, node.args)
+        if matlab is not None:
+            raise reader.error(matlab, func.col_offset)
         hint = _did_you_mean(name, FUNCTIONS)
         hint = f"{hint} Allowed: " if hint else "allowed: "
         raise reader.error(
