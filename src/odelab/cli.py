@@ -242,7 +242,8 @@ def _escape(text: str) -> str:
 @app.command()
 def report(
     experiments: Annotated[Optional[list[str]], typer.Argument(
-        help="Experiments to include (default: every one in the results folder).", show_default=False)] = None,
+        help="Experiments to include, by name or by experiment file (default: every one in the results folder).",
+        show_default=False)] = None,
     runs: Annotated[Path, typer.Option("--runs", help="Results folder to read.")] = Path("runs"),
     out: Annotated[Path, typer.Option("--out", help="Folder to write the report to.")] = Path("report"),
     fmt: Annotated[str, typer.Option("--format", help="html, md or both.")] = "both",
@@ -258,7 +259,8 @@ def report(
     warnings.simplefilter("ignore")
     out_console, err = _consoles()
     try:
-        result = build_report(runs, out, formats=fmt, experiments=experiments or None, template_dir=template)
+        result = build_report(runs, out, formats=fmt, experiments=_experiment_names(experiments) or None,
+                              template_dir=template)
     except InputError as exc:
         err.print(f"[bold red]error:[/] {_escape(_error_text(exc))}")
         raise typer.Exit(EXIT_INPUT) from None
@@ -270,6 +272,26 @@ def report(
     figures = sum(1 for p in result.paths if p.suffix == ".png")
     if figures:
         out_console.print(f"wrote {figures} figures in {_escape(str(out / 'figures'))}/")
+
+
+def _experiment_names(given: list[str] | None) -> list[str]:
+    """`odelab report pendulum.toml` as well as `odelab report pendulum`: a file stands for its experiment."""
+    names = []
+    for item in given or []:
+        path = Path(item)
+        if item.endswith(".toml") and path.is_file():
+            from odelab.exceptions import InputError
+            from odelab.experiment.reading import read_toml
+
+            try:
+                data, _ = read_toml(path)
+            except InputError:
+                data = {}
+            name = data.get("name") if isinstance(data.get("name"), str) else None
+            names.append(name or path.stem)
+        else:
+            names.append(path.stem if item.endswith(".toml") else item)
+    return names
 
 
 @app.command()

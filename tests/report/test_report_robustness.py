@@ -221,3 +221,27 @@ def test_report_on_a_full_disk_is_one_message(lab_runs, tmp_path, monkeypatch):
     with pytest.raises(InputError, match=r"^`out`: cannot write .*index\.html: No space left on device; free some "
                                          r"space or give another folder with --out"):
         build_report(lab_runs, tmp_path / "out", formats="html", experiments=["exercise1"])
+
+
+def test_report_accepts_experiment_files_and_refuses_to_empty_itself(lab_runs, tmp_path):
+    """`odelab report pendulum.toml`: a file stands for its experiment; no match leaves the report alone."""
+    from typer.testing import CliRunner
+
+    from odelab.cli import app
+
+    out = tmp_path / "report"
+    runner = CliRunner()
+    ok = runner.invoke(app, ["report", "experiments/exercise1.toml", "--runs", str(lab_runs), "--out", str(out)])
+    assert ok.exit_code == 0, ok.output
+    html = (out / "index.html").read_text()
+    assert 'id="exercise1"' in html and 'id="rigid_body"' not in html
+    before = html
+    (out / "figures" / "old-figure.png").write_bytes(b"\x89PNG stale")
+    bad = runner.invoke(app, ["report", "pendulum.toml", "--runs", str(lab_runs), "--out", str(out)])
+    assert bad.exit_code == 2
+    assert "no stored runs of 'pendulum'" in bad.output and "was left as it was" in bad.output
+    assert (out / "index.html").read_text() == before
+    # a report that no longer shows a figure removes it from figures/
+    again = runner.invoke(app, ["report", "exercise1", "--runs", str(lab_runs), "--out", str(out)])
+    assert again.exit_code == 0
+    assert sorted(p.name for p in (out / "figures").iterdir()) == ["exercise1-solution.png"]

@@ -149,6 +149,10 @@ def build_report(
     groups, warnings = collect_runs(runs, experiments)
     if not groups and not experiments:
         warnings.append(f"{runs} holds no stored runs; run experiments with `odelab run` first")
+    if experiments and not groups:  # never overwrite a report with an empty one
+        raise InputError(f"`experiments`: no stored runs of {', '.join(map(repr, experiments))} in {runs}; run "
+                         f"them first (`odelab run FILE --runs {runs}`), or check the names. The report in {out} "
+                         "was left as it was.", key="experiments")
     sections, more = build_sections(groups)
     warnings.extend(more)
 
@@ -198,7 +202,22 @@ def build_report(
                              "another folder with --out (each report file is replaced whole or not at all).",
                              key="out") from None
         written.append(path)
+    if "md" in chosen:
+        _remove_stale_figures(out, {figure.path for figure in figures})
     return ReportResult(paths=tuple(written), warnings=tuple(warnings))
+
+
+def _remove_stale_figures(out: Path, current: set[str]) -> None:
+    """Figures of an earlier report that this one no longer shows: removed, so figures/ matches report.md."""
+    folder = out / FIGURES_DIR
+    if not folder.is_dir():
+        return
+    for path in folder.glob("*.png"):
+        if f"{FIGURES_DIR}/{path.name}" not in current and path.is_file() and not path.is_symlink():
+            try:
+                path.unlink()
+            except OSError:  # a read-only leftover does no harm: the report does not link it
+                pass
 
 
 def _check_out(out: Path) -> None:
