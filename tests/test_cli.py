@@ -295,3 +295,15 @@ def test_backend_option_says_which_engine_ran(tmp_path):
         "experiments"][0]["cases"][0]["backend"] == "python"  # auto: a lab-sized run stays on Python
     bad = invoke("run", EXPERIMENTS / "rigid_body.toml", "--no-store", "--backend", "numba")
     assert bad.exit_code == 2 and "`--backend` is 'numba'; use auto, python or compiled." in bad.output
+
+
+def test_json_trajectories_are_there_when_asked_and_never_dropped_silently():
+    plain = json.loads(invoke("run", EXPERIMENTS / "exercise1.toml", "--no-store", "--json").output)
+    assert "trajectory" not in plain["experiments"][0]["cases"][0]
+    for flag in ("--trajectories", "--table"):
+        doc = json.loads(invoke("run", EXPERIMENTS / "exercise1.toml", "--no-store", "--json", flag).output)
+        case = doc["experiments"][0]["cases"][0]
+        traj = case["trajectory"]
+        assert case["name"] == "ode23" and len(traj["t"]) == 12 == case["points"]
+        assert set(traj) == {"t", "y", "y_ref", "y_abs_err", "y_rel_err"}
+        assert f"{max(traj['y_rel_err']):.3e}" == "1.068e-04"

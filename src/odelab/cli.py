@@ -84,6 +84,9 @@ def run(
     paths: Annotated[list[Path], typer.Argument(help="Experiment files or folders of them.", show_default=False)],
     runs: Annotated[Path, typer.Option("--runs", help="Results folder.")] = Path("runs"),
     json_out: Annotated[bool, typer.Option("--json", help="Print one JSON document instead of tables.")] = False,
+    trajectories: Annotated[bool, typer.Option(
+        "--trajectories", help="With --json: add each case's trajectory (t, states, inputs, outputs, references, "
+        "errors); --table does too.")] = False,
     table: Annotated[bool, typer.Option("--table", help="Print the per-point error table of every case.")] = False,
     mat: Annotated[bool, typer.Option("--mat", help="Also store result.mat for MATLAB.")] = False,
     max_steps: Annotated[int, typer.Option("--max-steps", min=0, help=MAX_STEPS_HELP)] = 1_000_000,
@@ -122,7 +125,7 @@ def run(
 
     total = sum(len(e.cases) for e in loaded)
     with _interruptible(err, total) as done:
-        return _run_all(loaded, bad, out, err, runs=runs, json_out=json_out, table=table, mat=mat,
+        return _run_all(loaded, bad, out, err, runs=runs, json_out=json_out, table=table or trajectories, mat=mat,
                         max_steps=max_steps, store=store, total=total, done=done, backend=backend)
 
 
@@ -215,7 +218,8 @@ def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, st
 
                 report_json["experiments"].append({
                     "name": exp.name, "title": exp.title, "file": str(exp.source),
-                    "cases": [{"name": r.case.name, **summary(r)} for r in results]})
+                    "cases": [{"name": r.case.name, **summary(r), **(_trajectory(r) if table else {})}
+                              for r in results]})
             elif results:
                 from odelab.experiment.display import print_experiment
 
@@ -230,6 +234,18 @@ def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, st
     elif stored:
         out.print(f"results stored in {_escape(str(runs))}/")
     raise typer.Exit(EXIT_INPUT if bad else EXIT_FAILED if any_failed else EXIT_OK)
+
+
+def _trajectory(result) -> dict:
+    """``--json --trajectories`` (or ``--table``): every column of the case at its output times."""
+    from odelab.analysis.errors import error_columns
+    from odelab.experiment.store import _clean
+
+    columns = {"t": result.t, **result.series()}
+    for name, ref in result.reference.items():
+        abs_err, rel_err = error_columns(columns[name], ref)
+        columns.update({f"{name}_ref": ref, f"{name}_abs_err": abs_err, f"{name}_rel_err": rel_err})
+    return {"trajectory": _clean(columns)}
 
 
 def _escape(text: str) -> str:
