@@ -189,3 +189,16 @@ def test_method_errors():
         odelab.solve(growth, [0, 1], 1.0, method="rk4", h=0.1, rtol=1e-3)
     with pytest.raises(ValueError, match="`fun` must be a callable"):
         odelab.solve(None, [0, 1], 1.0)
+
+
+def test_an_exception_in_the_users_function_names_its_file_and_line(tmp_path):
+    import importlib.util
+
+    src = tmp_path / "eq1.py"
+    src.write_text("import numpy as np\n\ndef eq1(t, y):\n    return np.cos(t) + undefined_name\n")
+    spec = importlib.util.spec_from_file_location("eq1_under_test", src)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    sol = odelab.ode23(module.eq1, [0, 1], 2.0)
+    assert sol.status == "failed"
+    assert "NameError: name 'undefined_name' is not defined (eq1.py, line 4)" in sol.message

@@ -371,7 +371,22 @@ def _failed_at_start(m: Method, tspan, y0, opts: SolverOptions, why: str) -> Sol
 
 def _describe(exc: BaseException) -> str:
     text = str(exc)
-    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+    where = _user_line(exc)
+    return (f"{type(exc).__name__}: {text}" if text else type(exc).__name__) + (f" ({where})" if where else "")
+
+
+def _user_line(exc: BaseException) -> str:
+    """Where in the user's own code the exception was raised: 'eq1.py, line 3' (a NameError needs it)."""
+    import os
+    import traceback
+
+    package = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    for frame in reversed(traceback.extract_tb(exc.__traceback__)):
+        name = frame.filename
+        if name.startswith("<") or os.path.abspath(name).startswith(package) or "-packages" in name:
+            continue
+        return f"{os.path.basename(name)}, line {frame.lineno}"
+    return ""
 
 
 def _fmt_vec(v: np.ndarray) -> str:
