@@ -53,6 +53,8 @@ class Case:
     file_hash: str
     config: dict[str, Any]  # the merged configuration, defaults filled in (resolved.toml)
     problem: Problem
+    index: int = 0  # position in the experiment (results are stored in this order)
+    swept: dict[str, Any] = field(default_factory=dict)  # [sweep] key path -> this case's value
 
 
 @dataclass(frozen=True, eq=False)
@@ -62,6 +64,8 @@ class LoadedExperiment:
     source: Path
     file_hash: str
     cases: tuple[Case, ...]
+    sweep: Any = None  # an odelab.experiment.sweep.Sweep, for a file with [sweep]
+    study: Any = None  # an odelab.experiment.study.StudySpec, for a file with [study]
 
 
 @dataclass(frozen=True, eq=False)

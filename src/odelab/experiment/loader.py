@@ -23,7 +23,7 @@ from odelab.experiment.fields import check_keys, constant, expr
 from odelab.experiment.limits import DEFAULT_LIMITS, Limits, check_count, check_solve
 from odelab.experiment.reading import read_toml
 
-__all__ = ["Case", "LoadedExperiment", "Problem", "load_experiment", "merge", "slug"]
+__all__ = ["Case", "LoadedExperiment", "Problem", "load_experiment", "load_experiments", "merge", "slug"]
 
 
 # --- reading ------------------------------------------------------------------------------
@@ -254,9 +254,52 @@ def load_experiment(path: str | Path, *, limits: Limits = DEFAULT_LIMITS) -> Loa
         Naming the file, the key, the value and the fix.
     """
     path = Path(path)
+    data, raw = read_toml(path)
+    if "problem" in data:
+        raise ExperimentError("holds several problems ([[problem]]); load it with `load_experiments`, which "
+                              "returns one experiment per problem.", source=str(path), key="problem")
+    return _load(path, data, hashlib.sha256(raw).hexdigest(), data.get("name", path.stem))
+
+
+def load_experiments(path: str | Path) -> list[LoadedExperiment]:
+    """Load an experiment file as a list of experiments: one, or one per ``[[problem]]``.
+
+    A ``[[problem]]`` table (with a ``name``) replaces the base's tables of the same names
+    (``system``, ``initial``, ``time``, ``exact``, ``parameters``, ``inputs``, ``reference``,
+    ``title``...) while the rest (``[solver]``, ``[sweep]``, ``[study]``, ``[[case]]``) is shared:
+    one study run on several problems. Each becomes the experiment ``<name>_<problem name>``.
+    """
+    path = Path(path)
     src = str(path)
     data, raw = read_toml(path)
     file_hash = hashlib.sha256(raw).hexdigest()
+    name = data.get("name", path.stem)
+    problems = data.pop("problem", None)
+    if problems is None:
+        return [_load(path, data, file_hash, name)]
+    if not isinstance(problems, list) or not problems or not all(isinstance(p, dict) for p in problems):
+        raise ExperimentError("`problem` must be an array of tables: write each problem as [[problem]] with a "
+                              "`name`.", source=src, key="problem")
+    out, seen = [], set()
+    for i, problem in enumerate(problems):
+        pname = problem.get("name")
+        if not isinstance(pname, str) or not pname.strip():
+            raise ExperimentError(f"[[problem]] number {i + 1} needs a `name` (a non-empty string), e.g. "
+                                  "name = \"exercise1\".", source=src, key=f"problem[{i}].name")
+        if pname in seen:
+            raise ExperimentError(f"two problems are named {pname!r}; give each its own name.", source=src,
+                                  key=f"problem[{i}].name")
+        seen.add(pname)
+        if "case" in problem or "sweep" in problem or "study" in problem or "problem" in problem:
+            raise ExperimentError(f"[[problem]] {pname!r} sets `case`, `sweep`, `study` or `problem`; those belong "
+                                  "to the whole file (outside [[problem]]).", source=src, key=f"problem[{i}]")
+        merged = {**copy.deepcopy(data), **{k: v for k, v in problem.items() if k != "name"}}
+        out.append(_load(path, merged, file_hash, f"{name}_{pname}"))
+    return out
+
+
+def _load(path: Path, data: dict, file_hash: str, name) -> LoadedExperiment:
+    src = str(path)
     cases_raw = data.pop("case", None)
     if cases_raw is None:
         cases_raw = [None]
@@ -265,9 +308,20 @@ def load_experiment(path: str | Path, *, limits: Limits = DEFAULT_LIMITS) -> Loa
                               key="case")
     elif not cases_raw:
         cases_raw = [None]
-    name = data.get("name", path.stem)
     if not isinstance(name, str) or not name.strip():
         raise ExperimentError(f"`name` must be a non-empty string; got {_describe(name)}.", source=src, key="name")
+    sweep, swept, study_raw = None, [{} for _ in cases_raw], data.pop("study", None)
+    if "sweep" in data:
+        from odelab.experiment.sweep import expand_sweep
+
+        try:
+            sweep = expand_sweep(data.pop("sweep"), data, [c for c in cases_raw if c is not None])
+        except InputError as exc:
+            raise exc.located(source=src) from None
+        cases_raw, swept = _sweep_cases(cases_raw, sweep.points())
+    elif study_raw is not None:
+        raise ExperimentError("[study] compares the cases of a [sweep]: add a [sweep] table, e.g. "
+                              "\"solver.h\" = [0.1, 0.05, 0.025].", source=src, key="study")
 
     try:
         check_count("cases", len(cases_raw), "case", "[[case]] tables", limits)
@@ -298,9 +352,34 @@ def load_experiment(path: str | Path, *, limits: Limits = DEFAULT_LIMITS) -> Loa
             case_name = problem.method
         config = {"name": name, **resolved, "case": [{"name": case_name}]}
         cases.append(Case(experiment=name, name=case_name, title=model.title or name, source=path,
-                          file_hash=file_hash, config=config, problem=problem))
+                          file_hash=file_hash, config=config, problem=problem, index=index, swept=swept[index]))
     title = data.get("title") if isinstance(data.get("title"), str) else name
-    return LoadedExperiment(name=name, title=title, source=path, file_hash=file_hash, cases=tuple(cases))
+    study = None
+    if study_raw is not None:
+        from odelab.experiment.study import parse_study
+
+        try:
+            study = parse_study(study_raw, sweep, cases)
+        except InputError as exc:
+            raise exc.located(source=src) from None
+    return LoadedExperiment(name=name, title=title, source=path, file_hash=file_hash, cases=tuple(cases),
+                            sweep=sweep, study=study)
+
+
+def _sweep_cases(cases_raw: list, points: list) -> tuple[list, list]:
+    """Every [[case]] (or the base) once per sweep point, named "case, h=0.1" (or "h=0.1")."""
+    out, swept = [], []
+    for override in cases_raw:
+        base_name = override.get("name") if override is not None else None
+        for point in points:
+            if override is None:
+                out.append({"name": point.name, **point.override})
+            elif isinstance(base_name, str) and base_name.strip():
+                out.append({**merge(override, point.override), "name": f"{base_name}, {point.name}"})
+            else:  # let the [[case]] checks below name the problem
+                out.append(override)
+            swept.append(dict(point.values))
+    return out, swept
 
 
 _SHAREABLE = ("system", "time", "reference")  # tables validated once when the cases leave them alone
