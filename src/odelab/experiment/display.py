@@ -45,8 +45,14 @@ def pointwise_text(e) -> str:
     return f"{fmt(e.max_rel, 2)} at t = {e.t_max_rel:.3g} (|f| = {e.ref_at_max_rel:.1e})"
 
 
+SWEEP_ROWS_SHOWN = 40
+
+
 def print_experiment(console: Console, exp, results, *, table: bool = False) -> None:
     console.print(f"\n[bold]{_shown(exp.title)}[/]  [dim]({_shown(str(exp.source))})[/]")
+    if getattr(exp, "sweep", None) is not None and (exp.study is not None or len(results) > SWEEP_ROWS_SHOWN):
+        print_sweep(console, exp, results)
+        return
     summary = Table(show_edge=False, pad_edge=False, header_style="bold", box=None)
     peak = any(e.basis == "peak" for r in results for e in r.errors.values())
     columns = [("case", "left"), ("method", "left"), ("points", "right"), ("steps", "right"), ("failed", "right"),
@@ -170,3 +176,43 @@ def print_events(console: Console, r) -> None:
     console.print(t)
     if len(r.events) > EVENT_ROWS:
         console.print(f"[dim]... and {len(r.events) - EVENT_ROWS} more events (all in result.json and the report)[/]")
+
+
+def print_sweep(console: Console, exp, results) -> None:
+    """A sweep in a few lines: how many cases ran, failures, and the study's table."""
+    from odelab.experiment.study import run_study, sweep_rows
+
+    failed = [r for r in results if r.status != "success"]
+    keys = ", ".join(exp.sweep.keys)
+    console.print(f"{len(results)} cases over {_shown(keys)} ({exp.sweep.mode}); {len(failed)} failed. "
+                  f"The table of every case: sweep.csv in the results folder.")
+    for r in failed[:5]:
+        console.print(f"[red]{_shown(r.case.name)}: {_shown(r.message, lines=True)}[/]")
+    if exp.study is None:
+        return
+    study = run_study(exp.study, sweep_rows(results))
+    over = exp.study.over.rsplit(".", 1)[-1]
+    t = Table(show_edge=False, box=None, header_style="bold", pad_edge=False)
+    if study["kind"] == "convergence":
+        what = "max over the span" if study["error"] == "max" else "at the end"
+        console.print(f"convergence of the {_shown(study['quantity'])} error ({what}) against {_shown(over)}:")
+        for col in ("method", f"{over} range", "points fitted", "observed order", "nominal", "difference"):
+            t.add_column(_shown(col), justify="left" if col == "method" else "right")
+        for c in study["curves"]:
+            used = [h for h, why in zip(c["h"], c["excluded"]) if not why]
+            rng = f"{min(c['h']):.3g} - {max(c['h']):.3g}"
+            nominal = "-" if c["nominal"] is None else f"{c['nominal']:g}"
+            diff = "-" if c["nominal"] is None or c["order"] != c["order"] else f"{c['order'] - c['nominal']:+.2f}"
+            t.add_row(_shown(c["label"]), rng, f"{len(used)} of {len(c['h'])}", f"{c['order']:.3f}", nominal, diff)
+    else:
+        console.print(f"work-precision ({_shown(study['quantity'])} error at "
+                      f"{'the end' if study['error'] == 'end' else 'its largest'}) over {_shown(over)}:")
+        for col in ("method", "loosest: error", "fevals", "tightest: error", "fevals", "fevals per digit"):
+            t.add_column(_shown(col), justify="left" if col == "method" else "right")
+        for c in study["curves"]:
+            slope = c["slope"]
+            t.add_row(_shown(c["label"]), fmt(c["error"][0]), f"{c['nfevals'][0]:.0f}", fmt(c["error"][-1]),
+                      f"{c['nfevals'][-1]:.0f}", "-" if slope != slope else f"x{10 ** slope:.2f}")
+    console.print(t)
+    for w in study["warnings"]:
+        console.print(f"[yellow]note: {_shown(w)}[/]")

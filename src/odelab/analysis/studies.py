@@ -1,0 +1,192 @@
+"""Convergence order and work-precision: how a method's error shrinks, and what accuracy costs.
+
+Pure functions, arrays in and frozen dataclasses out, as in DiffEqDevTools' convergence tests
+and work-precision diagrams (Rackauckas & Nie, *DifferentialEquations.jl*, J. Open Res. Softw.
+5(1), 2017) and diffrax's order tests.
+
+The observed order is the slope of the least-squares line through (log h, log error). Two
+things spoil that line, and the points they spoil are left out of the fit, visibly:
+
+* **round-off**: once the truncation error falls to the size of the rounding errors of N
+  steps (about N eps |y|), refining h no longer reduces the error (it grows again);
+* **steps too large**: before the asymptotic regime, the error is not yet C h^p, and the local
+  slope between the coarsest steps differs from the rest.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "ROUNDOFF_FACTOR",
+    "SLOPE_TOLERANCE",
+    "ConvergenceFit",
+    "WorkPrecisionCurve",
+    "convergence_order",
+    "work_precision",
+]
+
+EPS = float(np.finfo(float).eps)
+# A point is round-off when its error is below ROUNDOFF_FACTOR * eps * N * scale (N steps), the
+# size the rounding errors of N steps can reach.
+ROUNDOFF_FACTOR = 1.0
+# Coarse points are pre-asymptotic while the local slope from them differs from the finest
+# local slope by more than this (in orders): the error is not yet C h^p there.
+SLOPE_TOLERANCE = 0.1
+
+ROUNDOFF = "round-off"
+TOO_LARGE = "steps too large"
+NO_ERROR = "no error measured"
+
+
+@dataclass(frozen=True)
+class ConvergenceFit:
+    """The observed order of one method from errors at several step sizes (or tolerances).
+
+    ``h`` is sorted from coarse to fine; ``excluded[i]`` is the reason point i was left out of
+    the fit ("" where it was used). ``order`` is NaN when fewer than two points remain.
+    """
+
+    label: str
+    h: tuple[float, ...]
+    error: tuple[float, ...]
+    excluded: tuple[str, ...]
+    order: float
+    intercept: float  # log10 C in error = C h^order
+    nominal: float | None
+    warnings: tuple[str, ...]
+
+    @property
+    def used(self) -> tuple[bool, ...]:
+        return tuple(not why for why in self.excluded)
+
+    @property
+    def deviation(self) -> float | None:
+        """Observed minus nominal order (None without a nominal order or a fit)."""
+        if self.nominal is None or not math.isfinite(self.order):
+            return None
+        return self.order - self.nominal
+
+    def fitted(self, h) -> np.ndarray:
+        """The fitted line C h^order at ``h``."""
+        return 10.0 ** (self.intercept + self.order * np.log10(np.asarray(h, dtype=float)))
+
+    def as_dict(self) -> dict:
+        return {"label": self.label, "h": list(self.h), "error": list(self.error), "excluded": list(self.excluded),
+                "order": self.order, "intercept": self.intercept, "nominal": self.nominal,
+                "warnings": list(self.warnings)}
+
+
+def _fit(logh: np.ndarray, loge: np.ndarray) -> tuple[float, float]:
+    slope, intercept = np.polyfit(logh, loge, 1)
+    return float(slope), float(intercept)
+
+
+def convergence_order(h, error, *, nominal: float | None = None, label: str = "", steps=None,
+                      scale: float = 1.0) -> ConvergenceFit:
+    """Fit the observed order of accuracy, leaving out points spoiled by round-off or large steps.
+
+    Parameters
+    ----------
+    h
+        Step sizes (or tolerances), any order.
+    error
+        The global error at each (NaN or non-positive where none was measured, e.g. a failed run).
+    nominal
+        The method's order, for the comparison and the warnings.
+    steps
+        Number of steps at each ``h`` (for the round-off floor; default: none, no floor).
+    scale
+        Size of the solution (max |reference|), for the round-off floor.
+    """
+    h = np.asarray(h, dtype=float)
+    error = np.asarray(error, dtype=float)
+    order = np.argsort(-h)
+    h, error = h[order], error[order]
+    n = h.size
+    excluded = ["" for _ in range(n)]
+    for i in range(n):
+        if not (math.isfinite(error[i]) and error[i] > 0):
+            excluded[i] = NO_ERROR
+    if steps is not None:
+        steps = np.asarray(steps, dtype=float)[order]
+        floor = ROUNDOFF_FACTOR * EPS * np.maximum(steps, 1.0) * max(scale, EPS)
+        for i in range(n):
+            if not excluded[i] and error[i] < floor[i]:
+                excluded[i] = ROUNDOFF
+    # Round-off also shows as an error that stops falling: from the fine end, drop points whose
+    # error is not clearly below the next coarser point's.
+    live = [i for i in range(n) if not excluded[i]]
+    while len(live) >= 3:
+        last, prev = live[-1], live[-2]
+        slope = math.log(error[prev] / error[last]) / math.log(h[prev] / h[last])
+        rest = _local_slopes(h, error, live[:-1])
+        if rest.size and slope < 0.5 * float(np.median(rest)):
+            excluded[last] = ROUNDOFF
+            live.pop()
+        else:
+            break
+    # Steps too large: from the coarse end, drop points whose local slope is still changing.
+    while len(live) >= 4:
+        slopes = _local_slopes(h, error, live)
+        if abs(slopes[0] - slopes[-1]) > SLOPE_TOLERANCE:
+            excluded[live[0]] = TOO_LARGE
+            live.pop(0)
+        else:
+            break
+    warnings = []
+    if len(live) >= 2:
+        slope, intercept = _fit(np.log10(h[live]), np.log10(error[live]))
+    else:
+        slope, intercept = math.nan, math.nan
+        warnings.append(f"{label}: fewer than two usable points; no order fitted".lstrip(": "))
+    left_out = [f"h={h[i]:.6g} ({excluded[i]})" for i in range(n) if excluded[i]]
+    if left_out:
+        warnings.append(f"{label}: {len(left_out)} point{'s' if len(left_out) != 1 else ''} left out of the fit: "
+                        f"{', '.join(left_out)}".lstrip(": "))
+    if nominal is not None and math.isfinite(slope) and abs(slope - nominal) > 0.2:
+        warnings.append(f"{label}: observed order {slope:.2f} is not the nominal {nominal:g}".lstrip(": "))
+    return ConvergenceFit(label=label, h=tuple(h.tolist()), error=tuple(error.tolist()), excluded=tuple(excluded),
+                          order=slope, intercept=intercept, nominal=nominal, warnings=tuple(warnings))
+
+
+def _local_slopes(h: np.ndarray, error: np.ndarray, idx: list[int]) -> np.ndarray:
+    a, b = np.array(idx[:-1]), np.array(idx[1:])
+    if a.size == 0:
+        return np.empty(0)
+    return np.log(error[a] / error[b]) / np.log(h[a] / h[b])
+
+
+@dataclass(frozen=True)
+class WorkPrecisionCurve:
+    """One method's cost against accuracy over a tolerance sweep, sorted from loose to tight."""
+
+    label: str
+    tolerance: tuple[float, ...]
+    error: tuple[float, ...]
+    nfevals: tuple[float, ...]
+    seconds: tuple[float, ...]
+    slope: float  # d log(nfevals) / d log(1/error): about 1/p for a method of order p
+
+    def as_dict(self) -> dict:
+        return {"label": self.label, "tolerance": list(self.tolerance), "error": list(self.error),
+                "nfevals": list(self.nfevals), "seconds": list(self.seconds), "slope": self.slope}
+
+
+def work_precision(label: str, tolerance, error, nfevals, seconds) -> WorkPrecisionCurve:
+    """A work-precision curve: error against function evaluations and against time."""
+    tol = np.asarray(tolerance, dtype=float)
+    err = np.asarray(error, dtype=float)
+    fev = np.asarray(nfevals, dtype=float)
+    sec = np.asarray(seconds, dtype=float)
+    order = np.argsort(-tol)
+    tol, err, fev, sec = tol[order], err[order], fev[order], sec[order]
+    ok = np.isfinite(err) & (err > 0) & np.isfinite(fev) & (fev > 0)
+    slope = math.nan
+    if np.count_nonzero(ok) >= 2 and np.ptp(np.log10(err[ok])) > 0:
+        slope, _ = _fit(-np.log10(err[ok]), np.log10(fev[ok]))
+    return WorkPrecisionCurve(label=label, tolerance=tuple(tol.tolist()), error=tuple(err.tolist()),
+                              nfevals=tuple(fev.tolist()), seconds=tuple(sec.tolist()), slope=slope)

@@ -1,0 +1,239 @@
+"""Studies over a sweep's cases: the ``[study]`` table, the sweep's summary table, the study result.
+
+```toml
+[study]
+kind = "convergence"      # or "work-precision"
+over = "solver.h"         # the swept key on the x axis (default: solver.h, else solver.rtol)
+error = "max"             # "max": largest error over the span; "end": at the final time
+quantity = "y"            # the state or output measured (default: the first output, else state)
+```
+
+The curves are the values of the other swept keys (usually ``solver.method``). The numbers
+come from :mod:`odelab.analysis.studies`; this module only gathers them from the results.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from odelab.exceptions import ExperimentError
+from odelab.experiment.sweep import format_value
+
+__all__ = ["STUDY_KINDS", "StudySpec", "parse_study", "run_study", "sweep_rows"]
+
+STUDY_KINDS = ("convergence", "work-precision")
+_STUDY_KEYS = ("kind", "over", "error", "quantity")
+
+
+@dataclass(frozen=True)
+class StudySpec:
+    kind: str
+    over: str
+    error: str
+    quantity: str
+
+    def as_dict(self) -> dict[str, str]:
+        return {"kind": self.kind, "over": self.over, "error": self.error, "quantity": self.quantity}
+
+
+def parse_study(spec: Any, sweep, cases) -> StudySpec:
+    """Check ``[study]`` against the sweep and the loaded cases."""
+    if not isinstance(spec, dict):
+        raise ExperimentError("`study` must be a table: [study] with kind = \"convergence\" or "
+                              "\"work-precision\".", key="study")
+    for key in spec:
+        if key not in _STUDY_KEYS:
+            close = difflib.get_close_matches(key, _STUDY_KEYS, n=1)
+            hint = f" Did you mean `{close[0]}`?" if close else ""
+            raise ExperimentError(f"unknown key `study.{key}`.{hint} Known keys in [study]: {', '.join(_STUDY_KEYS)}.",
+                                  key=f"study.{key}")
+    kind = spec.get("kind")
+    if kind not in STUDY_KINDS:
+        raise ExperimentError(f"`study.kind` is {kind!r}; it must be \"convergence\" (error against step size or "
+                              "tolerance) or \"work-precision\" (error against cost).", key="study.kind")
+    keys = sweep.keys
+    default = "solver.rtol" if kind == "work-precision" else ("solver.h" if "solver.h" in keys else "solver.rtol")
+    over = spec.get("over", default)
+    if over not in keys:
+        swept = ", ".join(f'"{k}"' for k in keys)
+        raise ExperimentError(f"`study.over` is {over!r}, but the sweep does not sweep it (it sweeps {swept}): "
+                              f"add \"{over}\" to [sweep] or set `study.over`.", key="study.over")
+    values = sweep.values[keys.index(over)]
+    if any(isinstance(v, bool) or not isinstance(v, (int, float)) or v <= 0 for v in values):
+        raise ExperimentError(f"`study.over` is {over!r}, whose swept values must be positive numbers for a log-log "
+                              f"study; got {', '.join(format_value(v) for v in values)}.", key="study.over")
+    error = spec.get("error", "max" if kind == "convergence" else "end")
+    if error not in ("max", "end"):
+        raise ExperimentError(f"`study.error` is {error!r}; it must be \"max\" (the largest error over the span) "
+                              "or \"end\" (the error at the final time).", key="study.error")
+    problem = cases[0].problem
+    names = (*problem.states, *problem.outputs)
+    quantity = spec.get("quantity", problem.outputs[0] if problem.outputs else problem.states[0])
+    if quantity not in names:
+        raise ExperimentError(f"`study.quantity` is {quantity!r}, not a state or output of the system "
+                              f"({', '.join(names)}).", key="study.quantity")
+    if problem.reference == "none" and any(c.problem.reference == "none" for c in cases):
+        raise ExperimentError("a study measures errors, but the experiment has no reference: add [exact], or "
+                              "[reference] method = \"high-accuracy\".", key="study")
+    from odelab.solvers.registry import get_method
+
+    wanted = "fixed" if over == "solver.h" else None
+    for case in cases:
+        method = get_method(case.problem.method)
+        if wanted == "fixed" and method.kind != "fixed":
+            raise ExperimentError(f"`study.over` is \"solver.h\", a step-size sweep, but case {case.name!r} uses "
+                                  f"{method.name}, which chooses its own steps: sweep \"solver.rtol\" for adaptive "
+                                  "methods.", key="study.over")
+        if over != "solver.h" and method.kind == "fixed":
+            raise ExperimentError(f"`study.over` is {over!r}, but case {case.name!r} uses the fixed-step "
+                                  f"{method.name}, which has no tolerance: sweep \"solver.h\" for it.",
+                                  key="study.over")
+    return StudySpec(kind=kind, over=over, error=error, quantity=quantity)
+
+
+def _end_errors(result) -> dict[str, float]:
+    series = result.series()
+    out = {}
+    for name, ref in result.reference.items():
+        if ref.size and name in series:
+            out[name] = float(abs(series[name][-1] - ref[-1]))
+    return out
+
+
+def sweep_rows(results) -> list[dict[str, Any]]:
+    """One row per case: its swept values, method, status, statistics and errors (JSON-ready)."""
+    rows = []
+    for r in results:
+        ends = _end_errors(r)
+        row: dict[str, Any] = {
+            "case": r.case.name,
+            "swept": dict(r.case.swept),
+            "method": r.case.problem.method,
+            "status": r.status,
+            "message": r.message,
+            "nsteps": r.stats.nsteps,
+            "nfailed": r.stats.nfailed,
+            "nfevals": r.stats.nfevals,
+            "elapsed_s": r.elapsed,
+            "span": float(abs(r.case.problem.tspan[-1] - r.case.problem.tspan[0])),
+            "max_abs": {n: e.max_abs for n, e in r.errors.items()},
+            "max_rel": {n: e.max_rel for n, e in r.errors.items()},
+            "end_abs": ends,
+            "scale": {n: float(np.max(np.abs(v))) if v.size else 0.0 for n, v in r.reference.items()},
+            "extra": dict(r.extra),
+        }
+        rows.append(row)
+    return rows
+
+
+def _curve_label(row: dict, over: str) -> str:
+    others = {k: v for k, v in row["swept"].items() if k != over}
+    if not others:
+        return row["method"]
+    return ", ".join(format_value(v) if k == "solver.method" else f"{k.rsplit('.', 1)[-1]}={format_value(v)}"
+                     for k, v in others.items())
+
+
+def run_study(spec: StudySpec, rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """The study's result (JSON-ready): one fit or curve per value of the other swept keys."""
+    from odelab.analysis.studies import convergence_order, work_precision
+    from odelab.solvers.registry import get_method
+
+    groups: dict[str, list[dict]] = {}
+    for row in rows:
+        groups.setdefault(_curve_label(row, spec.over), []).append(row)
+    measure = "max_abs" if spec.error == "max" else "end_abs"
+    curves = []
+    warnings: list[str] = []
+    for label, members in groups.items():
+        x = [float(m["swept"][spec.over]) for m in members]
+        err = [float(m[measure].get(spec.quantity, math.nan)) if m["status"] == "success" else math.nan
+               for m in members]
+        if spec.kind == "convergence":
+            method = get_method(members[0]["method"])
+            nominal = float(method.order) if spec.over == "solver.h" else None
+            steps = [m["nsteps"] or 1 for m in members]
+            scale = max(float(m["scale"].get(spec.quantity, 1.0)) for m in members)
+            fit = convergence_order(x, err, nominal=nominal, label=label, steps=steps, scale=scale)
+            curves.append({"method": method.name, **fit.as_dict()})
+            warnings.extend(fit.warnings)
+        else:
+            curve = work_precision(label, x, err, [m["nfevals"] for m in members],
+                                   [m["elapsed_s"] for m in members])
+            curves.append({"method": members[0]["method"], **curve.as_dict()})
+    return {**spec.as_dict(), "curves": curves, "warnings": warnings}
+
+
+SWEEP_FORMAT = "odelab-sweep/1"
+
+
+def sweep_record(exp, results) -> dict[str, Any]:
+    """What ``sweep.json`` holds: the sweep, its rows, the study's result and provenance."""
+    import platform
+    from datetime import datetime, timezone
+
+    from odelab import __version__
+
+    rows = sweep_rows(results)
+    first = results[0].case
+    record = {
+        "format": SWEEP_FORMAT,
+        "experiment": exp.name,
+        "title": exp.title,
+        "source": str(exp.source),
+        "file_sha256": exp.file_hash,
+        "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "versions": {"odelab": __version__, "numpy": np.__version__, "python": platform.python_version()},
+        "sweep": exp.sweep.as_dict(),
+        "states": list(first.problem.states),
+        "outputs": list(first.problem.outputs),
+        "reference": results[0].reference_kind,
+        "description": first.config.get("description", ""),
+        "rows": rows,
+        "study": run_study(exp.study, rows) if exp.study is not None else None,
+    }
+    return record
+
+
+def sweep_csv(record: dict[str, Any]) -> str:
+    """The sweep as one table a spreadsheet opens: a row per case."""
+    import csv
+    import io
+
+    rows = record["rows"]
+    keys = record["sweep"]["keys"]
+    quantities = sorted({q for r in rows for q in r["max_abs"]})
+    header = ["case", *keys, "method", "status", "nsteps", "nfailed", "nfevals", "elapsed_s"]
+    header += [f"{q}_{what}" for q in quantities for what in ("max_abs", "end_abs", "max_rel")]
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(header)
+    for r in rows:
+        cells = [r["case"], *(r["swept"].get(k) for k in keys), r["method"], r["status"], r["nsteps"], r["nfailed"],
+                 r["nfevals"], r["elapsed_s"]]
+        for q in quantities:
+            cells += [r["max_abs"].get(q), r["end_abs"].get(q), r["max_rel"].get(q)]
+        writer.writerow(["" if c is None else repr(c) if isinstance(c, float) else c for c in cells])
+    return buf.getvalue()
+
+
+def write_sweep(exp, results, runs) -> Path:
+    """Store ``runs/<experiment>/sweep.json`` and ``sweep.csv`` atomically; returns the folder."""
+    import json
+
+    from odelab.experiment.loader import slug
+    from odelab.experiment.store import _clean
+    from odelab.fileio import atomic_write
+
+    folder = Path(runs) / slug(exp.name)
+    folder.mkdir(parents=True, exist_ok=True)
+    record = _clean(sweep_record(exp, results))
+    atomic_write(folder / "sweep.csv", sweep_csv(record))
+    atomic_write(folder / "sweep.json", json.dumps(record, indent=1, allow_nan=False) + "\n")
+    return folder
