@@ -94,12 +94,19 @@ def run(
     store: Annotated[bool, typer.Option("--store/--no-store", help="Write results to the results folder.")] = True,
     backend: Annotated[Optional[str], typer.Option(
         "--backend", help="auto, python or compiled (numba); overrides [solver] backend.", show_default=False)] = None,
+    jobs: Annotated[Optional[int], typer.Option("--jobs", "-j", min=1, show_default="the number of cores",
+                                                help="Cases run at once (a process pool).")] = None,
+    executor: Annotated[str, typer.Option("--executor", help="process (a local pool; 1 job: serial), serial or "
+                                                             "dask.")] = "process",
+    scheduler: Annotated[Optional[str], typer.Option("--scheduler", help="Dask scheduler address (tcp://host:8786) "
+                                                     "for --executor dask; none: a local Dask cluster.")] = None,
 ) -> None:
     """Run experiments: solve every case, print the error tables and store the results."""
     import warnings
 
     from odelab.exceptions import InputError
-    from odelab.experiment.loader import check_experiment_names, load_experiment
+    from odelab.experiment.executors import EXECUTORS
+    from odelab.experiment.loader import check_experiment_names, load_experiments
 
     # Everything worth saying (RelTol raised, equilibrium residuals...) reaches the user as a
     # note in the output; Python's own warning lines would only repeat it.
@@ -109,12 +116,19 @@ def run(
     if backend is not None and backend not in ("auto", "python", "compiled"):
         err.print(f"[bold red]error:[/] `--backend` is {_escape(repr(backend))}; use auto, python or compiled.")
         raise typer.Exit(EXIT_INPUT)
+    if executor not in EXECUTORS:
+        err.print(f"[bold red]error:[/] `--executor` is {_escape(executor)!r}; it must be one of "
+                  f"{', '.join(EXECUTORS)}.")
+        raise typer.Exit(EXIT_INPUT)
+    if scheduler and executor != "dask":
+        err.print("[bold red]error:[/] `--scheduler` is the address of a Dask scheduler: add `--executor dask`.")
+        raise typer.Exit(EXIT_INPUT)
     files, problems = expand_paths(paths)
     bad = [f"{p}: {why}" for p, why in problems]
     loaded = []
     for file in files:
         try:
-            loaded.append(load_experiment(file, limits=limits))
+            loaded.extend(load_experiments(file, limits=limits))
         except InputError as exc:
             bad.append(_error_text(exc))
     for exp, exc in check_experiment_names(loaded):  # two files that would share a results folder
@@ -126,7 +140,8 @@ def run(
     total = sum(len(e.cases) for e in loaded)
     with _interruptible(err, total) as done:
         return _run_all(loaded, bad, out, err, runs=runs, json_out=json_out, table=table or trajectories, mat=mat,
-                        max_steps=max_steps, store=store, total=total, done=done, backend=backend)
+                        max_steps=max_steps, store=store, total=total, done=done, backend=backend, jobs=jobs,
+                        executor=executor, scheduler=scheduler)
 
 
 MAX_STEPS_HELP = ("Budget of steps per solve: an adaptive solve stops there, a fixed-step one over it is refused "
@@ -177,42 +192,57 @@ def _interruptible(err, total: int):
         signal.signal(signal.SIGTERM, previous)
 
 
-def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, store, total, done, backend=None
-             ) -> None:
+def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, store, total, done, jobs, executor,
+             scheduler, backend=None) -> None:
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
     from odelab.exceptions import InputError
-    from odelab.experiment.runner import run_case
+    from odelab.experiment.executors import CaseError, run_cases
 
     report_json = {"experiments": []}
     any_failed = False
     stored = 0
-    from rich.progress import Progress
+    cases = [case for exp in loaded for case in exp.cases]
+    state = {"progress": None, "failed": 0}
 
-    with Progress(console=err, transient=True, disable=total < 2 or not err.is_terminal) as progress:
-        task = progress.add_task("running", total=total)
+    def on_done(finished, failed):
+        state["failed"] = failed
+        if state["progress"] is not None:
+            state["progress"].update(state["task"], completed=finished, failed=failed)
+
+    try:  # a process pool forks its workers here, before the progress bar starts its thread
+        stream = run_cases(cases, executor=executor, jobs=jobs, scheduler=scheduler, max_steps=max_steps or None,
+                           on_done=on_done, backend=backend)
+        iterator = iter(stream)
+    except InputError as exc:
+        err.print(f"[bold red]error:[/] {_escape(_error_text(exc))}")
+        raise typer.Exit(EXIT_INPUT) from None
+    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+               TextColumn("[red]{task.fields[failed]} failed[/]"), TimeRemainingColumn())
+    with Progress(*columns, console=err, transient=True, disable=total < 2 or not err.is_terminal) as progress:
+        state["progress"], state["task"] = progress, progress.add_task("running", total=total, failed=0)
         for exp in loaded:
+            progress.update(state["task"], description=_escape(exp.name))
             results = []
+            keep_cases = exp.sweep is None or exp.sweep.store == "all"
             for case in exp.cases:
-                progress.update(task, description=_escape(f"{exp.name}/{case.name}"))
                 try:
-                    result = run_case(case, max_steps=max_steps or None, backend=backend)
-                except InputError as exc:  # found only when running, e.g. no equilibrium for an input
-                    message = _error_text(exc.located(source=str(case.source)))
+                    result = next(iterator)
+                except InputError as exc:  # a Dask scheduler that cannot be reached
+                    err.print(f"[bold red]error:[/] {_escape(_error_text(exc))}")
+                    raise typer.Exit(EXIT_INPUT) from None
+                if isinstance(result, CaseError):  # found only when running, e.g. no equilibrium for an input
+                    message = _error_text(result.error.located(source=str(case.source)))
                     bad.append(message)
                     err.print(f"[bold red]error:[/] {_escape(message)} (case {_escape(repr(case.name))})")
-                    progress.advance(task)
                     continue
                 results.append(result)
                 any_failed |= result.status != "success"
-                if store:
-                    from odelab.experiment.store import write_case
-
-                    try:
-                        write_case(result, runs, mat=mat)
-                    except OSError as exc:
-                        err.print(f"[bold red]error:[/] cannot write results to {_escape(str(runs))}: {_escape(str(exc))}")
-                        raise typer.Exit(EXIT_INPUT) from None
+                if store and keep_cases:
+                    _store(result, runs, mat, err)
                 done[0] += 1
-                progress.advance(task)
+            if store and exp.sweep is not None and results:
+                _store_sweep(exp, results, runs, err)
             if json_out:
                 from odelab.experiment.store import summary
 
@@ -246,6 +276,26 @@ def _trajectory(result) -> dict:
         abs_err, rel_err = error_columns(columns[name], ref)
         columns.update({f"{name}_ref": ref, f"{name}_abs_err": abs_err, f"{name}_rel_err": rel_err})
     return {"trajectory": _clean(columns)}
+
+
+def _store(result, runs, mat, err) -> None:
+    from odelab.experiment.store import write_case
+
+    try:
+        write_case(result, runs, mat=mat)
+    except OSError as exc:
+        err.print(f"[bold red]error:[/] cannot write results to {_escape(str(runs))}: {_escape(str(exc))}")
+        raise typer.Exit(EXIT_INPUT) from None
+
+
+def _store_sweep(exp, results, runs, err) -> None:
+    from odelab.experiment.study import write_sweep
+
+    try:
+        write_sweep(exp, results, runs)
+    except OSError as exc:
+        err.print(f"[bold red]error:[/] cannot write results to {_escape(str(runs))}: {_escape(str(exc))}")
+        raise typer.Exit(EXIT_INPUT) from None
 
 
 def _escape(text: str) -> str:
@@ -318,7 +368,7 @@ def validate(
 ) -> None:
     """Check experiment files without running them (with the budgets `odelab run` would use)."""
     from odelab.exceptions import InputError
-    from odelab.experiment.loader import check_experiment_names, load_experiment
+    from odelab.experiment.loader import check_experiment_names, load_experiments
 
     out, err = _consoles()
     limits = _limits(max_steps, limit, err)
@@ -329,19 +379,20 @@ def validate(
     loaded = []
     for file in files:
         try:
-            exp = load_experiment(file, limits=limits)
-            for _, exc in check_experiment_names([*loaded, exp]):
+            exps = load_experiments(file, limits=limits)
+            for _, exc in check_experiment_names([*loaded, *exps]):
                 raise exc
         except InputError as exc:
             bad += 1
             err.print(f"[bold red]error:[/] {_escape(_error_text(exc))}")
             continue
-        loaded.append(exp)
+        loaded.extend(exps)
         from odelab.terminal import shown
 
-        names = shown(", ".join(c.name for c in exp.cases))
-        out.print(f"ok: {_escape(str(file))} ({len(exp.cases)} case{'s' if len(exp.cases) != 1 else ''}: "
-                  f"{names})")
+        cases = [c for exp in exps for c in exp.cases]
+        names = ", ".join(c.name for c in cases[:20]) + (f", ... ({len(cases) - 20} more)" if len(cases) > 20 else "")
+        out.print(f"ok: {_escape(str(file))} ({len(cases)} case{'s' if len(cases) != 1 else ''}: "
+                  f"{shown(names)})")
     raise typer.Exit(EXIT_INPUT if bad else EXIT_OK)
 
 

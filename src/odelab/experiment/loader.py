@@ -258,10 +258,10 @@ def load_experiment(path: str | Path, *, limits: Limits = DEFAULT_LIMITS) -> Loa
     if "problem" in data:
         raise ExperimentError("holds several problems ([[problem]]); load it with `load_experiments`, which "
                               "returns one experiment per problem.", source=str(path), key="problem")
-    return _load(path, data, hashlib.sha256(raw).hexdigest(), data.get("name", path.stem))
+    return _load(path, data, hashlib.sha256(raw).hexdigest(), data.get("name", path.stem), limits)
 
 
-def load_experiments(path: str | Path) -> list[LoadedExperiment]:
+def load_experiments(path: str | Path, *, limits: Limits = DEFAULT_LIMITS) -> list[LoadedExperiment]:
     """Load an experiment file as a list of experiments: one, or one per ``[[problem]]``.
 
     A ``[[problem]]`` table (with a ``name``) replaces the base's tables of the same names
@@ -276,7 +276,7 @@ def load_experiments(path: str | Path) -> list[LoadedExperiment]:
     name = data.get("name", path.stem)
     problems = data.pop("problem", None)
     if problems is None:
-        return [_load(path, data, file_hash, name)]
+        return [_load(path, data, file_hash, name, limits)]
     if not isinstance(problems, list) or not problems or not all(isinstance(p, dict) for p in problems):
         raise ExperimentError("`problem` must be an array of tables: write each problem as [[problem]] with a "
                               "`name`.", source=src, key="problem")
@@ -294,11 +294,11 @@ def load_experiments(path: str | Path) -> list[LoadedExperiment]:
             raise ExperimentError(f"[[problem]] {pname!r} sets `case`, `sweep`, `study` or `problem`; those belong "
                                   "to the whole file (outside [[problem]]).", source=src, key=f"problem[{i}]")
         merged = {**copy.deepcopy(data), **{k: v for k, v in problem.items() if k != "name"}}
-        out.append(_load(path, merged, file_hash, f"{name}_{pname}"))
+        out.append(_load(path, merged, file_hash, f"{name}_{pname}", limits))
     return out
 
 
-def _load(path: Path, data: dict, file_hash: str, name) -> LoadedExperiment:
+def _load(path: Path, data: dict, file_hash: str, name, limits: Limits) -> LoadedExperiment:
     src = str(path)
     cases_raw = data.pop("case", None)
     if cases_raw is None:
@@ -324,7 +324,11 @@ def _load(path: Path, data: dict, file_hash: str, name) -> LoadedExperiment:
                               "\"solver.h\" = [0.1, 0.05, 0.025].", source=src, key="study")
 
     try:
-        check_count("cases", len(cases_raw), "case", "[[case]] tables", limits)
+        if sweep is not None:
+            check_count("cases", len(cases_raw), "sweep", "cases (the sweep's values times the [[case]] tables)",
+                        limits)
+        else:
+            check_count("cases", len(cases_raw), "case", "[[case]] tables", limits)
     except InputError as exc:
         raise exc.located(source=src) from None
     _check_case_names(cases_raw, src)  # before any case is compiled

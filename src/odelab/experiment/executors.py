@@ -1,0 +1,245 @@
+"""Running many cases: serially, in a process pool, or on a Dask cluster — with identical results.
+
+Every executor runs :func:`odelab.experiment.runner.run_case` on the same cases and hands the
+results back **in case order**, whatever order they finish in, so what is stored does not
+depend on how it was run. A case's compiled functions (closures over expressions) are not
+sent between processes: a worker loads the experiment file itself (once per process) and runs
+the case by its index, checking the file's SHA-256 so that an edited file is never mixed with
+the cases already run. Pool workers are forked from the running process and inherit the
+experiments it has loaded; Dask workers need the experiment files at the same paths (a shared
+file system, as on any cluster).
+
+``on_done(done, failed)`` is called in the calling thread each time a case finishes, for a
+progress bar; nothing here prints.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+from typing import Callable, Iterable, Iterator
+
+from odelab.exceptions import InputError
+
+__all__ = ["EXECUTORS", "CaseError", "default_jobs", "run_cases"]
+
+EXECUTORS = ("serial", "process", "dask")
+
+# Experiments loaded in this process, by (path, sha256): forked workers inherit it.
+_LOADED: dict[tuple[str, str], object] = {}
+
+
+@dataclasses.dataclass(frozen=True)
+class CaseError:
+    """A case that could not run because of its input (e.g. no equilibrium for an input)."""
+
+    case: object
+    error: InputError
+
+
+def default_jobs() -> int:
+    """The number of cores this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _case_in_worker(source: str, file_hash: str, index: int, experiment: str):
+    key = (source, file_hash, experiment)
+    if key not in _LOADED:
+        from odelab.experiment.loader import load_experiments
+
+        for exp in load_experiments(Path(source)):
+            _LOADED[(source, exp.file_hash, exp.name)] = exp.cases
+    cases = _LOADED.get(key)
+    if cases is None:
+        raise RuntimeError(f"{source} changed since the run started (its SHA-256 is no longer {file_hash[:12]}); "
+                           "run it again")
+    return cases[index]
+
+
+def _run_remote(source: str, file_hash: str, index: int, experiment: str, opts: dict):
+    """Run one case in a worker; the result travels without its (unpicklable) compiled case."""
+    from odelab.experiment.runner import run_case
+
+    case = _case_in_worker(source, file_hash, index, experiment)
+    try:
+        result = run_case(case, **opts)
+    except InputError as exc:
+        return "error", exc
+    return "ok", dataclasses.replace(result, case=None)
+
+
+def _attach(case, outcome):
+    kind, value = outcome
+    if kind == "error":
+        return CaseError(case, value)
+    return dataclasses.replace(value, case=case)
+
+
+def _run_local(case, opts: dict):
+    from odelab.experiment.runner import run_case
+
+    try:
+        return run_case(case, **opts)
+    except InputError as exc:
+        return CaseError(case, exc)
+
+
+def _failed(item) -> bool:
+    return isinstance(item, CaseError) or item.status != "success"
+
+
+def _ignore_sigint() -> None:
+    """Pool workers leave Ctrl-C to the parent, which stops the pool and reports what finished."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def run_cases(cases: Iterable, *, executor: str = "serial", jobs: int | None = None, scheduler: str | None = None,
+              max_steps: int | None = None, on_done: Callable[[int, int], None] | None = None,
+              backend: str | None = None) -> Iterator:
+    """Run ``cases``; returns an iterator of each one's :class:`CaseResult` (or :class:`CaseError`), in case order.
+
+    A process pool is started (its workers forked) before this returns; the cases run as the
+    iterator is consumed or, in a pool or on a cluster, straight away.
+
+    Parameters
+    ----------
+    executor
+        ``"serial"`` (this process), ``"process"`` (a pool of ``jobs`` forked processes) or
+        ``"dask"`` (a ``distributed`` cluster at ``scheduler``; without one, a local cluster
+        of ``jobs`` worker processes is started for the run).
+    """
+    cases = list(cases)
+    if executor not in EXECUTORS:
+        raise InputError(f"`executor` is {executor!r}; it must be one of {', '.join(EXECUTORS)}.", key="executor")
+    jobs = jobs or default_jobs()
+    if executor == "process" and (jobs < 2 or len(cases) < 2):
+        executor = "serial"
+    counts = [0, 0]
+
+    def done(item):
+        counts[0] += 1
+        counts[1] += _failed(item)
+        if on_done is not None:
+            on_done(counts[0], counts[1])
+
+    opts = {"max_steps": max_steps, **({"backend": backend} if backend is not None else {})}  # run_case's options
+    if executor == "serial":
+        return _run_serial(cases, opts, done)
+    if executor == "process":
+        return _run_pool(cases, jobs, opts, done)
+    return _run_dask(cases, jobs, scheduler, opts, done)
+
+
+def _run_serial(cases, opts, done):
+    for case in cases:
+        item = _run_local(case, opts)
+        done(item)
+        yield item
+
+
+def _submit_args(case, opts):
+    return (str(case.source), case.file_hash, case.index, case.experiment, opts)
+
+
+def _run_pool(cases, jobs, opts, done):
+    import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    from odelab.experiment.loader import load_experiments  # noqa: F401  (imported before forking)
+    from odelab.experiment.runner import run_case  # noqa: F401
+
+    _seed(cases)
+    # The workers are forked here, before the caller starts any thread (a progress bar's), so
+    # that no lock can be inherited held.
+    pool = ProcessPoolExecutor(max_workers=min(jobs, len(cases)), mp_context=multiprocessing.get_context("fork"),
+                               initializer=_ignore_sigint)
+    futures = [pool.submit(_run_remote, *_submit_args(c, opts)) for c in cases]
+
+    def results():
+        try:
+            yield from _in_order(cases, futures, lambda f: f.result(), done,
+                                 lambda pending: wait(pending, return_when=FIRST_COMPLETED)[0])
+        except BaseException:
+            _stop_pool(pool)
+            raise
+        pool.shutdown(wait=True)
+
+    return results()
+
+
+def _stop_pool(pool) -> None:
+    """Stop at once: cancel what has not started, end the workers running a case."""
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        proc.terminate()
+    pool.shutdown(wait=False, cancel_futures=True)
+
+
+def _seed(cases) -> None:
+    """Put the cases' experiments in the cache that forked workers inherit."""
+    by_exp: dict[tuple[str, str, str], list] = {}
+    for case in cases:
+        by_exp.setdefault((str(case.source), case.file_hash, case.experiment), []).append(case)
+    for key, members in by_exp.items():
+        table = [None] * (max(c.index for c in members) + 1)
+        for c in members:
+            table[c.index] = c
+        _LOADED[key] = tuple(table)
+
+
+def _in_order(cases, futures, result_of, done, wait_some):
+    """Yield results in case order while reporting each completion as it happens."""
+    index_of = {f: i for i, f in enumerate(futures)}
+    ready: dict[int, object] = {}
+    pending = set(futures)
+    nxt = 0
+    while nxt < len(cases):
+        for f in wait_some(pending):
+            pending.discard(f)
+            i = index_of[f]
+            ready[i] = _attach(cases[i], result_of(f))
+            done(ready[i])
+        while nxt in ready:
+            yield ready.pop(nxt)
+            nxt += 1
+
+
+def _run_dask(cases, jobs, scheduler, opts, done):
+    try:
+        from distributed import Client, LocalCluster, wait
+    except ImportError:
+        raise InputError("`--executor dask` needs Dask's distributed package: pip install 'odelab[dask]'.",
+                         key="executor") from None
+    _seed(cases)  # an in-process worker finds them here; others load the files
+    return _dask_results(cases, jobs, scheduler, opts, done, Client, LocalCluster, wait)
+
+
+def _dask_results(cases, jobs, scheduler, opts, done, Client, LocalCluster, wait):
+    cluster = None
+    if scheduler:
+        try:
+            client = Client(scheduler, timeout="10s")
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise InputError(f"cannot reach the Dask scheduler at {scheduler!r}: {exc}. Check the address "
+                             "(tcp://host:8786) and that `dask scheduler` is running there.",
+                             key="scheduler") from None
+    else:
+        cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None)
+        client = Client(cluster)
+    try:
+        futures = [client.submit(_run_remote, *_submit_args(c, opts), pure=False) for c in cases]
+        yield from _in_order(cases, futures, lambda f: f.result(), done,
+                             lambda pending: wait(list(pending), return_when="FIRST_COMPLETED").done)
+    except BaseException:
+        client.cancel(futures if "futures" in locals() else [])
+        raise
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()

@@ -1,0 +1,100 @@
+"""Serial, process-pool and Dask runs give identical results, in case order."""
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from odelab.cli import app
+from odelab.experiment.executors import CaseError, run_cases
+from odelab.experiment.loader import load_experiment
+
+SWEEP = """
+title = "Exercise 1 swept"
+[system]
+states = ["y"]
+[system.equations]
+y = "cos(t)"
+[initial]
+y = 2
+[time]
+stop = "pi"
+[exact]
+y = "sin(t) + 2"
+[solver]
+method = "ode45"
+[sweep]
+"solver.method" = ["ode23", "ode45", "rk4"]
+"solver.rtol" = [1e-3, 1e-5]
+"""
+
+
+def _plain(results):
+    out = []
+    for r in results:
+        assert not isinstance(r, CaseError)
+        out.append((r.case.name, r.status, r.stats, r.t.tobytes(), r.x.tobytes(),
+                    {n: e.as_dict() for n, e in r.errors.items()}, r.warnings))
+    return out
+
+
+@pytest.fixture(scope="module")
+def experiment(tmp_path_factory):
+    path = tmp_path_factory.mktemp("sweep") / "sweep.toml"
+    # rk4 takes h, not rtol: zip the methods with what each needs
+    path.write_text(SWEEP.replace('"solver.rtol" = [1e-3, 1e-5]', "").replace(
+        '"solver.method" = ["ode23", "ode45", "rk4"]',
+        'mode = "zip"\n"solver.method" = ["ode23", "ode45", "ode23", "ode45"]\n"solver.rtol" = [1e-3, 1e-3, 1e-5, 1e-6]'))
+    return load_experiment(path)
+
+
+def test_pool_matches_serial_in_order(experiment):
+    seen = []
+    serial = list(run_cases(experiment.cases, executor="serial"))
+    pooled = list(run_cases(experiment.cases, executor="process", jobs=2, on_done=lambda d, f: seen.append((d, f))))
+    assert [r.case.index for r in pooled] == [0, 1, 2, 3]
+    assert _plain(pooled) == _plain(serial)
+    assert seen == [(1, 0), (2, 0), (3, 0), (4, 0)]
+
+
+def test_dask_local_cluster_matches_serial(experiment):
+    distributed = pytest.importorskip("distributed")
+    serial = list(run_cases(experiment.cases, executor="serial"))
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
+                                  dashboard_address=None) as cluster:
+        dask = list(run_cases(experiment.cases, executor="dask", scheduler=cluster.scheduler_address))
+    assert _plain(dask) == _plain(serial)
+
+
+def test_cli_jobs_and_serial_store_the_same_sweep(tmp_path):
+    (tmp_path / "sweep.toml").write_text(SWEEP.replace('"solver.method" = ["ode23", "ode45", "rk4"]',
+                                                       '"solver.method" = ["ode23", "ode45"]'))
+    runner = CliRunner()
+    records = []
+    for args in (["--executor", "serial"], ["--jobs", "2"]):
+        runs = tmp_path / args[-1]
+        result = runner.invoke(app, ["run", str(tmp_path / "sweep.toml"), "--runs", str(runs), *args])
+        assert result.exit_code == 0, result.output
+        record = json.loads((runs / "sweep" / "sweep.json").read_text())
+        for row in record["rows"]:
+            row.pop("elapsed_s")
+        record.pop("created")
+        records.append(record)
+        assert not (runs / "sweep" / "rtol=0.001, method=ode23").exists()  # store = "summary"
+        csv = (runs / "sweep" / "sweep.csv").read_text().splitlines()
+        assert csv[0].startswith("case,solver.method,solver.rtol,method,status,nsteps,nfailed,nfevals,elapsed_s,y_max")
+        assert len(csv) == 5 and csv[1].startswith('"method=ode23, rtol=0.001",ode23,0.001,ode23,success,11,0,34,')
+    assert records[0] == records[1]
+    assert [r["case"] for r in records[0]["rows"]] == ["method=ode23, rtol=0.001", "method=ode23, rtol=1e-5",
+                                                       "method=ode45, rtol=0.001", "method=ode45, rtol=1e-5"]
+    assert f"{records[0]['rows'][0]['max_rel']['y']:.3e}" == "1.068e-04"  # the lab sheet's ode23 number
+
+
+def test_bad_executor_and_scheduler_without_dask(tmp_path):
+    (tmp_path / "sweep.toml").write_text(SWEEP)
+    runner = CliRunner()
+    result = runner.invoke(app, ["run", str(tmp_path / "sweep.toml"), "--executor", "cluster"])
+    assert result.exit_code == 2 and "`--executor` is 'cluster'; it must be one of serial, process, dask." in result.output
+    result = runner.invoke(app, ["run", str(tmp_path / "sweep.toml"), "--scheduler", "tcp://x:1"])
+    assert result.exit_code == 2 and "add `--executor dask`" in result.output
