@@ -178,7 +178,9 @@ def _stop_pool(pool) -> None:
     """Stop at once: cancel what has not started, end the workers running a case."""
     for proc in list((getattr(pool, "_processes", None) or {}).values()):
         proc.terminate()
-    pool.shutdown(wait=False, cancel_futures=True)
+    # Wait for the pool's manager thread to see the workers gone, so that nothing is left for
+    # the interpreter's exit hooks (which would otherwise print a traceback).
+    pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _seed(cases) -> None:
