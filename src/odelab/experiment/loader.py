@@ -6,6 +6,7 @@ naming the file, the TOML key, the value, and the fix. Nothing here runs a solve
 
 from __future__ import annotations
 
+import copy
 import difflib
 import hashlib
 import math

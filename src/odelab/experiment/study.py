@@ -106,6 +106,31 @@ def _end_errors(result) -> dict[str, float]:
     return out
 
 
+def _metrics(result) -> dict[str, dict[str, float]]:
+    """Quantities of interest of each shown series: final value, peak, trough, overshoot, peak time."""
+    p = result.case.problem
+    series = result.series()
+    names = list(p.outputs) or list(p.states)
+    out = {}
+    for name in names:
+        v = series.get(name)
+        if v is None or v.size == 0 or not np.all(np.isfinite(v)):
+            continue
+        final = float(v[-1])
+        peak = float(np.max(v))
+        start = float(v[0])
+        rise = final - start  # overshoot as MATLAB's stepinfo: beyond the final value, relative to the change
+        if abs(rise) <= 1e-12 * max(1.0, abs(final)):
+            overshoot = math.nan
+        elif rise > 0:
+            overshoot = 100.0 * (peak - final) / rise
+        else:
+            overshoot = 100.0 * (final - float(np.min(v))) / -rise
+        out[name] = {"final": final, "max": peak, "min": float(np.min(v)), "t_max": float(result.t[int(np.argmax(v))]),
+                     "overshoot_percent": overshoot}
+    return out
+
+
 def sweep_rows(results) -> list[dict[str, Any]]:
     """One row per case: its swept values, method, status, statistics and errors (JSON-ready)."""
     rows = []
@@ -126,7 +151,7 @@ def sweep_rows(results) -> list[dict[str, Any]]:
             "max_rel": {n: e.max_rel for n, e in r.errors.items()},
             "end_abs": ends,
             "scale": {n: float(np.max(np.abs(v))) if v.size else 0.0 for n, v in r.reference.items()},
-            "extra": dict(r.extra),
+            "metrics": _metrics(r),
         }
         rows.append(row)
     return rows
@@ -175,10 +200,9 @@ SWEEP_FORMAT = "odelab-sweep/1"
 
 def sweep_record(exp, results) -> dict[str, Any]:
     """What ``sweep.json`` holds: the sweep, its rows, the study's result and provenance."""
-    import platform
     from datetime import datetime, timezone
 
-    from odelab import __version__
+    from odelab.experiment.store import versions
 
     rows = sweep_rows(results)
     first = results[0].case
@@ -189,7 +213,7 @@ def sweep_record(exp, results) -> dict[str, Any]:
         "source": str(exp.source),
         "file_sha256": exp.file_hash,
         "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-        "versions": {"odelab": __version__, "numpy": np.__version__, "python": platform.python_version()},
+        "versions": dict(versions()),
         "sweep": exp.sweep.as_dict(),
         "states": list(first.problem.states),
         "outputs": list(first.problem.outputs),

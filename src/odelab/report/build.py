@@ -146,14 +146,23 @@ def build_report(
     _check_out(out)  # before any figure is drawn
     html_env, md_env = environments(template_dir)
 
+    from odelab.report.studies import collect_studies, study_sections
+
+    records, study_warnings = collect_studies(runs, experiments)
+    swept = {r["experiment"] for r in records}
     groups, warnings = collect_runs(runs, experiments)
-    if not groups and not experiments:
+    warnings = [w for w in warnings if not any(f"experiment {name!r}" in w for name in swept)]  # stored as a sweep
+    warnings.extend(study_warnings)
+    if not groups and not records and not experiments:
         warnings.append(f"{runs} holds no stored runs; run experiments with `odelab run` first")
     if experiments and not groups:  # never overwrite a report with an empty one
         raise InputError(f"`experiments`: no stored runs of {', '.join(map(repr, experiments))} in {runs}; run "
                          f"them first (`odelab run FILE --runs {runs}`), or check the names. The report in {out} "
                          "was left as it was.", key="experiments")
     sections, more = build_sections(groups)
+    warnings.extend(more)
+    studies, more = study_sections(records, {"summary", "header", "problems", "contents", "failed", "provenance",
+                                             "settings", *(s.anchor for s in sections)})
     warnings.extend(more)
 
     taken: set[str] = set()
@@ -165,6 +174,9 @@ def build_report(
             view.figures = [_draw(spec, taken) for spec in view.figures]
         figures.extend(f for f in (section.solution_figure, section.error_figure) if f is not None)
         figures.extend(f for view in section.linearisations for f in view.figures)
+    for study in studies:
+        study.figures = [_draw(spec, taken) for spec in study.figures]
+        figures.extend(f for f in study.figures if f is not None)
 
     cases = [case for section in sections for case in section.cases]
     context = {
@@ -184,6 +196,7 @@ def build_report(
             "headline_rule": HEADLINE_RULE,
         },
         "sections": sections,
+        "studies": studies,
     }
     texts = {}
     if "html" in chosen:
