@@ -432,24 +432,32 @@ def integrate_fixed(fun, grid: np.ndarray, keep: np.ndarray, y0: np.ndarray, A: 
     nfevals = 0
     status = STATUS_SUCCESS
     exception = None
-    t = float(grid[0])
+    # Hundreds of thousands of steps: keep the loop on Python floats, and form h*A and h*b only
+    # when h changes (once for a uniform grid, again for its shortened last step). The
+    # arithmetic is the same as forming them every step, so the results are bit for bit equal.
+    times = grid.tolist()
+    nodes = c.tolist()
+    t = times[0]
+    h_prev = math.nan
+    hA = hb = None
     try:
         for k in range(grid.size - 1):
-            t = float(grid[k])
-            h = float(grid[k + 1]) - t
-            hA = h * A
+            t = times[k]
+            h = times[k + 1] - t
+            if h != h_prev:
+                hA, hb, h_prev = h * A, h * b, h
             K[0] = fun(t, y)
             for i in range(1, s):
-                K[i] = fun(t + c[i] * h, y + hA[i, :i] @ K[:i])
+                K[i] = fun(t + nodes[i] * h, y + hA[i, :i] @ K[:i])
             nfevals += s
-            ynew = y + (h * b) @ K
+            ynew = y + hb @ K
             if not math.isfinite(float(ynew.sum())):
                 status = STATUS_NONFINITE
                 break
             y = ynew
             ys[k + 1] = y
             nsteps += 1
-            t = float(grid[k + 1])
+            t = times[k + 1]
     except Exception as exc:
         status = STATUS_FUN_RAISED
         exception = exc
