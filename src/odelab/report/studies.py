@@ -149,12 +149,12 @@ def _work_precision(record: dict, study: dict, section: StudySection) -> None:
     title = record.get("title") or record["experiment"]
     section.figures.append(FigureSpec(
         name=f"{section.anchor}-work-precision", columns=2, panel_height=3.2,
-        panels=(Panel(title=f"{title}: function evaluations", xlabel=f"{study['quantity']} error (log)",
+        panels=(Panel(title="function evaluations", xlabel=f"{study['quantity']} error (log)",
                       ylabel="function evaluations (log)", lines=tuple(fev_lines), xscale="log", yscale="log"),
                 Panel(title="time", xlabel=f"{study['quantity']} error (log)", ylabel="seconds (log)",
                       lines=tuple(time_lines), xscale="log", yscale="log")),
-        caption=f"Work-precision: {what} of {study['quantity']} against function evaluations (left) and time (right), "
-                "one curve per method, from loose to tight tolerances.",
+        caption=f"{title}: {what} of {study['quantity']} against function evaluations (left) and time (right), "
+                "one curve per method, from loose to tight tolerances. Times of a few milliseconds are noisy.",
         alt="work-precision diagram of " + ", ".join(c["label"] for c in study["curves"])))
 
 
@@ -183,7 +183,7 @@ def _parameter_sweep(record: dict, section: StudySection) -> None:
     others = [k for k in keys if k != x_key]
     groups: dict[str, list[dict]] = {}
     for r in rows:
-        label = ", ".join(f"{_label(k)}={r['swept'][k]}" for k in others) or quantity
+        label = ", ".join(f"{_label(k)}={r['swept'][k]}" for k in others) or "_one line"  # no legend for one line
         groups.setdefault(label, []).append(r)
     panels = []
     for metric, label in _METRICS:
