@@ -225,22 +225,27 @@ def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, st
             progress.update(state["task"], description=_escape(exp.name))
             results = []
             keep_cases = exp.sweep is None or exp.sweep.store == "all"
-            for case in exp.cases:
-                try:
-                    result = next(iterator)
-                except InputError as exc:  # a Dask scheduler that cannot be reached
-                    err.print(f"[bold red]error:[/] {_escape(_error_text(exc))}")
-                    raise typer.Exit(EXIT_INPUT) from None
-                if isinstance(result, CaseError):  # found only when running, e.g. no equilibrium for an input
-                    message = _error_text(result.error.located(source=str(case.source)))
-                    bad.append(message)
-                    err.print(f"[bold red]error:[/] {_escape(message)} (case {_escape(repr(case.name))})")
-                    continue
-                results.append(result)
-                any_failed |= result.status != "success"
-                if store and keep_cases:
-                    _store(result, runs, mat, err)
-                done[0] += 1
+            try:
+                for case in exp.cases:
+                    try:
+                        result = next(iterator)
+                    except InputError as exc:  # a Dask scheduler that cannot be reached
+                        err.print(f"[bold red]error:[/] {_escape(_error_text(exc))}")
+                        raise typer.Exit(EXIT_INPUT) from None
+                    if isinstance(result, CaseError):  # found only when running, e.g. no equilibrium for an input
+                        message = _error_text(result.error.located(source=str(case.source)))
+                        bad.append(message)
+                        err.print(f"[bold red]error:[/] {_escape(message)} (case {_escape(repr(case.name))})")
+                        continue
+                    results.append(result)
+                    any_failed |= result.status != "success"
+                    if store and keep_cases:
+                        _store(result, runs, mat, err)
+                    done[0] += 1
+            except (KeyboardInterrupt, _Terminated):
+                if store and exp.sweep is not None and results:  # the sweep's table of what finished
+                    _store_sweep(exp, results, runs, err)
+                raise
             if store and exp.sweep is not None and results:
                 _store_sweep(exp, results, runs, err)
             if json_out:

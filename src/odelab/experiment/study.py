@@ -215,6 +215,8 @@ def sweep_record(exp, results) -> dict[str, Any]:
         "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "versions": dict(versions()),
         "sweep": exp.sweep.as_dict(),
+        "complete": len(results) == len(exp.cases),  # False: interrupted, these are the cases that finished
+        "cases_total": len(exp.cases),
         "states": list(first.problem.states),
         "outputs": list(first.problem.outputs),
         "reference": results[0].reference_kind,

@@ -231,6 +231,9 @@ def study_sections(records: list[dict], taken: set[str]) -> tuple[list[StudySect
             warnings.append(text)
             section.notes.append(text)
             section.figures = []
+        if record.get("complete") is False:
+            section.notes.insert(0, f"the run was interrupted: {len(rows)} of {record.get('cases_total', '?')} cases "
+                                    "finished and are shown")
         if study:
             section.notes.extend(str(w) for w in study.get("warnings", []))
         sections.append(section)
