@@ -166,6 +166,7 @@ class Panel:
     legend_outside: bool = False  # right of the axes: for curves that fill the whole panel
     height: float = 1.0  # relative height of the panel's row (an input under an output: 0.6)
     legend: bool = True  # False: the figure's shared legend (FigureSpec.legend) names these lines
+    decades: int | None = None  # a log error axis's depth (default LOG_DECADES; a convergence plot needs more)
 
 
 @dataclass(frozen=True, eq=False)
@@ -202,8 +203,9 @@ LOG_DECADES = 9
 def _limit_decades(ax, panel: Panel, log_x: bool) -> None:
     values = [_finite_positive(ln.x, ln.y, log_x, True)[1] for ln in panel.lines]
     finite = np.concatenate([v[np.isfinite(v)] for v in values]) if values else np.array([])
-    if finite.size and finite.min() < finite.max() * 10.0 ** -LOG_DECADES:
-        ax.set_ylim(bottom=finite.max() * 10.0 ** -LOG_DECADES)
+    decades = panel.decades or LOG_DECADES
+    if finite.size and finite.min() < finite.max() * 10.0 ** -decades:
+        ax.set_ylim(bottom=finite.max() * 10.0 ** -decades)
 
 
 def _draw_panel(ax, panel: Panel, columns: int = 1) -> None:

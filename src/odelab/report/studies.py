@@ -119,7 +119,7 @@ def _convergence(record: dict, study: dict, section: StudySection) -> None:
                              "—" if diff is None else f"{diff:+.3f}"])
     panel = Panel(title=record.get("title") or record["experiment"], xlabel=f"{over} (log)",
                   ylabel=f"{study['quantity']} error (log)", lines=tuple(lines), xscale="log", yscale="log",
-                  legend_outside=True)
+                  legend_outside=True, decades=16)  # every point down to round-off
     section.figures.append(FigureSpec(
         name=f"{section.anchor}-convergence", panels=(panel,), panel_height=3.6,
         caption=f"Convergence: {what} of {study['quantity']} against {over}, log-log; dashed: the fitted C {over}^p, "
@@ -150,9 +150,9 @@ def _work_precision(record: dict, study: dict, section: StudySection) -> None:
     section.figures.append(FigureSpec(
         name=f"{section.anchor}-work-precision", columns=2, panel_height=3.2,
         panels=(Panel(title="function evaluations", xlabel=f"{study['quantity']} error (log)",
-                      ylabel="function evaluations (log)", lines=tuple(fev_lines), xscale="log", yscale="log"),
+                      ylabel="function evaluations (log)", lines=tuple(fev_lines), xscale="log", yscale="log", decades=16),
                 Panel(title="time", xlabel=f"{study['quantity']} error (log)", ylabel="seconds (log)",
-                      lines=tuple(time_lines), xscale="log", yscale="log")),
+                      lines=tuple(time_lines), xscale="log", yscale="log", decades=16)),
         caption=f"{title}: {what} of {study['quantity']} against function evaluations (left) and time (right), "
                 "one curve per method, from loose to tight tolerances. Times of a few milliseconds are noisy.",
         alt="work-precision diagram of " + ", ".join(c["label"] for c in study["curves"])))
