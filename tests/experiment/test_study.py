@@ -54,3 +54,55 @@ def test_summary_table_has_one_row_per_case(studies):
     assert row["case"] == "method=rk4, h=0.003125" and row["nsteps"] == 3200 and row["nfevals"] == 12800
     lines = sweep_csv(record).splitlines()
     assert len(lines) == 31 and lines[0].split(",")[-3:] == ["y_max_abs", "y_end_abs", "y_max_rel"]
+
+
+SMALL = """
+[system]
+states = ["y"]
+[system.equations]
+y = "-y"
+[initial]
+y = 1
+[time]
+stop = 20
+[exact]
+y = "exp(-t)"
+[solver]
+method = "ode45"
+atol = 1e-12
+[sweep]
+"solver.method" = ["ode23", "ode45"]
+"solver.rtol" = { from = 1e-4, to = 1e-8, count = 3, log = true }
+[study]
+kind = "KIND"
+error = "max"
+"""
+
+
+def _run_small(tmp_path, kind):
+    from odelab.experiment.loader import load_experiment
+
+    path = tmp_path / f"{kind}.toml"
+    path.write_text(SMALL.replace("KIND", kind))
+    exp = load_experiment(path)
+    results = list(run_cases(exp.cases, executor="serial"))
+    return run_study(exp.study, sweep_rows(results))
+
+
+def test_tolerance_convergence_of_adaptive_methods(tmp_path):
+    study = _run_small(tmp_path, "convergence")
+    assert study["over"] == "solver.rtol"
+    for curve in study["curves"]:
+        assert curve["nominal"] is None and curve["h"] == [1e-4, 1e-6, 1e-8]
+        # error proportional to the tolerance, give or take: MATLAB's controllers are not exact
+        assert 0.95 < curve["order"] < 1.1, curve  # measured 1.022 (ode23), 1.021 (ode45)
+
+
+def test_work_precision_ode45_is_cheaper_than_ode23_at_tight_tolerances(tmp_path):
+    study = _run_small(tmp_path, "work-precision")
+    curves = {c["label"]: c for c in study["curves"]}
+    assert list(curves) == ["ode23", "ode45"]
+    assert curves["ode45"]["nfevals"][-1] < curves["ode23"]["nfevals"][-1] / 3
+    assert all(e is not None and e < 1e-6 for e in curves["ode45"]["error"][1:])
+    # about 10^(1/p) more work per digit (order 3: x2.15, order 5: x1.58); measured x1.90 and x1.41
+    assert 1.8 < 10 ** curves["ode23"]["slope"] < 2.6 and 1.2 < 10 ** curves["ode45"]["slope"] < 1.8
