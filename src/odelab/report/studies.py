@@ -121,7 +121,7 @@ def _convergence(record: dict, study: dict, section: StudySection) -> None:
                   ylabel=f"{study['quantity']} error (log)", lines=tuple(lines), xscale="log", yscale="log",
                   legend_outside=True, decades=16)  # every point down to round-off
     section.figures.append(FigureSpec(
-        name=f"{section.anchor}-convergence", panels=(panel,), panel_height=3.6,
+        name=f"{section.anchor}-convergence", panels=(panel,), panel_height=3.0,
         caption=f"Convergence: {what} of {study['quantity']} against {over}, log-log; dashed: the fitted C {over}^p, "
                 "crosses: points left out of the fit.",
         alt=f"log-log plot of the error against {over} for " + ", ".join(c["label"] for c in study["curves"])))
@@ -148,7 +148,7 @@ def _work_precision(record: dict, study: dict, section: StudySection) -> None:
                              "—" if slope is None or not math.isfinite(slope) else f"×{10 ** slope:.2f}"])
     title = record.get("title") or record["experiment"]
     section.figures.append(FigureSpec(
-        name=f"{section.anchor}-work-precision", columns=2, panel_height=3.2,
+        name=f"{section.anchor}-work-precision", columns=2, panel_height=2.6,
         panels=(Panel(title="function evaluations", xlabel=f"{study['quantity']} error (log)",
                       ylabel="function evaluations (log)", lines=tuple(fev_lines), xscale="log", yscale="log", decades=16),
                 Panel(title="time", xlabel=f"{study['quantity']} error (log)", ylabel="seconds (log)",
