@@ -90,8 +90,28 @@ def build_ode(model: schema.Experiment, params: dict[str, float]) -> Built:
         compiled = CompiledSystem.from_equations(states, [system.equations[s] for s in states], params,
                                                  keys=[f"system.equations.{s}" for s in states])
 
+    jacobian = _jacobian(system, states, params)
+    if system.jacobian is not None:
+        resolved["jacobian"] = [list(row) for row in system.jacobian]
     return Built(states=states, inputs=inputs, outputs=outputs, fun=fun, output_fn=output_fn, resolved=resolved,
-                 linear=False, system=sys_obj, compiled=compiled)
+                 linear=False, system=sys_obj, compiled=compiled, jacobian=jacobian)
+
+
+def _jacobian(system, states: tuple[str, ...], params: dict[str, float]):
+    """The exact df/dx for the stiff solvers: the file's `jacobian`, else complex step on the equations."""
+    from odelab.systems.jacobian import complex_step_jacobian, expression_jacobian
+
+    n = len(states)
+    if system.jacobian is None:
+        return complex_step_jacobian([system.equations[s] for s in states], states, params,
+                                     keys=[f"system.equations.{s}" for s in states])
+    rows = system.jacobian
+    if len(rows) != n or any(len(row) != n for row in rows):
+        shape = f"rows of {', '.join(str(len(r)) for r in rows)} entries"
+        raise ExperimentError(f"`system.jacobian` must be a {n}-by-{n} matrix, one row per equation: row i holds "
+                              f"the derivatives of d(state i)/dt with respect to {', '.join(states)}; got {shape}.",
+                              key="system.jacobian")
+    return expression_jacobian(rows, states, params)
 
 
 def _matrix(value, key: str, params: dict[str, float]) -> np.ndarray | None:
@@ -172,8 +192,12 @@ def build_state_space(model: schema.Experiment, params: dict[str, float]) -> Bui
 
         compiled = CompiledSystem.linear(A, ss.states)
 
+    if system.jacobian is not None:
+        raise ExperimentError("`system.jacobian` is for [system.equations]; a state-space system's Jacobian is "
+                              "its A matrix, which the stiff solvers use already: remove `jacobian`.",
+                              key="system.jacobian")
     return Built(states=ss.states, inputs=ss.inputs, outputs=ss.outputs, fun=fun, output_fn=output_fn,
-                 resolved=resolved, linear=True, system=ss, compiled=compiled)
+                 resolved=resolved, linear=True, system=ss, compiled=compiled, jacobian=A)
 
 
 # Keys each signal type takes, with their defaults (the rest are errors, not silently ignored).

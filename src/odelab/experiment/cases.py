@@ -82,3 +82,4 @@ class Built:
     signals: tuple = ()  # input signals set by the system itself (a diagram's sources)
     diagram: Any = None  # the CompiledDiagram, for drawings and reports
     compiled: Any = None  # CompiledSystem for the compiled backend (expression systems without inputs)
+    jacobian: Any = None  # exact df/dx for the stiff solvers: J(t, x) or a constant matrix

@@ -614,6 +614,12 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
     if method.kind in ("adaptive", "implicit"):
         resolved["solver"].setdefault("rtol", 1e-3)
         resolved["solver"].setdefault("atol", 1e-6)
+    if system.kind == "ode" and system.jacobian is not None and built.jacobian is not None:
+        _check_jacobian(built.jacobian, system, states, params, float(tspan[0]), x0)
+    if method.kind == "implicit" and built.jacobian is not None:
+        # The stiff solvers get the exact Jacobian of a known system, never finite differences.
+        options["jacobian"] = built.jacobian
+        resolved["solver"]["jacobian"] = getattr(built.jacobian, "source", "the A matrix")
 
     # exact solution and reference
     exact_fn = None
@@ -718,6 +724,22 @@ def _state_options(options: dict, states: tuple[str, ...], params: dict[str, flo
             out["mass"] = mass
             out.setdefault("mstate_dependence", "weak")
     return out
+
+
+def _check_jacobian(jacobian, system, states, params, t0: float, x0: np.ndarray) -> None:
+    """A hand-written Jacobian must match the equations (checked at the initial state by complex step)."""
+    from odelab.systems.jacobian import complex_step_jacobian
+
+    exact = complex_step_jacobian([system.equations[s] for s in states], states, params)(t0, x0)
+    given = jacobian(t0, x0)
+    bad = np.abs(given - exact) > 1e-6 * np.maximum(1.0, np.abs(exact))
+    if bad.any():
+        i, j = (int(k) for k in np.argwhere(bad)[0])
+        raise ExperimentError(
+            f"`system.jacobian[{i}][{j}]` = {system.jacobian[i][j]!r} is {given[i, j] + 0.0:.6g} at the initial state, "
+            f"but the derivative of the equation of {states[i]!r} with respect to {states[j]!r} is "
+            f"{exact[i, j]:.6g} there: fix the entry, or remove `jacobian` (odelab derives it exactly).",
+            key=f"system.jacobian[{i}][{j}]")
 
 
 def _check_linearize(spec: schema.Linearize, states, inputs, outputs, built) -> None:

@@ -42,6 +42,7 @@ class System(_Section):
     B: Matrix | None = None
     C: Matrix | None = None
     D: Matrix | None = None
+    jacobian: list[list[Value]] | None = None  # analytic df/dx of [system.equations], row i = d(eq_i)/dx
 
 
 class Time(_Section):

@@ -172,6 +172,10 @@ def build_report(
         section.error_figure = _draw(section.error_figure, taken)
         for view in section.linearisations:
             view.figures = [_draw(spec, taken) for spec in view.figures]
+        if section.stiffness is not None:
+            section.stiffness.figure = _draw(section.stiffness.figure, taken)
+            if section.stiffness.figure is not None:
+                figures.append(section.stiffness.figure)
         figures.extend(f for f in (section.solution_figure, section.error_figure) if f is not None)
         figures.extend(f for view in section.linearisations for f in view.figures)
     for study in studies:

@@ -81,6 +81,7 @@ class StoredRun:
     trajectory: dict[str, np.ndarray]
     folder: Path
     events: tuple[dict, ...] = ()  # located events (result.json "events"), see report/events.py
+    stats: dict[str, Any] = field(default_factory=dict)  # as stored, with the stiff solvers' npds, ndecomps...
 
     @property
     def ok(self) -> bool:
@@ -237,6 +238,7 @@ def parse_record(record: dict[str, Any]) -> StoredRun:
         trajectory=trajectory,
         folder=Path(str(record.get("folder", ""))),
         events=parse_events(record.get("events")),
+        stats=dict(stats),
     )
 
 

@@ -203,6 +203,7 @@ class Section:
     settings: list[tuple[str, str]] = field(default_factory=list)  # (case, resolved TOML)
     lab_note: LabNote | None = None
     solver_text: str = ""  # "ode23, ode45 (rtol 0.001, atol 1e-06); rk4 (h 0.05)": what a grader checks
+    stiffness: Any = None  # a StiffnessView when stiff and non-stiff methods meet (report/stiffness.py)
     layout: str = ""  # "by-quantity", "by-setup" or "states": how the figures are laid out
 
     @property
@@ -505,6 +506,9 @@ def build_sections(groups: list[ExperimentRuns]) -> tuple[list[Section], list[st
         section.event_tables = [t for t in (event_table(r) for r in runs) if t is not None]
         section.settings = _settings(runs)
         section.solver_text = _solver_text(runs)
+        from odelab.report.stiffness import stiffness_view
+
+        section.stiffness = stiffness_view(anchor, runs, units)
         for r in runs:
             lin = r.extra.get("linearization")
             if lin is None:

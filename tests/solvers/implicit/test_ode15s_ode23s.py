@@ -186,3 +186,27 @@ def test_maxorder_and_bdf_are_checked():
         odelab.ode15s(vdp, [0, 1], [2, 0], Jacobian=np.eye(3))
     with pytest.raises(ValueError, match="`bdf` must be true/false"):
         odelab.ode15s(vdp, [0, 1], [2, 0], BDF="yes")
+
+
+def test_mass_matrix_and_index1_dae():
+    # Robertson as a DAE (MATLAB's hb1dae): the third equation is the conservation law 0 = y1 + y2 + y3 - 1.
+    def dae(t, y):
+        return [-0.04 * y[0] + 1e4 * y[1] * y[2], 0.04 * y[0] - 1e4 * y[1] * y[2] - 3e7 * y[1] ** 2,
+                y[0] + y[1] + y[2] - 1]
+
+    rtol, atol = 1e-4, np.array([1e-8, 1e-14, 1e-8])
+    tspan = np.array([0, 0.4, 4, 40, 400, 4e3, 4e4, 4e5, 4e6, 4e8, 4e10])
+    sol = odelab.ode15s(dae, tspan, [1, 0, 0], Mass=np.diag([1.0, 1.0, 0.0]), RelTol=rtol, AbsTol=atol)
+    assert sol.success and sol.stats.nsteps < 600
+    ref = np.vstack([[1, 0, 0], ROBERTSON])
+    assert (np.abs(sol.y - ref) / (rtol * np.abs(ref) + atol)).max() < 5
+    np.testing.assert_allclose(sol.y.sum(axis=1), 1, atol=1e-12)  # the algebraic equation holds
+    # ode23s takes a nonsingular mass only, as MATLAB's does
+    with pytest.raises(ValueError, match=r"`mass` is singular \(a DAE\); ode23s needs a nonsingular mass matrix"):
+        odelab.ode23s(dae, [0, 1], [1, 0, 0], Mass=np.diag([1.0, 1.0, 0.0]))
+    # a nonsingular M: M y' = f is y' = M^-1 f
+    M = np.array([[2.0, 1.0], [0.0, 1.0]])
+    for method, units in (("ode15s", 5), ("ode23s", 50)):  # ode23s propagates its second-order solution
+        s = odelab.solve(lambda t, y: M @ np.array([-y[0], -2 * y[1]]), [0, 1], [1, 1], method=method, mass=M,
+                         rtol=1e-6, atol=1e-9)
+        np.testing.assert_allclose(s.y[-1], [np.exp(-1), np.exp(-2)], rtol=units * 1e-6)
