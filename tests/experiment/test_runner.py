@@ -46,3 +46,19 @@ def test_stiff_solvers_and_their_options_in_experiment_files(tmp_path):
     assert result.status == "success" and result.stats.nsteps < 600
     assert result.stats.as_dict()["npds"] == result.stats.npds >= 1
     assert result.errors["x"].max_abs < 0.05  # phase error of a relaxation oscillation at rtol 1e-3
+
+
+def test_singular_mass_is_a_dae_for_ode15s(tmp_path):
+    path = tmp_path / "dae.toml"
+    path.write_text('[system]\nstates = ["a", "b", "c"]\n[system.equations]\na = "-0.04*a + 1e4*b*c"\n'
+                    'b = "0.04*a - 1e4*b*c - 3e7*b^2"\nc = "a + b + c - 1"\n[initial]\na = 1\nb = 0\nc = 0\n'
+                    '[time]\nstop = 40\n[solver]\nmethod = "ode15s"\nrtol = 1e-4\natol = [1e-8, 1e-14, 1e-8]\n'
+                    'mass = [[1, 0, 0], [0, 1, 0], [0, 0, 0]]\n')
+    result = run_case(load_experiment(path).cases[0])
+    assert result.status == "success"
+    # y(40) of Robertson (Radau at rtol 1e-13), within a few units of the tolerance
+    assert abs(result.x[-1, 0] - 7.158270687194e-01) < 5 * (1e-4 * 0.716 + 1e-8)
+    assert abs(result.x[-1].sum() - 1) < 1e-12  # the algebraic equation holds
+    # the first evaluation and one per Newton iteration: the exact Jacobian, no finite differences (and
+    # no y'' probe for the first step of a DAE)
+    assert result.stats.nfevals == 1 + result.stats.nsolves

@@ -579,7 +579,7 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
     method = get_method(model.solver.method, key="solver.method")
     options = {k: v for k, v in model.solver.model_dump().items() if k not in ("method", "backend") and v is not None}
     backend = model.solver.backend
-    runtime_options = _state_options(options, states, params)
+    runtime_options = _state_options(options, states, params, dae=method.name in ("ode15s", "ode23t"))
     try:
         as_tspan(tspan)
         resolve_options(method, normalize_options(runtime_options, method), tspan, len(states))
@@ -682,7 +682,7 @@ def _units(units: dict[str, str], states, inputs, outputs, params) -> dict[str, 
     return dict(units)
 
 
-def _state_options(options: dict, states: tuple[str, ...], params: dict[str, float]) -> dict:
+def _state_options(options: dict, states: tuple[str, ...], params: dict[str, float], dae: bool = False) -> dict:
     """[solver] options written with state names or expressions, made what the solver takes.
 
     ``nonnegative = ["h"]`` becomes 0-based indices; ``mass`` (a matrix of expressions of t, the
@@ -709,7 +709,7 @@ def _state_options(options: dict, states: tuple[str, ...], params: dict[str, flo
         keys = [f"solver.mass[{i}][{j}]" for i in range(n) for j in range(n)]
         try:
             out["mass"] = np.array([constant(v, k, params) for v, k in zip(texts, keys)]).reshape(n, n)
-            if np.linalg.matrix_rank(out["mass"]) < n:
+            if not dae and np.linalg.matrix_rank(out["mass"]) < n:
                 raise ExperimentError("`solver.mass` is singular: M y' = f with a singular M is a differential-"
                                       "algebraic equation (DAE), which ode45/ode23 cannot solve (MATLAB uses ode15s "
                                       "or ode23t).", key="solver.mass")
