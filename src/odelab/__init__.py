@@ -34,6 +34,16 @@ _LAZY = {
     "Response": "odelab.systems.simulate",
     "linearize": "odelab.analysis.linearize",
     "operating_point": "odelab.analysis.linearize",
+    "tf": "odelab.analysis.control",
+    "ss2tf": "odelab.analysis.control",
+    "tf2ss": "odelab.analysis.control",
+    "stepinfo": "odelab.analysis.control",
+    "bode": "odelab.analysis.control",
+    "margins": "odelab.analysis.control",
+    "poles": "odelab.analysis.control",
+    "zeros": "odelab.analysis.control",
+    "dcgain": "odelab.analysis.control",
+    "damp": "odelab.analysis.control",
     "load_experiment": "odelab.experiment.loader",
     "run_experiment": "odelab.experiment.runner",
 }
@@ -63,6 +73,7 @@ def __dir__():
 
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
+    from odelab.analysis.control import bode, damp, dcgain, margins, poles, ss2tf, stepinfo, tf, tf2ss, zeros
     from odelab.analysis.linearize import linearize, operating_point
     from odelab.exceptions import (ExperimentError, ExpressionError, InputError, OdelabError, OdelabWarning,
                                    SolverWarning)

@@ -73,7 +73,7 @@ def build_ode(model: schema.Experiment, params: dict[str, float]) -> Built:
 
     sys_obj = None
     fun = None  # with inputs, the runner integrates through odelab.simulate, which applies them
-    if inputs or model.linearize is not None:
+    if inputs or model.linearize is not None or model.analysis is not None:
         from odelab.systems.nonlinear import NonlinearSystem
 
         # The system object keeps a complex-step-safe compilation for exact Jacobians.

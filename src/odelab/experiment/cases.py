@@ -40,6 +40,7 @@ class Problem:
     events: Any = None  # the compiled [events] (an experiment.events.EventSet), if any
     backend: str = "auto"  # [solver] backend: "auto", "python" or "compiled"
     compiled: Any = None  # an odelab.solvers.compiled.CompiledSystem where the system allows one
+    analysis: Any = None  # the resolved [analysis] section: {"step_info", "bode", "poles", "input"}
 
 
 @dataclass(frozen=True, eq=False)

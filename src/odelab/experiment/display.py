@@ -94,6 +94,13 @@ def print_experiment(console: Console, exp, results, *, table: bool = False) -> 
     if undefined:
         console.print("[dim]relative error undefined (reference zero or tiny; left out of the maximum) at this many "
                       f"points: {_shown('; '.join(undefined), lines=True)}[/]")
+    printed = []
+    for r in results:
+        info = r.extra.get("analysis")
+        if info is not None and not any(info["A"] == a["A"] and info["B"] == a["B"] and info["C"] == a["C"]
+                                        and info["D"] == a["D"] for a in printed):
+            print_analysis(console, r.case.name if printed or len(results) == 1 else None, info)
+            printed.append(info)
     for r in results:
         if r.events:
             print_events(console, r)
@@ -123,6 +130,56 @@ def print_point_table(console: Console, r) -> None:
 
 def _matrix(rows) -> str:
     return "[" + "; ".join(" ".join(f"{v:.6g}" for v in row) for row in rows) + "]"
+
+
+def _num(v: float, digits: int = 4) -> str:
+    if v is None or v != v:
+        return "-"
+    if v in (float("inf"), float("-inf")):
+        return "inf" if v > 0 else "-inf"
+    return f"{v:.{digits}g}"
+
+
+def print_analysis(console: Console, case: str | None, info: dict) -> None:
+    """[analysis]: transfer functions, poles, step metrics and margins of the linear model."""
+    where = f" ({_shown(case)})" if case else ""
+    if "operating_point" in info:
+        op = info["operating_point"]
+        point = ", ".join(f"{k} = {v:.6g}" for k, v in {**op["x"], **op["u"]}.items())
+        console.print(f"[bold]analysis{where}[/]: linear model about the operating point {_shown(point)}")
+    else:
+        console.print(f"[bold]analysis{where}[/]: the system is linear; its own A, B, C, D")
+    for g in info["transfer_functions"]:
+        num, den = g["text"]
+        console.print(f"  {_shown(g['output'])}/{_shown(g['input'])}: G(s) = ({_shown(num)}) / ({_shown(den)}), "
+                      f"DC gain {_num(g['dc_gain'], 6)}")
+    if "poles" in info:
+        poles = ", ".join(f"{p['re']:.4g}{p['im']:+.4g}j" if p["im"] else f"{p['re']:.4g}" for p in info["poles"])
+        console.print(f"  poles: {poles}")
+        console.print("  natural frequency wn (rad/s) / damping ratio: "
+                      + ", ".join(f"{p['wn']:.4g} / {p['zeta']:.4g}" for p in info["poles"]))
+        for channel, zs in info["zeros"].items():
+            if zs:
+                console.print(f"  zeros of {_shown(channel)}: "
+                              + ", ".join(f"{z['re']:.4g}{z['im']:+.4g}j" if z["im"] else f"{z['re']:.4g}"
+                                          for z in zs))
+    if "step_info" in info:
+        t = Table(show_edge=False, box=None, header_style="bold", pad_edge=False)
+        cols = ("RiseTime", "SettlingTime", "Overshoot", "Undershoot", "Peak", "PeakTime", "SteadyStateValue")
+        t.add_column("step", justify="left")
+        for c in cols:
+            t.add_column(c, justify="right")
+        for s in info["step_info"]:
+            t.add_row(f"{_shown(s['input'])} -> {_shown(s['output'])}", *(_num(s[c]) for c in cols))
+        console.print(t)
+    if "bode" in info:
+        for m in info.get("margins", ()):
+            console.print(f"  margins of {_shown(m['output'])}/{_shown(m['input'])} as a loop gain: gain margin "
+                          f"{_num(m['gain_margin_db'])} dB at {_num(m['phase_crossover'])} rad/s, phase margin "
+                          f"{_num(m['phase_margin'])} deg at {_num(m['gain_crossover'])} rad/s")
+        w = info["bode"]["w"]
+        console.print(f"  [dim]Bode data: {len(w)} frequencies from {w[0]:g} to {w[-1]:g} rad/s in --json, "
+                      "result.json and the report[/]")
 
 
 def print_linearization(console: Console, case: str, info: dict) -> None:

@@ -657,12 +657,18 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
             check_count("amplitudes", len(model.linearize.amplitudes), "linearize.amplitudes", "amplitudes", limits)
         resolved["linearize"] = _plain(model.linearize.model_dump(exclude_none=True))
 
+    analysis = None
+    if model.analysis is not None:
+        analysis = _check_analysis(model.analysis, inputs, built, params)
+        resolved["analysis"] = _plain({k: v for k, v in model.analysis.model_dump(by_alias=True).items()
+                                       if v is not None})
+
     problem = Problem(
         states=states, inputs=inputs, outputs=outputs, fun=built.fun, tspan=tspan, x0=x0, method=method.name,
         options=options, output_fn=built.output_fn, input_fn=input_fn, exact_fn=exact_fn, reference=kind,
         reference_solver=(ref.solver, float(ref.rtol), float(ref.atol)), system=built.system, signals=signals,
         linearize=model.linearize, parameters=params, diagram=built.diagram, events=events, backend=backend,
-        compiled=built.compiled,
+        compiled=built.compiled, analysis=analysis,
     )
     return problem, resolved
 
@@ -772,6 +778,37 @@ def _check_linearize(spec: schema.Linearize, states, inputs, outputs, built) -> 
     if not (math.isfinite(spec.threshold) and spec.threshold > 0):
         raise ExperimentError(f"`linearize.threshold` must be a positive fraction such as 0.05; got {spec.threshold!r}.",
                               key="linearize.threshold")
+
+
+def _check_analysis(spec: schema.Analysis, inputs, built, params) -> dict:
+    """[analysis] checked at load time; returns what the runner needs."""
+    if built.system is None:
+        raise ExperimentError("[analysis] needs a state-space model, a diagram or a system of equations; a "
+                              "`function` system cannot be analysed from the file.", key="analysis")
+    u0 = {}
+    for name, value in (spec.input or {}).items():
+        if name not in inputs:
+            close = difflib.get_close_matches(name, inputs, n=1)
+            hint = f" Did you mean `{close[0]}`?" if close else ""
+            raise ExperimentError(f"`analysis.input.{name}`: {name!r} is not one of the inputs "
+                                  f"({', '.join(inputs) or 'none'}).{hint}", key=f"analysis.input.{name}")
+        u0[name] = constant(value, f"analysis.input.{name}", params)
+    if u0 and built.linear:
+        raise ExperimentError("`analysis.input` sets the operating input of a nonlinear system; this system is "
+                              "linear, so its model does not depend on it: remove it.", key="analysis.input")
+    bode = None
+    if spec.bode is not False:
+        rng = spec.bode if spec.bode is not True else schema.BodeRange()
+        lo, hi = float(rng.from_), float(rng.to)
+        if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
+            raise ExperimentError(f"`analysis.bode` must have 0 < from < to (rad/s); got from = {rng.from_!r}, "
+                                  f"to = {rng.to!r}.", key="analysis.bode")
+        if not 2 <= rng.points <= 100_000:
+            raise ExperimentError(f"`analysis.bode.points` must be between 2 and 100000; got {rng.points}.",
+                                  key="analysis.bode.points")
+        bode = {"from": lo, "to": hi, "points": rng.points}
+    return {"step_info": spec.step_info, "bode": bode, "poles": spec.poles,
+            "input": [u0.get(n, 0.0) for n in inputs]}
 
 
 def _all_exact(signals) -> bool:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import time
 
 import numpy as np
@@ -98,7 +99,46 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
     result = CaseResult(case=case, status=status, message=message, stats=stats, elapsed=elapsed, t=t, x=x, u=u,
                         y=y, warnings=list(warnings), events=events, event_marks=marks, backend=ran)
     _reference(result)
+    if p.analysis is not None:
+        from odelab.exceptions import InputError
+
+        try:
+            result.extra["analysis"] = analyze_problem(p)
+        except InputError as exc:  # e.g. no equilibrium to linearise about
+            result.warnings.append(f"[analysis] could not be computed: {exc.message}")
     return result
+
+
+def analyze_problem(p) -> dict:
+    """The [analysis] of a case's system: its own matrices if linear, else its linear model about
+    the equilibrium for the operating input (exact Jacobians)."""
+    from odelab.analysis.control import analyze
+    from odelab.systems.statespace import StateSpace
+
+    key = None if not isinstance(p.system, StateSpace) else (
+        p.system.A.tobytes(), p.system.B.tobytes(), p.system.C.tobytes(), p.system.D.tobytes(), p.system.A.shape,
+        p.system.B.shape, p.system.C.shape, p.system.states, p.system.inputs, p.system.outputs, repr(p.analysis))
+    if key is not None and key in _ANALYSES:  # the cases of an experiment usually share their system
+        return copy.deepcopy(_ANALYSES[key])
+    system, point = p.system, None
+    if not isinstance(system, StateSpace):
+        from odelab.analysis.linearize import linearize
+
+        system = linearize(system, u0=p.analysis["input"])
+        op = system.operating_point
+        point = {"x": dict(zip(op.states, op.x.tolist())), "u": dict(zip(op.inputs, op.u.tolist())),
+                 "residual": op.residual}
+    spec = p.analysis
+    info = analyze(system, step_info=spec["step_info"], bode_range=spec["bode"], show_poles=spec["poles"],
+                   linearized_at=point, with_margins=p.diagram is None)
+    if key is not None:
+        if len(_ANALYSES) > 64:
+            _ANALYSES.clear()
+        _ANALYSES[key] = copy.deepcopy(info)
+    return info
+
+
+_ANALYSES: dict = {}
 
 
 def _reference(result: CaseResult) -> None:

@@ -126,6 +126,23 @@ class Linearize(_Section):
     step_time: Number = 0.0
 
 
+class BodeRange(_Section):
+    """[analysis] bode = { from = 0.01, to = 100 }: the frequency range in rad/s."""
+
+    from_: Number = Field(0.01, alias="from")
+    to: Number = 100.0
+    points: StrictInt = 200
+
+
+class Analysis(_Section):
+    """[analysis]: control analysis of the (linear or linearised) system."""
+
+    step_info: StrictBool = False
+    bode: Union[StrictBool, BodeRange] = False
+    poles: StrictBool = False
+    input: dict[str, Value] | None = None  # operating input of a nonlinear system (default 0)
+
+
 class Experiment(_Section):
     """A whole experiment file, or one case after merging it over the base."""
 
@@ -141,6 +158,7 @@ class Experiment(_Section):
     reference: Reference = Field(default_factory=Reference)
     inputs: dict[str, Annotated[InputSignal, Field()]] | None = None
     linearize: Linearize | None = None
+    analysis: Analysis | None = None
     blocks: dict[str, dict[str, Any]] | None = None  # kind = "diagram"; checked by experiment/diagram.py
     units: dict[str, StrictStr] | None = None  # [units]: x = "m", f = "N", t = "s": axis labels
     events: dict[str, Any] | None = None  # checked and compiled by experiment/events.py
