@@ -61,6 +61,14 @@ def test_pi_loop_linear_model_matches_the_closed_loop_formula():
     np.testing.assert_allclose(y["den"], np.asarray(T.den[0][0]).ravel(), rtol=1e-12)
     np.testing.assert_allclose(y["den"], [1, 4, 3 + q * Kp, q * Ki], rtol=1e-13)
     assert y["dc_gain"] == pytest.approx(1.0, rel=1e-13)  # integral action: no steady-state error
+    # The loop opened at the actuator's input is L = C G, with its margins.
+    loop = info["loop"]
+    L = control.minreal(C * G, verbose=False)
+    np.testing.assert_allclose(loop["num"], np.asarray(L.num[0][0]).ravel(), rtol=1e-12)
+    np.testing.assert_allclose(loop["den"], np.asarray(L.den[0][0]).ravel(), rtol=1e-12, atol=1e-12)
+    gm, pm, _, _, wcp, _ = control.stability_margins(L)
+    assert loop["phase_margin"] == pytest.approx(pm, rel=1e-9) and loop["gain_crossover"] == pytest.approx(wcp)
+    assert loop["gain_margin"] == float("inf")  # the phase only tends to -180 degrees
     # The saturating run: the actuator sits at its limit at first, and the loop still settles at r.
     u = r.series()["u"]
     assert u.max() == 5.0 and r.series()["y"][-1] == pytest.approx(3.0, rel=2e-3)

@@ -34,7 +34,8 @@ import numpy as np
 from odelab.exceptions import InputError
 
 __all__ = ["StepInfo", "FrequencyResponse", "to_control", "tf", "ss2tf", "tf2ss", "poles", "zeros", "dcgain",
-           "damp", "stepinfo", "step_metrics", "bode", "margins", "analyze", "tf_text"]
+           "damp", "stepinfo", "step_metrics", "bode", "margins", "analyze", "tf_text", "loop_gain",
+           "loop_analysis"]
 
 
 def _ct():
@@ -354,10 +355,17 @@ def margins(system) -> dict[tuple[str, str], dict[str, float]]:
         for j, u in enumerate(ss.inputs):
             with np.errstate(all="ignore"):
                 gm, pm, _, wcg, wcp, _ = ct.stability_margins(G[i, j])
+            if gm > GAIN_MARGIN_LIMIT:
+                # A phase that tends to -180 degrees (relative degree 2) "crosses" it only through
+                # round-off, at a frequency where |L| is below 1e-10: MATLAB reports Inf there.
+                gm, wcg = math.inf, math.nan
             out[(y, u)] = {"gain_margin": float(gm), "gain_margin_db": float(20 * np.log10(gm)) if gm > 0 else
                            math.nan, "phase_margin": float(pm), "phase_crossover": float(wcg),
                            "gain_crossover": float(wcp)}
     return out
+
+
+GAIN_MARGIN_LIMIT = 1e10  # 200 dB
 
 
 def tf_text(num, den, var: str = "s") -> tuple[str, str]:
@@ -424,4 +432,37 @@ def analyze(system, *, step_info: bool = False, bode_range: dict | None = None, 
             for i, y in enumerate(fr.outputs) for j, u in enumerate(fr.inputs)]}
         if with_margins:
             out["margins"] = [{"output": y, "input": u, **m} for (y, u), m in margins(ss).items()]
+    return out
+
+
+# --- loops ------------------------------------------------------------------------------------
+
+
+def loop_gain(open_system, x0, u0):
+    """L(s) of a loop opened at one signal: ``open_system`` has the extra last input ``loop_in``
+    and the output ``loop_out`` (:meth:`odelab.systems.diagram.CompiledDiagram.open_loop`); it is
+    linearised exactly at the closed loop's operating point (x0, u0), and L = -loop_out/loop_in,
+    so that the closed loop is 1/(1 + L) as MATLAB's ``margin`` assumes."""
+    from odelab.analysis.linearize import linearize
+    from odelab.systems.statespace import StateSpace
+
+    x0 = np.asarray(x0, dtype=float)
+    u0 = np.asarray(u0, dtype=float)
+    z0 = float(np.asarray(open_system.output(0.0, x0, np.append(u0, 0.0))).reshape(-1)[0])
+    lin = linearize(open_system, x0=x0, u0=np.append(u0, z0), check=False)
+    return StateSpace(lin.A, lin.B[:, -1:], -lin.C, -lin.D[:, -1:], states=lin.states, inputs=("loop_in",),
+                      outputs=("loop_out",))
+
+
+def loop_analysis(open_system, x0, u0, at: str, bode_range: dict | None) -> dict[str, Any]:
+    """The loop gain L(s) at ``at``: its transfer function, gain and phase margins, Bode data."""
+    L = loop_gain(open_system, x0, u0)
+    G = ss2tf(L)
+    num, den = np.asarray(G.num[0][0], dtype=float), np.asarray(G.den[0][0], dtype=float)
+    out: dict[str, Any] = {"at": at, "num": num.tolist(), "den": den.tolist(), "text": list(tf_text(num, den)),
+                           **margins(L)[("loop_out", "loop_in")]}
+    rng = bode_range or {"from": 0.01, "to": 100.0, "points": 200}
+    fr = bode(L, float(rng["from"]), float(rng["to"]), int(rng["points"]))
+    out["bode"] = {"w": fr.w.tolist(), "magnitude_db": fr.magnitude_db[0, 0].tolist(),
+                   "phase_deg": fr.phase_deg[0, 0].tolist()}
     return out

@@ -172,6 +172,12 @@ def print_analysis(console: Console, case: str | None, info: dict) -> None:
         for s in info["step_info"]:
             t.add_row(f"{_shown(s['input'])} -> {_shown(s['output'])}", *(_num(s[c]) for c in cols))
         console.print(t)
+    loop = info.get("loop")
+    if loop:
+        num, den = loop["text"]
+        console.print(f"  loop opened at the input of {_shown(loop['at'])}: L(s) = ({_shown(num)}) / ({_shown(den)}); "
+                      f"gain margin {_num(loop['gain_margin_db'])} dB at {_num(loop['phase_crossover'])} rad/s, "
+                      f"phase margin {_num(loop['phase_margin'])} deg at {_num(loop['gain_crossover'])} rad/s")
     if "bode" in info:
         for m in info.get("margins", ()):
             console.print(f"  margins of {_shown(m['output'])}/{_shown(m['input'])} as a loop gain: gain margin "

@@ -807,8 +807,14 @@ def _check_analysis(spec: schema.Analysis, inputs, built, params) -> dict:
             raise ExperimentError(f"`analysis.bode.points` must be between 2 and 100000; got {rng.points}.",
                                   key="analysis.bode.points")
         bode = {"from": lo, "to": hi, "points": rng.points}
+    if spec.loop is not None:
+        if built.diagram is None:
+            raise ExperimentError("`analysis.loop` opens a loop of a diagram at a block's input; this system is not "
+                                  "a diagram: remove it (the margins of a state-space system are computed as if "
+                                  "it were the loop gain).", key="analysis.loop")
+        built.diagram.open_loop(spec.loop)  # checks the block now, with its message
     return {"step_info": spec.step_info, "bode": bode, "poles": spec.poles,
-            "input": [u0.get(n, 0.0) for n in inputs]}
+            "input": [u0.get(n, 0.0) for n in inputs], "loop": spec.loop}
 
 
 def _all_exact(signals) -> bool:

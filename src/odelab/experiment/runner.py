@@ -99,6 +99,8 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
     result = CaseResult(case=case, status=status, message=message, stats=stats, elapsed=elapsed, t=t, x=x, u=u,
                         y=y, warnings=list(warnings), events=events, event_marks=marks, backend=ran)
     _reference(result)
+    if p.diagram is not None:
+        result.extra["diagram"] = diagram_record(p)
     if p.analysis is not None:
         from odelab.exceptions import InputError
 
@@ -107,6 +109,18 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
         except InputError as exc:  # e.g. no equilibrium to linearise about
             result.warnings.append(f"[analysis] could not be computed: {exc.message}")
     return result
+
+
+def diagram_record(p) -> dict:
+    """What the report needs of a diagram: its drawing (DOT) and, if linear, its A, B, C, D."""
+    from odelab.systems.diagram.draw import to_dot
+
+    d = p.diagram
+    record = {"linear": d.linear, "dot": to_dot(d.wiring), "states": list(d.states), "inputs": list(d.inputs),
+              "outputs": list(d.outputs)}
+    if d.linear and d.outputs:
+        record.update(zip("ABCD", (M.tolist() for M in d.matrices())))
+    return record
 
 
 def analyze_problem(p) -> dict:
@@ -131,6 +145,13 @@ def analyze_problem(p) -> dict:
     spec = p.analysis
     info = analyze(system, step_info=spec["step_info"], bode_range=spec["bode"], show_poles=spec["poles"],
                    linearized_at=point, with_margins=p.diagram is None)
+    if spec.get("loop"):
+        from odelab.analysis.control import loop_analysis
+
+        op = getattr(system, "operating_point", None)
+        x0 = op.x if op is not None else np.zeros(len(p.states))
+        u0 = op.u if op is not None else np.zeros(len(p.inputs))
+        info["loop"] = loop_analysis(p.diagram.open_loop(spec["loop"]), x0, u0, spec["loop"], spec["bode"])
     if key is not None:
         if len(_ANALYSES) > 64:
             _ANALYSES.clear()

@@ -141,6 +141,7 @@ class Analysis(_Section):
     bode: Union[StrictBool, BodeRange] = False
     poles: StrictBool = False
     input: dict[str, Value] | None = None  # operating input of a nonlinear system (default 0)
+    loop: StrictStr | None = None  # diagrams: the block at whose input the loop is opened for margins
 
 
 class Experiment(_Section):

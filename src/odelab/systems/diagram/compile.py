@@ -72,21 +72,29 @@ class CompiledDiagram:
 
     # -- evaluation ------------------------------------------------------------------------------
 
-    def _ports(self, t, x, u, cplx):
+    def _ports(self, t, x, u, cplx, cut=None):
+        """Every port's value; with ``cut`` (a block name) that block's input is u's last entry
+        instead of the signal wired to it (the loop opened there)."""
         w = self.wiring
         vals = {(name, 0): u[i:i + 1] for i, name in enumerate(self.inputs)}
         for name in self._order:
             b = w.blocks[name]
             xs = x[self.slices[name]] if name in self.slices else None
-            ins = [vals[s] for s in w.sources[name]] if b.feedthrough else []
+            if not b.feedthrough:
+                ins = []
+            elif name == cut:
+                ins = [u[-1:]]
+            else:
+                ins = [vals[s] for s in w.sources[name]]
             for i, v in enumerate(b.outputs(t, xs, ins, cplx)):
                 vals[(name, i)] = v
         return vals
 
-    def _dynamics(self, t, x, u, cplx=False):
+    def _dynamics(self, t, x, u, cplx=False, cut=None):
         w = self.wiring
-        vals = self._ports(t, x, u, cplx)
-        parts = [w.blocks[n].derivative(t, x[s], [vals[p] for p in w.sources[n]]) for n, s in self.slices.items()]
+        vals = self._ports(t, x, u, cplx, cut)
+        parts = [w.blocks[n].derivative(t, x[s], [u[-1:]] if n == cut else [vals[p] for p in w.sources[n]])
+                 for n, s in self.slices.items()]
         return np.concatenate(parts)
 
     def _output(self, t, x, u, cplx=False):
@@ -156,6 +164,40 @@ class CompiledDiagram:
         system.complex_step_dynamics = lambda t, x, u: self._dynamics(t, x, u, True)
         if self.outputs:
             system.complex_step_output = lambda t, x, u: self._output(t, x, u, True)
+        return system
+
+    def open_loop(self, at: str):
+        """The diagram with the loop opened at the input of block ``at``: a NonlinearSystem with
+        one more input, ``loop_in`` (what now enters ``at``), and one output, ``loop_out`` (the
+        signal that was wired into ``at``). Linearised, L(s) = -loop_out/loop_in is the loop gain
+        with the convention that the closed loop is 1/(1 + L) (MATLAB's ``margin`` convention)."""
+        from odelab.systems.nonlinear import NonlinearSystem
+
+        w = self.wiring
+        if at not in w.blocks or w.blocks[at].SOURCE:
+            import difflib
+
+            names = [n for n, b in w.blocks.items() if not b.SOURCE]
+            close = difflib.get_close_matches(str(at), names, n=1)
+            hint = f" Did you mean `{close[0]}`?" if close else ""
+            raise DiagramError(f"`analysis.loop`: {at!r} is not a block with an input ({', '.join(names)}).{hint}",
+                               key="analysis.loop")
+        feeds = w.sources[at]
+        if len(feeds) != 1 or w.widths[feeds[0]] != 1:
+            raise DiagramError(f"`analysis.loop`: block {at!r} has {len(feeds)} inputs; open the loop at a block "
+                               "with one scalar input (e.g. the actuator or the plant).", key="analysis.loop")
+        src = feeds[0]
+
+        def dynamics(t, x, u, cplx=False):
+            return self._dynamics(t, x, u, cplx, cut=at)
+
+        def output(t, x, u, cplx=False):
+            return np.reshape(self._ports(t, x, u, cplx, cut=at)[src], (1,))
+
+        system = NonlinearSystem(dynamics, output, states=self.states, inputs=(*self.inputs, "loop_in"),
+                                 outputs=("loop_out",), name=f"loop opened at {at}", complex_step=True)
+        system.complex_step_dynamics = lambda t, x, u: dynamics(t, x, u, True)
+        system.complex_step_output = lambda t, x, u: output(t, x, u, True)
         return system
 
     def simulate(self, tspan, *, method: str = "ode45", x0=None, **options):
