@@ -95,6 +95,29 @@ def _draw(spec, taken: set[str]) -> Figure | None:
     return Figure(name=name, caption=spec.caption, alt=spec.alt, png=render_png(spec))
 
 
+def _draw_control(view, stem: str, taken: set[str]) -> list[Figure]:
+    """The diagram (by Graphviz) and the Bode plot of a section, drawn."""
+    if view is None:
+        return []
+    from odelab.report.control import render_dot
+
+    drawn = []
+    if view.dot is not None:
+        png, view.diagram_note = render_dot(view.dot)
+        if png is not None:
+            name, i = f"{stem}-diagram", 2
+            while name in taken:
+                name, i = f"{stem}-diagram-{i}", i + 1
+            taken.add(name)
+            view.diagram_figure = Figure(name=name, caption="The block diagram as written in the experiment file, "
+                                         "laid out by Graphviz.", alt="Block diagram of the experiment.", png=png)
+            drawn.append(view.diagram_figure)
+    view.bode_figure = _draw(view.bode_figure, taken)
+    if view.bode_figure is not None:
+        drawn.append(view.bode_figure)
+    return drawn
+
+
 def build_report(
     runs: Path,
     out: Path,
@@ -176,6 +199,7 @@ def build_report(
             section.stiffness.figure = _draw(section.stiffness.figure, taken)
             if section.stiffness.figure is not None:
                 figures.append(section.stiffness.figure)
+        figures.extend(_draw_control(section.control, section.anchor, taken))
         figures.extend(f for f in (section.solution_figure, section.error_figure) if f is not None)
         figures.extend(f for view in section.linearisations for f in view.figures)
     for study in studies:

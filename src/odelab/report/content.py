@@ -205,6 +205,7 @@ class Section:
     solver_text: str = ""  # "ode23, ode45 (rtol 0.001, atol 1e-06); rk4 (h 0.05)": what a grader checks
     stiffness: Any = None  # a StiffnessView when stiff and non-stiff methods meet (report/stiffness.py)
     layout: str = ""  # "by-quantity", "by-setup" or "states": how the figures are laid out
+    control: Any = None  # report.control.ControlView: the diagram and [analysis] parts, if any
 
     @property
     def summary_rows(self) -> int:
@@ -454,8 +455,9 @@ def build_sections(groups: list[ExperimentRuns]) -> tuple[list[Section], list[st
     anchors = {g.name: anchor_for(g.name, taken) for g in groups}
     by_name = {g.name: g for g in groups}
     lab_note = _lab_note(by_name, anchors)
+    every = list(groups)
     sections = []
-    for group in groups:
+    for group in every:
         runs = group.runs
         anchor = anchors[group.name]
         shown, referenced = plot_quantities(runs)
@@ -523,6 +525,9 @@ def build_sections(groups: list[ExperimentRuns]) -> tuple[list[Section], list[st
             stem = anchor if len(runs) == 1 else f"{anchor}-{anchor_for(r.case, set())}"
             view.figures = linearisation_figures(stem, view, units)
             section.linearisations.append(view)
+        from odelab.report.control import control_view
+
+        section.control = control_view(anchor, runs, every)
         if group.name in ("exercise1", "exercise1_2pi") and lab_note is not None and not any(
                 s.lab_note for s in sections):
             section.lab_note = lab_note

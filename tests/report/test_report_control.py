@@ -1,0 +1,91 @@
+"""The report's diagram and control-analysis parts (odelab.report.control), from real runs."""
+
+from __future__ import annotations
+
+import os
+import shutil
+
+import pytest
+from report_support import build
+
+from odelab.systems.diagram.draw import dot_string, to_dot
+
+DOT = shutil.which("dot")
+if DOT is None and os.environ.get("ODELAB_REQUIRE_GRAPHVIZ"):
+    # CI installs Graphviz and sets this: a missing `dot` there is a failure, not a skip.
+    raise RuntimeError("ODELAB_REQUIRE_GRAPHVIZ is set but Graphviz's `dot` was not found")
+needs_dot = pytest.mark.skipif(DOT is None, reason="Graphviz is not installed (apt-get install -y graphviz): the "
+                                                   "diagram drawing cannot be checked")
+
+
+def section(html: str, anchor: str) -> str:
+    start = html.index(f'<section class="experiment" id="{anchor}">')
+    return html[start:html.index("</section>", start)]
+
+
+@needs_dot
+def test_figure1_is_drawn_and_shown_to_be_exercise2(lab_report):
+    fig1 = section(lab_report.html, "figure1")
+    assert '<figure id="fig-figure1-diagram">' in fig1 and "laid out by Graphviz" in fig1
+    assert (lab_report.out / "figures" / "figure1-diagram.png").read_bytes().startswith(b"\x89PNG")
+    assert "The same system as Exercise 2: mass-spring-damper as a state-space model" in fig1
+    assert "A and B are equal entry for entry, and so are the rows of C and D for y" in fig1
+    # same inputs, same solver, same output times: bit-for-bit the same responses
+    for case, points in (("step-ode45", 89), ("sine-ode45", 101), ("ramp-ode45", 69)):
+        assert (f"<tr><td>{case}</td><td>y</td><td class=\"num\">{points}</td><td class=\"num\">0.000e+00</td>"
+                f"<td class=\"num\">0</td></tr>") in fig1
+    assert "<caption>A</caption>" in fig1 and "The same system as" in lab_report.md
+
+
+def test_exercise2_shows_stepinfo_transfer_function_and_bode(lab_report):
+    ex2 = section(lab_report.html, "exercise2")
+    assert '<td class="mono">(10) / (s^2 + 4 s + 3)</td><td class="num">3.33333</td>' in ex2
+    assert '<td class="num">2.391</td><td class="num">4.317</td><td class="num">0</td><td class="num">0</td>' in ex2
+    assert "&infin; (approached)" in ex2
+    assert "phase margin 73.92&deg; at 2.402 rad/s" in ex2
+    assert '<figure id="fig-exercise2-bode">' in ex2
+    assert (lab_report.out / "figures" / "exercise2-bode.png").is_file()
+    assert "| f | y | (10) / (s^2 + 4 s + 3) | 3.33333 |" in lab_report.md
+
+
+def test_pi_loop_section_shows_the_closed_loop(lab_report):
+    pi = section(lab_report.html, "feedback_pi")
+    assert "(20 s + 30) / (s^3 + 4 s^2 + 23 s + 30)" in pi
+    assert "The diagram has nonlinear blocks" in pi and "Linear model about the operating point" in pi
+    assert "Taken as a loop gain" not in pi  # the closed loop's channels are not loop gains ...
+    assert ("The loop opened at the input of <code>actuator</code>: L(s) = <span class=\"mono\">(20 s + 30) / "
+            "(s^3 + 4 s^2 + 3 s)</span>") in pi  # ... the loop opened at the actuator is
+    assert "phase margin 29.89&deg; at 4.084 rad/s" in pi and '<figure id="fig-feedback_pi-bode">' in pi
+
+
+def test_without_graphviz_the_report_says_so(lab_runs, tmp_path, monkeypatch):
+    runs = tmp_path / "runs"
+    shutil.copytree(lab_runs / "figure1", runs / "figure1")
+    monkeypatch.setattr("odelab.report.control.shutil.which", lambda name: None)
+    report = build(runs, tmp_path / "report")
+    assert "Graphviz is not installed (no `dot` program), so the diagram is not drawn" in report.html
+    assert "apt install graphviz" in report.md
+    assert not (tmp_path / "report" / "figures" / "figure1-diagram.png").exists()
+
+
+def test_dot_strings_are_escaped():
+    assert dot_string('a"b\\c\nd') == '"a\\"b\\\\c\\nd"'
+    assert dot_string("x];evil[") == '"x];evil["'  # quoted: brackets are plain text
+
+
+@needs_dot
+def test_a_hostile_label_cannot_change_the_drawing():
+    from odelab import diagram as dg
+    from odelab.report.control import render_dot
+    from odelab.signals import Step
+
+    src = dg.Source(Step(), label='step"] ; x -> y [label="\\')
+    d = dg.Diagram({"s": src, "i": dg.Integrator(input="s")}, {"y": "i"}).compile()
+    text = to_dot(d.wiring)
+    import subprocess
+
+    plain = subprocess.run([DOT, "-Tplain"], input=text.encode(), capture_output=True, check=True).stdout.decode()
+    assert sum(line.startswith("edge ") for line in plain.splitlines()) == 2  # s -> i, i -> y: no edge added
+    assert sum(line.startswith("node ") for line in plain.splitlines()) == 3
+    png, note = render_dot(text)
+    assert note == "" and png.startswith(b"\x89PNG")
