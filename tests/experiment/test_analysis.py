@@ -51,8 +51,8 @@ def test_pi_loop_linear_model_matches_the_closed_loop_formula():
     cases = {c.name: c for c in load_experiment(FEEDBACK).cases}
     r = run_case(cases["step-3-saturating"])
     info = r.extra["analysis"]
-    assert info["operating_point"]["x"] == {"controller": 0.0, "plant.x": 0.0, "plant.v": 0.0}
-    Kp, Ki, q = 2.0, 3.0, 10.0
+    assert info["operating_point"]["x"] == {"PI": 0.0, "plant.x": 0.0, "plant.v": 0.0}
+    Kp, Ki, q = 2.0, 1.5, 10.0
     G = control.tf([q], [1, 4, 3])
     C = control.tf([Kp, Ki], [1, 0])
     T = control.minreal(control.feedback(C * G, 1), verbose=False)  # q (Kp s + Ki) / (s^3 + 4s^2 + (3 + q Kp) s + q Ki)

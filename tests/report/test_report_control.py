@@ -50,12 +50,12 @@ def test_exercise2_shows_stepinfo_transfer_function_and_bode(lab_report):
 
 def test_pi_loop_section_shows_the_closed_loop(lab_report):
     pi = section(lab_report.html, "feedback_pi")
-    assert "(20 s + 30) / (s^3 + 4 s^2 + 23 s + 30)" in pi
+    assert "(20 s + 15) / (s^3 + 4 s^2 + 23 s + 15)" in pi
     assert "The diagram has nonlinear blocks" in pi and "Linear model about the operating point" in pi
     assert "Taken as a loop gain" not in pi  # the closed loop's channels are not loop gains ...
-    assert ("The loop opened at the input of <code>actuator</code>: L(s) = <span class=\"mono\">(20 s + 30) / "
+    assert ("The loop opened at the input of <code>actuator</code>: L(s) = <span class=\"mono\">(20 s + 15) / "
             "(s^3 + 4 s^2 + 3 s)</span>") in pi  # ... the loop opened at the actuator is
-    assert "phase margin 29.89&deg; at 4.084 rad/s" in pi and '<figure id="fig-feedback_pi-bode">' in pi
+    assert "phase margin 40.53&deg; at 3.968 rad/s" in pi and '<figure id="fig-feedback_pi-bode">' in pi
 
 
 def test_without_graphviz_the_report_says_so(lab_runs, tmp_path, monkeypatch):
