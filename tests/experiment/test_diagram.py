@@ -100,3 +100,51 @@ def test_diagram_errors_name_the_key():
     with pytest.raises(InputError) as info:
         load_experiment(ROOT / "tests" / "assets" / "bad" / "diagram_sum_signs.toml")
     assert info.value.key == "blocks.net.signs"
+
+
+def test_every_source_type_in_a_file_is_the_signal_of_inputs(tmp_path):
+    (tmp_path / "u.csv").write_text("t,u\n0,0\n1,2\n2,2\n")
+    text = '''
+[parameters]
+a = 2
+[system]
+kind = "diagram"
+outputs = { step = "s1", ramp = "s2", sine = "s3", pulse = "s4", table = "s5", expr = "s6", const = "s7", t = "s8", xo = "x" }
+[blocks]
+s1 = { type = "step", time = "a/2", final = "a" }
+s2 = { type = "ramp", slope = "a", start = 0.5 }
+s3 = { type = "sine", amplitude = "a", frequency = 3, phase = 0.1 }
+s4 = { type = "pulse", amplitude = 1, period = "a", width = 0.5 }
+s5 = { type = "table", file = "u.csv" }
+s6 = { type = "expression", expression = "a*t^2" }
+s7 = { type = "constant", value = "-a" }
+s8 = { type = "clock" }
+m  = { type = "mux", inputs = ["s1", "s2", "s3", "s4", "s5", "s6", "s7", "s8"] }
+k  = { type = "gain", gain = [[1, 1, 1, 1, 1, 1, 1, 1]], input = "m" }
+x  = { type = "integrator", input = "k" }
+[time]
+stop = 2
+points = 41
+'''
+    path = tmp_path / "sources.toml"
+    path.write_text(text)
+    case = load_experiment(path).cases[0]
+    assert case.problem.inputs == ("s1", "s2", "s3", "s4", "s5", "s6", "s7", "s8")
+    # linear, but an expression source has no exact form: no automatic reference, as for [inputs]
+    assert type(case.problem.system).__name__ == "StateSpace" and case.problem.reference == "none"
+    r = run_case(case)
+    t = r.t
+    expected = {
+        "step": np.where(t >= 1, 2.0, 0.0),
+        "ramp": np.where(t >= 0.5, 2 * (t - 0.5), 0.0),
+        "sine": 2 * np.sin(3 * t + 0.1),
+        "pulse": np.where(np.mod(t, 2) < 1, 1.0, 0.0),  # width is a fraction of the period, as Simulink
+        "table": np.minimum(2 * t, 2.0),
+        "expr": 2 * t**2,
+        "const": -2.0 * np.ones_like(t),
+        "t": t,
+    }
+    series = r.series()
+    for name, values in expected.items():
+        np.testing.assert_allclose(series[name], values, rtol=0, atol=1e-12, err_msg=name)
+    assert r.status == "success" and series["xo"][-1] > 0
