@@ -26,7 +26,8 @@ def dot_string(text: str) -> str:
 def to_dot(wiring: Wiring, *, title: str | None = None) -> str:
     """DOT text for the diagram: one node per block, one edge per connection (labelled with the
     port and, into a sum, the sign), and a plain node per named output."""
-    lines = ["digraph diagram {", "  rankdir=LR;", '  node [fontname="Helvetica", fontsize=11];',
+    # ratio: at least 0.4 high per unit wide, so a long chain is not a thin strip on a phone
+    lines = ["digraph diagram {", "  rankdir=LR; ratio=0.4;", '  node [fontname="Helvetica", fontsize=11];',
              '  edge [fontname="Helvetica", fontsize=10, arrowsize=0.7];']
     if title:
         lines.append(f"  label={dot_string(title)}; labelloc=t;")
