@@ -41,7 +41,7 @@ def test_exercise2_shows_stepinfo_transfer_function_and_bode(lab_report):
     ex2 = section(lab_report.html, "exercise2")
     assert '<td class="mono">(10) / (s^2 + 4 s + 3)</td><td class="num">3.33333</td>' in ex2
     assert '<td class="num">2.391</td><td class="num">4.317</td><td class="num">0</td><td class="num">0</td>' in ex2
-    assert "&infin; (approached)" in ex2
+    assert '<span title="approached, never reached">&infin;</span>' in ex2
     assert "phase margin 73.92&deg; at 2.402 rad/s" in ex2
     assert '<figure id="fig-exercise2-bode">' in ex2
     assert (lab_report.out / "figures" / "exercise2-bode.png").is_file()
