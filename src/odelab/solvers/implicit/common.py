@@ -170,6 +170,19 @@ def rms_or_max(v: np.ndarray, scale: np.ndarray) -> float:
     return float(np.max(np.abs(v) / scale)) if v.size else 0.0
 
 
+def clamp_step(t: float, tf: float, absh: float, hmax: float) -> tuple[float, float, bool]:
+    """MATLAB's rule at the top of every step: ``absh`` within ``[hmin, hmax]`` with
+    ``hmin = 16 eps(t)``, and stretched (or shrunk) to land on ``tf`` when within 10 % of it.
+
+    Returns ``(hmin, absh, done)``; ``done`` means this step ends at ``tf``.
+    """
+    hmin = 16.0 * math.ulp(t)
+    absh = min(hmax, max(hmin, absh))
+    if 1.1 * absh >= abs(tf - t):
+        return hmin, abs(tf - t), True
+    return hmin, absh, False
+
+
 def initial_step(f0, y0, threshold, rtol, power, hmax, htspan, t0, htry, normcontrol=False):
     """MATLAB's first step from ``y'(t0)``: ``1 / (||f0 / wt|| / (0.8 rtol^power))``, capped."""
     hmin = 16.0 * math.ulp(t0)

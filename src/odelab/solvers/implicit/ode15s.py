@@ -26,7 +26,7 @@ import warnings
 import numpy as np
 
 from odelab.solvers import engine
-from odelab.solvers.implicit.common import SQRT_EPS, Output, Work
+from odelab.solvers.implicit.common import SQRT_EPS, Output, Work, clamp_step
 
 __all__ = ["integrate_ode15s", "KAPPA"]
 
@@ -115,12 +115,7 @@ def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
             nconhk = 0
             h = tdir * absh
             while True:
-                hmin = 16.0 * math.ulp(t)
-                absh = min(hmax, max(hmin, absh))
-                done = False
-                if 1.1 * absh >= abs(tf - t):
-                    absh = abs(tf - t)
-                    done = True
+                hmin, absh, done = clamp_step(t, tf, absh, hmax)
                 if absh != absh_D:
                     change_differences(D, k, absh / absh_D)
                     absh_D = absh

@@ -28,7 +28,7 @@ import warnings
 import numpy as np
 
 from odelab.solvers import engine
-from odelab.solvers.implicit.common import SQRT_EPS, Output, Work, initial_step
+from odelab.solvers.implicit.common import SQRT_EPS, Output, Work, clamp_step, initial_step
 
 __all__ = ["integrate_ode23s", "D", "E32"]
 
@@ -39,7 +39,6 @@ POWER = 1.0 / 3.0
 
 def integrate_ode23s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, max_steps):
     """Integrate with ode23s; returns ``(t, y, nsteps, nfailed, status, t_stop, h_stop, exc)``."""
-    n = y0.size
     t0, tf = float(tspan[0]), float(tspan[-1])
     tdir = 1.0 if tf > t0 else -1.0
     threshold = atol / rtol
@@ -53,14 +52,8 @@ def integrate_ode23s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
         warnings.simplefilter("ignore")
         try:
             while True:
-                hmin = 16.0 * math.ulp(t)
-                absh = min(hmax, max(hmin, absh))
-                h = tdir * absh
-                done = False
-                if 1.1 * absh >= abs(tf - t):
-                    h = tf - t
-                    absh = abs(h)
-                    done = True
+                hmin, absh, done = clamp_step(t, tf, absh, hmax)
+                h = tf - t if done else tdir * absh
                 # Partial derivatives, once per step: J and T = df/dt by a forward difference.
                 J = work.jacobian(t, y, F0, threshold)
                 tdel = (t + tdir * min(SQRT_EPS * max(abs(t), abs(t + h)), absh)) - t
