@@ -5,6 +5,12 @@ one stepping engine (:mod:`odelab.solvers.engine`) reads the arrays, it never sp
 a method. A tableau checks its own invariants when it is built (row sums, consistency,
 the order conditions up to its order, the error weights and the continuous extension), so
 a typo in a coefficient fails at import, not in a user's results.
+
+The order conditions are checked for every rooted tree up to order 9 (486 trees): Butcher's
+elementary weights ``b . Phi(t) = 1/gamma(t)`` (Butcher, *Numerical Methods for ODEs*, 3rd
+ed., 2016, Sec. 31), and for a continuous extension ``b(s) . Phi(t) = s^|t| / gamma(t)`` for
+every power of ``s`` separately. Verner's high-order pairs (``ode78``, ``ode89``) live in
+:mod:`odelab.solvers.verner`.
 """
 
 from __future__ import annotations
@@ -35,34 +41,84 @@ def _array(rows) -> np.ndarray:
     return out
 
 
-def _order_conditions(A: np.ndarray, b: np.ndarray, c: np.ndarray) -> list[tuple[int, float, float]]:
-    """(order, value, required) for the Runge-Kutta order conditions up to order 5.
+MAX_CHECKED_ORDER = 9
 
-    One condition per rooted tree (Butcher, *Numerical Methods for ODEs*, 3rd ed., 2016,
-    Table 315(I)): 1, 1, 2, 4 and 9 conditions for orders 1 to 5.
+
+def rooted_trees(max_order: int = MAX_CHECKED_ORDER) -> list[tuple[int, ...]]:
+    """Every rooted tree up to ``max_order`` nodes, each as the sorted indices of its subtrees.
+
+    Tree 0 is the single node; a tree ``(i, j, ...)`` is a root carrying trees i, j, ... of
+    this same list (which come before it). The counts per order are 1, 1, 2, 4, 9, 20, 48,
+    115, 286 (OEIS A000081).
     """
-    Ac = A @ c
-    c2, c3 = c**2, c**3
-    rows = [
-        (1, b.sum(), 1.0),
-        (2, b @ c, 1 / 2),
-        (3, b @ c2, 1 / 3),
-        (3, b @ Ac, 1 / 6),
-        (4, b @ c3, 1 / 4),
-        (4, b @ (c * Ac), 1 / 8),
-        (4, b @ (A @ c2), 1 / 12),
-        (4, b @ (A @ Ac), 1 / 24),
-        (5, b @ c**4, 1 / 5),
-        (5, b @ (c2 * Ac), 1 / 10),
-        (5, b @ (c * (A @ c2)), 1 / 15),
-        (5, b @ (c * (A @ Ac)), 1 / 30),
-        (5, b @ (Ac**2), 1 / 20),
-        (5, b @ (A @ c3), 1 / 20),
-        (5, b @ (A @ (c * Ac)), 1 / 40),
-        (5, b @ (A @ (A @ c2)), 1 / 60),
-        (5, b @ (A @ (A @ Ac)), 1 / 120),
-    ]
-    return rows
+    trees: list[tuple[int, ...]] = [()]
+    orders = [1]
+
+    def forests(total: int, first: int):
+        # Multisets of trees (as non-decreasing index tuples) whose orders add up to total.
+        if total == 0:
+            yield ()
+            return
+        for i in range(first, len(trees)):
+            if orders[i] <= total:
+                for rest in forests(total - orders[i], i):
+                    yield (i, *rest)
+
+    for p in range(2, max_order + 1):
+        new = list(forests(p - 1, 0))
+        trees.extend(new)
+        orders.extend([p] * len(new))
+    return trees
+
+
+_TREES = rooted_trees()
+# How many trees have at most p nodes: 1, 2, 4, 8, 17, 37, 85, 200, 486.
+_TREE_COUNTS = {p: n for p, n in zip(range(1, MAX_CHECKED_ORDER + 1), (1, 2, 4, 8, 17, 37, 85, 200, 486))}
+
+
+def _tree_data(A: np.ndarray, max_order: int = MAX_CHECKED_ORDER) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Order |t|, density gamma(t) and stage vector Phi(t) of each tree up to ``max_order``.
+
+    The condition of tree t for weights b is ``b . Phi(t) = 1/gamma(t)``; Phi of a root
+    carrying subtrees u is the product over u of ``A Phi(u)``. Returns arrays (N,), (N,), (N, s).
+    """
+    count = _TREE_COUNTS[max_order]
+    orders = np.empty(count, dtype=int)
+    gammas = np.empty(count)
+    phis = np.empty((count, A.shape[0]))
+    a_phis = np.empty_like(phis)
+    for i, children in enumerate(_TREES[:count]):
+        phi = np.ones(A.shape[0])
+        order, gamma = 1, 1.0
+        for k in children:
+            phi = phi * a_phis[k]
+            order += orders[k]
+            gamma *= gammas[k]
+        orders[i], gammas[i], phis[i] = order, gamma * order, phi
+        a_phis[i] = A @ phi
+    return orders, gammas, phis
+
+
+def _order_conditions(A: np.ndarray, b: np.ndarray, c: np.ndarray,
+                      max_order: int = MAX_CHECKED_ORDER) -> list[tuple[int, float, float, float]]:
+    """(order, value, required, scale) for the Runge-Kutta order conditions up to ``max_order``.
+
+    One condition per rooted tree: ``b . Phi(t) = 1/gamma(t)``, with ``Phi`` built from ``A``
+    (the row sums of ``A``, checked separately, are ``c``). ``scale`` is ``sum |b_j Phi_j|``,
+    the size of the round-off in ``value`` for coefficients given as floats.
+    """
+    orders, gammas, phis = _tree_data(A, max_order)
+    values, scales = phis @ b, np.abs(phis) @ np.abs(b)
+    return list(zip(orders.tolist(), values.tolist(), (1.0 / gammas).tolist(), scales.tolist()))
+
+
+_EPS = float(np.finfo(float).eps)
+
+
+def _condition_ok(value, required, scale):
+    """Exact rationals meet a condition to _TOL; 17-digit floats (Verner's published decimals)
+    to a few units of round-off of the terms' size. Scalars or arrays (then: all of them)."""
+    return bool(np.all(np.abs(np.asarray(value) - required) <= np.maximum(_TOL, 64 * _EPS * np.asarray(scale))))
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,6 +149,11 @@ class ButcherTableau:
         step's first stage.
     reference
         Where the coefficients come from.
+    extra_c, extra_A
+        A non-FSAL pair's interpolation stages (m of them): stage ``s+1+j`` is
+        ``f(t + extra_c[j] h, y + h sum_k extra_A[j, k] K_k)`` over the s stages, the stage
+        ``f(t + h, y_new)`` (index s) and the extra stages before it; ``extra_A`` has shape
+        (m, s + 1 + m). ``dense`` then has s + 1 + m rows.
     """
 
     name: str
@@ -106,6 +167,8 @@ class ButcherTableau:
     dense_order: int | None = None
     fsal: bool = False
     reference: str = ""
+    extra_c: np.ndarray | None = None
+    extra_A: np.ndarray | None = None
     stages: int = field(init=False)
 
     def __post_init__(self) -> None:
@@ -118,13 +181,21 @@ class ButcherTableau:
             problems.append("A is not strictly lower triangular (the method would be implicit)")
         else:
             row_sums = self.A.sum(axis=1)
-            if not np.allclose(row_sums, self.c, rtol=0, atol=_TOL):
+            if not all(map(_condition_ok, row_sums, self.c, np.abs(self.A).sum(axis=1))):
                 problems.append(f"row sums of A {row_sums} differ from the nodes c {self.c}")
-            if not 1 <= self.order <= 5:
-                problems.append(f"order {self.order} is outside the checked range 1..5")
-            for p, value, required in _order_conditions(self.A, self.b, self.c):
-                if p <= self.order and abs(value - required) > _TOL:
+            if not 1 <= self.order <= MAX_CHECKED_ORDER:
+                problems.append(f"order {self.order} is outside the checked range 1..{MAX_CHECKED_ORDER}")
+            checked = min(self.order + 1, MAX_CHECKED_ORDER)
+            conditions = _order_conditions(self.A, self.b, self.c, checked)
+            for p, value, required, scale in conditions:
+                if p <= self.order and not _condition_ok(value, required, scale):
                     problems.append(f"order-{p} condition gives {value!r}, needs {required!r}")
+                    break
+            if self.order < MAX_CHECKED_ORDER and all(
+                    _condition_ok(v, r, sc) for p, v, r, sc in conditions if p == self.order + 1):
+                # The order is exactly what it says: some condition of the next order fails.
+                problems.append(f"the method meets every order-{self.order + 1} condition: its order is "
+                                f"higher than {self.order}")
         if self.error_weights is not None:
             if self.error_weights.shape != (s,):
                 problems.append("error_weights must have one entry per stage")
@@ -134,17 +205,66 @@ class ButcherTableau:
                 problems.append("an embedded pair needs error_order < order")
         if self.fsal and (self.c[-1] != 1.0 or not np.array_equal(self.A[-1], self.b)):
             problems.append("FSAL needs c[-1] == 1 and the last row of A equal to b")
-        if self.dense is not None:
-            if self.dense.shape[0] != s:
-                problems.append("dense must have one row per stage")
-            elif not np.allclose(self.dense.sum(axis=1), self.b, rtol=0, atol=_TOL):
+        if (self.extra_c is None) != (self.extra_A is None):
+            problems.append("extra_c and extra_A go together")
+        elif self.extra_c is not None:
+            m = self.extra_c.size
+            if self.fsal:
+                problems.append("interpolation stages (extra_c, extra_A) belong to a non-FSAL pair")
+            elif self.extra_A.shape != (m, s + 1 + m) or np.any(np.triu(self.extra_A[:, s + 1:]) != 0):
+                problems.append(f"extra_A must be ({m}, {s + 1 + m}) and explicit (stage j uses the ones before it)")
+            elif not all(map(_condition_ok, self.extra_A.sum(axis=1), self.extra_c, np.abs(self.extra_A).sum(axis=1))):
+                problems.append(f"row sums of extra_A {self.extra_A.sum(axis=1)} differ from extra_c {self.extra_c}")
+        if self.dense is not None and not problems:
+            rows = self.full_c.size
+            b_full = np.concatenate([self.b, np.zeros(rows - s)])
+            if self.dense.shape[0] != rows:
+                problems.append(f"dense must have one row per stage of the extended step ({rows})")
+            elif not all(map(_condition_ok, self.dense.sum(axis=1), b_full, np.abs(self.dense).sum(axis=1))):
                 problems.append("the continuous extension at s = 1 must equal the step's solution b")
+            elif self.dense_order is not None:
+                problems.extend(self._dense_order_problems())
         if problems:
             raise ValueError(f"invalid Butcher tableau {self.name!r}: " + "; ".join(problems))
 
+    @property
+    def full_c(self) -> np.ndarray:
+        """Nodes of every stage the continuous extension uses (with ``f(t+h, y_new)`` and the extra stages)."""
+        if self.fsal or self.dense is None:
+            return self.c
+        extra = self.extra_c if self.extra_c is not None else np.empty(0)
+        return np.concatenate([self.c, [1.0], extra])
+
+    @property
+    def full_A(self) -> np.ndarray:
+        """Stage matrix of the extended step (rows: the s stages, ``f(t+h, y_new)``, the extra stages)."""
+        if self.fsal or self.dense is None:
+            return self.A
+        s, rows = self.stages, self.full_c.size
+        full = np.zeros((rows, rows))
+        full[:s, :s] = self.A
+        full[s, :s] = self.b
+        if self.extra_A is not None:
+            full[s + 1:, :] = self.extra_A
+        return full
+
+    def _dense_order_problems(self) -> list[str]:
+        """The continuous extension's order conditions, one per tree and power of s."""
+        orders, gammas, phis = _tree_data(self.full_A, self.dense_order)
+        powers = np.arange(1, self.dense.shape[1] + 1)
+        required = np.where(powers[:, None] == orders[None, :], 1.0 / gammas[None, :], 0.0)  # (q, trees)
+        values = self.dense.T @ phis.T
+        scales = np.abs(self.dense.T) @ np.abs(phis.T)
+        bad = np.abs(values - required) > np.maximum(_TOL, 64 * _EPS * scales)
+        if bad.any():
+            m, k = np.argwhere(bad)[0]
+            return [f"the continuous extension fails an order-{orders[k]} condition (power s^{m + 1}): "
+                    f"its order is below {self.dense_order}"]
+        return []
+
 
 def _tableau(name, c, A, b, order, **kw) -> ButcherTableau:
-    for key in ("error_weights", "dense"):
+    for key in ("error_weights", "dense", "extra_c", "extra_A"):
         if kw.get(key) is not None:
             kw[key] = _array(kw[key])
     return ButcherTableau(name=name, c=_array(c), A=_array(A), b=_array(b), order=order, **kw)
