@@ -262,7 +262,7 @@ def _solve_adaptive(fun, tspan, y0, f0, m: Method, opts: SolverOptions, setup: d
     (t, y, nsteps, nfailed, nfevals, status, t_stop, h_stop, exc, found, steps) = engine.integrate_adaptive(
         fun, tspan, y0, f0, tab.A, tab.c, tab.error_weights, tab.dense, m.power, m.shrink_min,
         opts.rtol, threshold, opts.max_step, opts.initial_step, opts.refine, opts.norm_control, opts.max_steps,
-        events, v0, nonnegative, output,
+        events, v0, nonnegative, output, *_non_fsal(tab),
     )
     if opts.output_fcn is not None:
         sel = slice(None) if opts.output_sel is None else opts.output_sel
@@ -272,15 +272,27 @@ def _solve_adaptive(fun, tspan, y0, f0, m: Method, opts: SolverOptions, setup: d
     message = _status_message(status, m, t_stop, h_stop, y, y0, opts, exc, tspan, te, ie)
     interpolant = None
     if steps is not None:
-        from odelab.solvers.dense import DenseOutput
+        from odelab.solvers.dense import DenseOutput, StageCompletion
 
-        interpolant = DenseOutput(*steps, coefficients=tab.dense, y_final=y[-1].copy(), nonnegative=nonnegative)
+        completion = None
+        if len(steps) == 5:  # a non-FSAL pair: steps whose interpolation stages are still to be evaluated
+            *steps, complete = steps
+            completion = StageCompletion(fun, tab.extra_A, tab.extra_c, tab.stages, complete)
+        interpolant = DenseOutput(*steps, coefficients=tab.dense, y_final=y[-1].copy(), nonnegative=nonnegative,
+                                  completion=completion)
     return Solution(
         t=t, y=y, stats=stats, status="failed" if status in _FAILURES else "success", message=message,
         method=m.name, warnings=opts.warnings,
         te=np.array(te, dtype=float), ye=np.array(ye, dtype=y0.dtype).reshape(len(ye), y0.size),
         ie=np.array(ie, dtype=int), interpolant=interpolant, setup=setup,
     )
+
+
+def _non_fsal(tab) -> tuple:
+    """The engine's ``b`` and ``extra`` arguments: none for an FSAL pair."""
+    if tab.fsal:
+        return ()
+    return (tab.b, None if tab.extra_c is None else (tab.extra_A, tab.extra_c))
 
 
 _FAILURES = (engine.STATUS_STEP_UNDERFLOW, engine.STATUS_NONFINITE, engine.STATUS_MAX_STEPS,

@@ -22,7 +22,7 @@ import numpy as np
 
 from odelab.exceptions import InputError
 
-__all__ = ["step_value", "step_slopes", "DenseOutput", "deval", "odextend"]
+__all__ = ["step_value", "step_slopes", "StageCompletion", "DenseOutput", "deval", "odextend"]
 
 
 def _clip(values: np.ndarray, nonnegative) -> np.ndarray:
@@ -61,6 +61,35 @@ def step_slopes(tq: np.ndarray, t: float, y: np.ndarray, h: float, K: np.ndarray
     return slopes
 
 
+class StageCompletion:
+    """Evaluates the interpolation stages of a non-FSAL pair's steps when ``deval`` first needs them.
+
+    ``ode78``/``ode89`` (Verner's pairs) need a few stages beyond the step's own for their
+    continuous extension; the engine evaluates them only for steps it interpolates itself
+    (``Refine``, output times, events). The other steps are completed here, on first use,
+    with the same formula: stage ``s+1+j`` is ``f(t + c_j h, y + h A_j . K)``.
+    """
+
+    def __init__(self, fun, A_extra: np.ndarray, c_extra: np.ndarray, stages: int, complete: np.ndarray):
+        self.fun = fun
+        self.A_extra = A_extra
+        self.c_extra = c_extra
+        self.stages = stages
+        self.complete = np.array(complete, dtype=bool)
+        self.nfevals = 0  # evaluations made after the integration (not in the solver's Stats)
+
+    def __call__(self, dense: "DenseOutput", idx: np.ndarray) -> None:
+        todo = np.unique(idx[~self.complete[idx]])
+        s = self.stages
+        for i in todo:
+            t, h, y, K = float(dense.t[i]), float(dense.h[i]), dense.y[i], dense.K[i]
+            for j, cj in enumerate(self.c_extra):
+                row = s + 1 + j
+                K[row] = self.fun(t + cj * h, y + (h * self.A_extra[j, :row]) @ K[:row])
+            self.nfevals += self.c_extra.size
+            self.complete[i] = True
+
+
 @dataclass(frozen=True, eq=False)
 class DenseOutput:
     """The piecewise continuous extension of a whole solution (MATLAB's ``sol.idata``).
@@ -79,6 +108,9 @@ class DenseOutput:
         The state at the end of the last step (returned exactly at that time).
     nonnegative
         Indices of components clipped at zero, or None.
+    completion
+        For a non-FSAL pair, the :class:`StageCompletion` that evaluates a step's interpolation
+        stages the first time that step is evaluated; None otherwise.
     """
 
     t: np.ndarray
@@ -88,6 +120,7 @@ class DenseOutput:
     coefficients: np.ndarray
     y_final: np.ndarray
     nonnegative: np.ndarray | None = None
+    completion: StageCompletion | None = None
 
     @property
     def t_start(self) -> float:
@@ -118,6 +151,8 @@ class DenseOutput:
         # which is that step's stored start state exactly.
         idx = np.searchsorted(tdir * self.t, tdir * times, side="right") - 1
         idx = np.clip(idx, 0, self.t.size - 1)
+        if self.completion is not None:
+            self.completion(self, idx)
         h = self.h[idx]
         s = (times - self.t[idx]) / h
         q = self.coefficients.shape[1]
@@ -131,6 +166,9 @@ class DenseOutput:
 
     def extended(self, other: "DenseOutput") -> "DenseOutput":
         """This extension followed by ``other`` (which must start where this one ends)."""
+        for part in (self, other):  # complete every step now: the joined arrays are new
+            if part.completion is not None:
+                part.completion(part, np.arange(part.t.size))
         return DenseOutput(
             t=np.concatenate([self.t, other.t]),
             h=np.concatenate([self.h, other.h]),

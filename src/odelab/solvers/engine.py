@@ -3,10 +3,13 @@
 Two drivers share one step formula (stages ``k_i = f(t + c_i h, y + h sum_j A_ij k_j)``,
 solution ``y + h sum_j b_j k_j``) read from a :class:`~odelab.solvers.tableau.ButcherTableau`:
 
-* :func:`integrate_adaptive` — an embedded FSAL pair with MATLAB's step-size controller,
+* :func:`integrate_adaptive` — an embedded pair with MATLAB's step-size controller,
   error norm, initial step and output rules (Shampine & Reichelt, *The MATLAB ODE Suite*,
   SIAM J. Sci. Comput. 18(1), 1997). ``ode23`` is this driver with the Bogacki-Shampine
-  tableau, ``ode45`` with Dormand-Prince; nothing else differs.
+  tableau, ``ode45`` with Dormand-Prince; nothing else differs. FSAL pairs (the last stage
+  is ``f(t+h, y_new)``) are the default; a non-FSAL pair (``ode78``/``ode89``, Verner's)
+  passes its weights ``b``: ``f(t+h, y_new)`` is evaluated once the step is accepted, and the
+  extra stages of its continuous extension only for a step whose interpolant is used.
 * :func:`integrate_fixed` — the same stages on a prescribed grid of steps.
 
 The drivers are written for a later compiled backend: scalars and float arrays in, a tuple of
@@ -70,8 +73,10 @@ def integrate_adaptive(
     v0=None,
     nonnegative=None,
     output_fcn=None,
+    b=None,
+    extra=None,
 ):
-    """Integrate with an embedded FSAL Runge-Kutta pair and MATLAB's controller.
+    """Integrate with an embedded Runge-Kutta pair and MATLAB's controller.
 
     Parameters
     ----------
@@ -84,7 +89,10 @@ def integrate_adaptive(
         Initial state and ``fun(t0, y0)`` (counted by the caller). A complex ``y0`` integrates
         in complex arithmetic, the error measured on ``|y|``, as MATLAB does.
     A, c, E, dense
-        Tableau arrays (the last stage must be FSAL: ``A[-1]`` are the solution weights).
+        Tableau arrays. Without ``b`` the last stage must be FSAL (``A[-1]`` are the solution
+        weights). With ``b``, ``A``, ``c`` and ``E`` cover the s stages of the step and
+        ``dense`` has one row per stage of the extended step: the s stages,
+        ``f(t + h, y_new)``, then the stages of ``extra``.
     power
         Controller exponent ``1/(q+1)`` with q the embedded order (1/3 ode23, 1/5 ode45).
     shrink_min
@@ -119,9 +127,17 @@ def integrate_adaptive(
         where ``t_stop`` is the time where integration stopped, ``h_stop`` the last step size
         tried, ``exception`` the exception ``fun`` (or ``events``) raised (or None),
         ``found = (te, ye, ie)`` lists of located events and ``steps = (t, h, y, K)`` arrays of
-        every accepted step for dense output.
+        every accepted step for dense output. With ``extra``, ``steps`` has a fifth array: which
+        steps have their extra stages computed (the others are completed on demand by
+        :func:`odelab.solvers.dense.complete_steps`).
+    b
+        Solution weights (s,) of a non-FSAL pair, or None for an FSAL pair.
+    extra
+        ``(A_extra, c_extra)``, the interpolation stages of a non-FSAL pair: stage ``s+1+j`` is
+        ``f(t + c_extra[j] h, y + h A_extra[j] . K)`` over the stages before it; or None.
     """
     s = c.size
+    fsal = b is None
     n = y0.size
     t0 = float(tspan[0])
     tfinal = float(tspan[-1])
@@ -132,8 +148,36 @@ def integrate_adaptive(
     is_complex = np.iscomplexobj(y0)
     # Preallocated work arrays and fixed views into them: per attempt the engine fills
     # hA = h*A in place, and stage i reads row i of hA against the first i stages.
-    K = np.empty((s, n), dtype=y0.dtype)
+    # A non-FSAL pair's K also holds f(t+h, y_new) (row s, the next step's first stage) and
+    # the interpolation stages after it; K_main is the step's own s stages.
+    fnew_row = last if fsal else s
+    K = np.empty((s if fsal else dense.shape[0], n), dtype=y0.dtype)
     K[0] = f0
+    K_main = K[:s]
+    if not fsal:
+        b = np.asarray(b)
+        hb = np.empty_like(b)
+        if extra is not None:
+            A_extra, c_extra = extra
+            n_extra = len(c_extra)
+            hA_extra = np.empty_like(A_extra)
+            extra_nodes = [float(ci) for ci in c_extra]
+            extra_rows = [(s + 1 + j, hA_extra[j, :s + 1 + j], K[:s + 1 + j]) for j in range(n_extra)]
+    have_extra = not fsal and extra is not None
+    step_complete: list[bool] = []
+    completed = [True]  # this step's extra stages are in K (a list: the event closure sets it)
+
+    def complete():
+        """Evaluate the step's interpolation stages (once per step, only when it is interpolated)."""
+        nonlocal nfevals
+        if not completed[0]:
+            np.multiply(A_extra, h, out=hA_extra)
+            for (row, hA_row, K_head), cj in zip(extra_rows, extra_nodes):
+                K[row] = fun(t + cj * h, y + hA_row.dot(K_head))
+            nfevals += n_extra
+            completed[0] = True
+
+    all_nodes = c if fsal else np.concatenate([c, [1.0], extra[1] if have_extra else []])
     hA = np.empty_like(A)
     hA_rows = [hA[i, :i] for i in range(s)]
     K_heads = [K[:i] for i in range(s)]
@@ -181,7 +225,7 @@ def integrate_adaptive(
     step_h: list[float] = []
     capacity = 64
     step_y = np.empty((capacity, n), dtype=y0.dtype)
-    step_K = np.empty((capacity, s, n), dtype=y0.dtype)
+    step_K = np.empty((capacity, K.shape[0], n), dtype=y0.dtype)
     stored = 0
     te: list[float] = []
     ye: list[np.ndarray] = []
@@ -212,17 +256,28 @@ def integrate_adaptive(
             nofailed = True
             while True:
                 np.multiply(A, h, out=hA)
-                for i in range(1, last):
-                    K[i] = fun(t + nodes[i] * h, y + hA_rows[i].dot(K_heads[i]))
-                tnew = t + h
-                if done:
-                    tnew = tfinal  # hit the end point exactly
-                h = tnew - t  # purify h
-                ynew = y + hA_rows[last].dot(K_heads[last])
-                K[last] = fun(tnew, ynew)
-                nfevals += last
+                if fsal:
+                    for i in range(1, last):
+                        K[i] = fun(t + nodes[i] * h, y + hA_rows[i].dot(K_heads[i]))
+                    tnew = t + h
+                    if done:
+                        tnew = tfinal  # hit the end point exactly
+                    h = tnew - t  # purify h
+                    ynew = y + hA_rows[last].dot(K_heads[last])
+                    K[last] = fun(tnew, ynew)
+                    nfevals += last
+                else:  # every stage inside the step; f(tnew, ynew) once the step is accepted
+                    for i in range(1, s):
+                        K[i] = fun(t + nodes[i] * h, y + hA_rows[i].dot(K_heads[i]))
+                    tnew = t + h
+                    if done:
+                        tnew = tfinal
+                    np.multiply(b, h, out=hb)  # with the h the stages used, as for hA
+                    h = tnew - t
+                    ynew = y + hb.dot(K_main)
+                    nfevals += last
 
-                fE = E.dot(K)
+                fE = E.dot(K_main)
                 if have_nonneg:
                     nn_reject = False
                 if norm_control:
@@ -273,6 +328,11 @@ def integrate_adaptive(
             if status != STATUS_SUCCESS:
                 break
             nsteps += 1
+            if not fsal:
+                K[s] = fun(tnew, ynew)
+                nfevals += 1
+                if have_extra:
+                    completed[0] = False
             nn_reset = False
             if have_nonneg and (ynew[nonnegative] < 0).any():
                 # Accepted: clip to the constraint; the interpolant keeps the unclipped stages.
@@ -288,6 +348,8 @@ def integrate_adaptive(
                 step_t0, step_y0, step_h0 = t, y, h
 
                 def interpolate(tq):
+                    if not completed[0]:
+                        complete()
                     return step_value(tq, step_t0, step_y0, step_h0, K, dense, nonnegative)
 
                 found_t, found_y, found_i, v_left, stop = locate_events(
@@ -301,19 +363,26 @@ def integrate_adaptive(
                         # extension's slopes at its nodes, as MATLAB does, so output on the
                         # shortened step follows the same curve.
                         t_event = found_t[-1]
-                        K[1:] = step_slopes(t + (t_event - t) * c[1:], t, y, h, K, dense, nonnegative)
+                        K[1:] = step_slopes(t + (t_event - t) * all_nodes[1:], t, y, h, K, dense, nonnegative)
                         tnew = t_event
                         ynew = found_y[-1]
                         h = tnew - t
                         done = True
                         status = STATUS_TERMINAL_EVENT
 
+            if have_extra and refine_output and refine > 1:
+                complete()
             if stored == capacity:
                 capacity *= 2
                 step_K = np.concatenate([step_K, np.empty_like(step_K)])
                 if not refine_output:
                     step_y = np.concatenate([step_y, np.empty_like(step_y)])
+            if have_extra and not refine_output and not completed[0] and nxt < ntspan and (
+                    tdir * (tnew - float(tspan[nxt])) > 0):
+                complete()  # an output time inside the step
             step_K[stored] = K
+            if have_extra:
+                step_complete.append(completed[0])
             if not refine_output:
                 step_t.append(t)
                 step_h.append(h)
@@ -379,9 +448,9 @@ def integrate_adaptive(
                 absy = absynew
             if nn_reset:
                 # The stages interpolated the unclipped solution; move on along the clipped one.
-                K[last] = fun(tnew, ynew)
+                K[fnew_row] = fun(tnew, ynew)
                 nfevals += 1
-            K[0] = K[last]
+            K[0] = K[fnew_row]
     except Exception as exc:  # the user's right-hand side (or events function) failed
         status = STATUS_FUN_RAISED
         exception = exc
@@ -392,9 +461,13 @@ def integrate_adaptive(
         t_arr = np.array(t_out)
         ends = t_arr[::refine]  # t0 and every step's end
         steps = (ends[:-1], np.diff(ends), y_arr[::refine][:-1], step_K[:stored])
+        if have_extra:
+            steps += (np.array(step_complete),)
     elif stored:
         t_arr = np.array(t_out)
         steps = (np.array(step_t), np.array(step_h), step_y[:stored], step_K[:stored])
+        if have_extra:
+            steps += (np.array(step_complete),)
     else:
         t_arr = np.array(t_out)
     return (t_arr, y_arr, nsteps, nfailed, nfevals, status, t, abs(h), exception, (te, ye, ie), steps)
