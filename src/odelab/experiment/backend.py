@@ -27,6 +27,9 @@ def why_not_compiled(method, compiled, options=None) -> str | None:
     if method.kind not in ("adaptive", "fixed"):
         return (f"it runs odelab's explicit Runge-Kutta methods (ode23, ode45, fixed-step), and {method.name} is "
                 + ("SciPy's" if method.kind == "scipy" else "not one of them"))
+    if method.kind == "adaptive" and not method.tableau.fsal:
+        return (f"its kernels run FSAL pairs and fixed-step methods, and {method.name} is Verner's non-FSAL "
+                "pair whose interpolation stages are evaluated on demand (the Python path runs it)")
     python_only = [name for name in PYTHON_ONLY_OPTIONS if (options or {}).get(name) is not None]
     if python_only:
         return f"`{python_only[0]}` calls back into Python"

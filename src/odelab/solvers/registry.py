@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 from odelab.exceptions import InputError
 from odelab.solvers import tableau as tb
+from odelab.solvers import verner
 
 __all__ = ["Method", "METHODS", "get_method"]
 
@@ -145,12 +146,10 @@ METHODS: dict[str, Method] = {
                 "MATLAB's ode113 name: variable-order Adams (here run by SciPy's LSODA)",
                 "ode113 ran as SciPy's LSODA (variable-order Adams-Moulton, switching to BDF if the problem "
                 "turns stiff): odelab has no native Adams-Bashforth-Moulton PECE yet"),
-        _mapped("ode78", "DOP853", 8, "8(5,3)",
-                "MATLAB's ode78 name: high-order explicit RK (here run by SciPy's DOP853)",
-                "ode78 ran as SciPy's DOP853 (Dormand-Prince 8(5,3)), not Verner's 7(8) pair"),
-        _mapped("ode89", "DOP853", 8, "8(5,3)",
-                "MATLAB's ode89 name: high-order explicit RK (here run by SciPy's DOP853)",
-                "ode89 ran as SciPy's DOP853 (Dormand-Prince 8(5,3)), not Verner's 8(9) pair"),
+        _adaptive("ode78", verner.VERNER87, 0.1, 1,
+                  "MATLAB's ode78: Verner's most efficient 8(7) pair, 8th-order interpolant, adaptive"),
+        _adaptive("ode89", verner.VERNER98, 0.1, 1,
+                  "MATLAB's ode89: Verner's most robust 9(8) pair, 8th-order interpolant, adaptive"),
         _fixed("euler", tb.EULER, "Forward Euler, fixed step h"),
         _fixed("heun", tb.HEUN, "Heun's method (improved Euler), fixed step h"),
         _fixed("midpoint", tb.MIDPOINT, "Explicit midpoint, fixed step h"),

@@ -138,6 +138,10 @@ def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dic
         raise InputError(f"the compiled backend runs odelab's explicit Runge-Kutta methods (ode23, ode45, "
                          f"fixed-step); {m.name} is {'SciPy' + chr(39) + 's' if m.kind == 'scipy' else 'not one'}: use backend "
                          "\"python\".", key="backend")
+    if m.kind == "adaptive" and not m.tableau.fsal:
+        raise InputError(f"the compiled backend runs FSAL pairs (ode23, ode45) and fixed-step methods; {m.name} is "
+                         "Verner's non-FSAL pair, which runs on the Python path: use backend \"python\" (or "
+                         "\"auto\").", key="backend")
     reason = unavailable()
     if reason:
         raise InputError(f"the compiled backend needs numba: {reason}.", key="backend")
