@@ -39,11 +39,13 @@ def _grow(t_out, y_out, needed):
     capacity = t_out.shape[0]
     while capacity < needed:
         capacity *= 2
+    n = y_out.shape[1]
     t_new = _np.empty(capacity)
-    y_new = _np.empty((capacity, y_out.shape[1]))
-    count = t_out.shape[0]
-    t_new[:count] = t_out
-    y_new[:count] = y_out
+    y_new = _np.empty((capacity, n))
+    for i in range(t_out.shape[0]):
+        t_new[i] = t_out[i]
+        for j in range(n):
+            y_new[i, j] = y_out[i, j]
     return t_new, y_new
 
 
@@ -58,12 +60,15 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
     last = s - 1
     ndense = dense.shape[1]
     K = _np.empty((s, n))
-    K[0, :] = f0
-    hA = _np.empty_like(A)
+    hA = _np.empty((s, s))
     stage = _np.empty(n)
-    y = y0.copy()
+    y = _np.empty(n)
+    absy = _np.empty(n)
+    for j in range(n):
+        K[0, j] = f0[j]
+        y[j] = y0[j]
+        absy[j] = abs(y0[j])
     ynew = _np.empty(n)
-    absy = _np.abs(y0)
     absynew = _np.empty(n)
     fE = _np.empty(n)
     M = _np.empty((n, ndense))
@@ -102,7 +107,8 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
     t_out = _np.empty(capacity)
     y_out = _np.empty((capacity, n))
     t_out[0] = t0
-    y_out[0, :] = y0
+    for j in range(n):
+        y_out[0, j] = y0[j]
     count = 1
     refine_output = ntspan == 2
     nxt = 1
@@ -213,7 +219,8 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
                         y_out[count, j] = h * acc + y[j]
                     count += 1
             t_out[count] = tnew
-            y_out[count, :] = ynew
+            for j in range(n):
+                y_out[count, j] = ynew[j]
             count += 1
         else:
             while nxt < ntspan:
@@ -222,7 +229,8 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
                     break
                 t_out[count] = tn
                 if tn == tnew:
-                    y_out[count, :] = ynew
+                    for j in range(n):
+                        y_out[count, j] = ynew[j]
                 else:
                     x = (tn - t) / h
                     pw = 1.0
@@ -275,12 +283,14 @@ def _fixed(_rhs, grid, y0, p, A, b, c):
     s = c.shape[0]
     n = y0.shape[0]
     K = _np.empty((s, n))
-    hA = _np.empty_like(A)
+    hA = _np.empty((s, s))
     hb = _np.empty(s)
     stage = _np.empty(n)
     ys = _np.empty((grid.shape[0], n))
-    ys[0, :] = y0
-    y = y0.copy()
+    y = _np.empty(n)
+    for j in range(n):
+        ys[0, j] = y0[j]
+        y[j] = y0[j]
     nsteps = 0
     nfevals = 0
     status = STATUS_SUCCESS
