@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from odelab.exceptions import ExperimentError, InputError
 
-__all__ = ["check_backend", "why_not_compiled", "solve_problem"]
+__all__ = ["check_backend", "why_not_compiled", "solve_problem", "simulate_problem"]
 
 
 def why_not_compiled(method, compiled, options=None) -> str | None:
@@ -22,8 +22,8 @@ def why_not_compiled(method, compiled, options=None) -> str | None:
     from odelab.solvers.compiled import PYTHON_ONLY_OPTIONS, unavailable
 
     if compiled is None:
-        return ("it compiles systems written as expressions without inputs (equations, or a state-space model "
-                "without inputs); this system is a Python function or has inputs")
+        return ("it compiles systems written as expressions (equations, a state-space model, a diagram of linear "
+                "blocks); this system is a Python function or a diagram with nonlinear blocks")
     if method.kind not in ("adaptive", "fixed"):
         return (f"it runs odelab's explicit Runge-Kutta methods (ode23, ode45, fixed-step), and {method.name} is "
                 + ("SciPy's" if method.kind == "scipy" else "not one of them"))
@@ -33,6 +33,9 @@ def why_not_compiled(method, compiled, options=None) -> str | None:
     python_only = [name for name in PYTHON_ONLY_OPTIONS if (options or {}).get(name) is not None]
     if python_only:
         return f"`{python_only[0]}` calls back into Python"
+    reason = compiled.why_not()
+    if reason:
+        return reason
     reason = unavailable()
     if reason:
         return reason
@@ -54,17 +57,76 @@ def check_backend(backend: str, method, compiled, key: str, options=None, events
 def solve_problem(problem, tspan, method_name: str, options: dict, backend: str):
     """Solve a problem without inputs; returns ``(Solution, backend that ran)``."""
     from odelab.solvers.api import solve
+    from odelab.solvers.compiled import AUTO_STEPS, solve_compiled
+
+    def python(opts):
+        return solve(problem.fun, tspan, problem.x0, method=method_name, **opts)
+
+    def compiled(opts):
+        return solve_compiled(problem.compiled, tspan, problem.x0, method_name, **opts)
+
+    def pilot(opts):
+        sol = python({**opts, "max_steps": AUTO_STEPS})
+        return None if sol.status == "failed" and sol.stats.nsteps == AUTO_STEPS else sol
+
+    return _choose(problem, tspan, method_name, options, backend, python, compiled, pilot)
+
+
+class _BudgetSpent(Exception):
+    """The pilot of ``backend = "auto"`` used its steps: the run is long."""
+
+
+def simulate_problem(problem, tspan, method_name: str, options: dict, backend: str):
+    """Simulate a problem with inputs (restarting at their breakpoints, as
+    :func:`odelab.systems.simulate.simulate`); returns ``(Response, backend that ran)``. The
+    compiled path takes the same pieces, each solved by the compiled loop; the pilot of
+    ``"auto"`` spends one budget of steps over all the pieces."""
+    from odelab.solvers.compiled import AUTO_STEPS, solve_compiled
+    from odelab.systems.simulate import python_piece_solver, simulate
+
+    signals = list(problem.signals)
+
+    def python(opts, piece_solver=None):
+        return simulate(problem.system, tspan, problem.x0, u=signals, method=method_name, piece_solver=piece_solver,
+                        **opts)
+
+    def compiled_piece(grid, x, lo, hi, opts):
+        return solve_compiled(problem.compiled, grid, x, method_name, input_bounds=(lo, hi), **opts)
+
+    def pilot(opts):
+        base = python_piece_solver(problem.system, signals, method_name)
+        left = [AUTO_STEPS]
+
+        def piece(grid, x, lo, hi, o):
+            if left[0] <= 0:
+                raise _BudgetSpent
+            sol = base(grid, x, lo, hi, {**o, "max_steps": left[0]})
+            left[0] -= sol.stats.nsteps
+            if sol.status == "failed" and left[0] <= 0:
+                raise _BudgetSpent
+            return sol
+
+        try:
+            return python(opts, piece)
+        except _BudgetSpent:
+            return None
+
+    return _choose(problem, tspan, method_name, options, backend, python,
+                   lambda opts: python(opts, compiled_piece), pilot)
+
+
+def _choose(problem, tspan, method_name, options, backend, python, compiled, pilot):
+    """Run ``python(options)`` or ``compiled(options)`` as ``backend`` says (see the module
+    docstring); ``pilot(options)`` is the Python run within the budget, None if it ran out."""
+    from odelab.solvers.compiled import AUTO_STEPS
     from odelab.solvers.registry import get_method
 
     method = get_method(method_name)
-    if backend == "compiled":
-        reason = why_not_compiled(method, problem.compiled, options)
-        if reason:
-            raise InputError(f"`--backend compiled` cannot run this case: {reason}. Use --backend auto.")
-    if backend == "python" or why_not_compiled(method, problem.compiled, options):
-        return solve(problem.fun, tspan, problem.x0, method=method_name, **options), "python"
-    from odelab.solvers.compiled import AUTO_STEPS, solve_compiled
-
+    reason = why_not_compiled(method, problem.compiled, options)
+    if backend == "compiled" and reason:
+        raise InputError(f"`--backend compiled` cannot run this case: {reason}. Use --backend auto.")
+    if backend == "python" or reason:
+        return python(options), "python"
     if backend == "auto":
         if method.kind == "fixed":
             from odelab.solvers.api import fixed_grid
@@ -73,12 +135,12 @@ def solve_problem(problem, tspan, method_name: str, options: dict, backend: str)
             tspan_arr = as_tspan(tspan)
             opts = resolve_options(method, normalize_options(options, method), tspan_arr, problem.x0.size)
             if fixed_grid(tspan_arr, opts.h)[0].size - 1 <= AUTO_STEPS:
-                return solve(problem.fun, tspan, problem.x0, method=method_name, **options), "python"
+                return python(options), "python"
         else:
             limit = options.get("max_steps") or 0
             if limit and limit <= AUTO_STEPS:
-                return solve(problem.fun, tspan, problem.x0, method=method_name, **options), "python"
-            pilot = solve(problem.fun, tspan, problem.x0, method=method_name, **{**options, "max_steps": AUTO_STEPS})
-            if not (pilot.status == "failed" and pilot.stats.nsteps == AUTO_STEPS):
-                return pilot, "python"  # finished (or failed for its own reason) within the budget
-    return solve_compiled(problem.compiled, tspan, problem.x0, method_name, **options), "compiled"
+                return python(options), "python"
+            result = pilot(options)
+            if result is not None:
+                return result, "python"  # finished (or failed for its own reason) within the budget
+    return compiled(options), "compiled"

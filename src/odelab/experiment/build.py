@@ -80,15 +80,16 @@ def build_ode(model: schema.Experiment, params: dict[str, float]) -> Built:
         sys_obj = NonlinearSystem.from_expressions(
             {s: system.equations[s] for s in states}, inputs=inputs,
             outputs=dict(system.outputs) if system.outputs else None, parameters=params)
-    compiled = None
-    if not inputs:
-        from odelab.solvers.compiled import CompiledSystem
+    from odelab.solvers.compiled import CompiledSystem
 
+    if not inputs:
         def fun(t, x, _F=F):
             return _F(t, *x)
 
-        compiled = CompiledSystem.from_equations(states, [system.equations[s] for s in states], params,
-                                                 keys=[f"system.equations.{s}" for s in states])
+    # the compiled backend's description (nothing is compiled unless that backend runs);
+    # the loader binds the inputs' signals to it
+    compiled = CompiledSystem.from_system(states, [system.equations[s] for s in states], params, inputs,
+                                          keys=[f"system.equations.{s}" for s in states])
 
     jacobian = _jacobian(system, states, params)
     if system.jacobian is not None:
@@ -182,15 +183,13 @@ def build_state_space(model: schema.Experiment, params: dict[str, float]) -> Bui
             y = y + u @ D.T
         return y
 
-    fun = None
-    compiled = None
-    if ss.nu == 0:
-        from odelab.solvers.compiled import CompiledSystem
+    from odelab.solvers.compiled import CompiledSystem
 
+    fun = None
+    compiled = CompiledSystem.linear(A, ss.states, ss.B, ss.inputs)
+    if ss.nu == 0:
         def fun(t, x):
             return A @ x
-
-        compiled = CompiledSystem.linear(A, ss.states)
 
     if system.jacobian is not None:
         raise ExperimentError("`system.jacobian` is for [system.equations]; a state-space system's Jacobian is "

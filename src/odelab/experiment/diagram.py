@@ -182,6 +182,11 @@ def build_diagram(model: schema.Experiment, params: dict[str, float], path: Path
     if not compiled.inputs:
         def fun(t, x, _f=compiled.dynamics):
             return _f(t, x)
+    fast = None  # the compiled backend runs a diagram of linear blocks as its state-space model
+    if compiled.linear:
+        from odelab.solvers.compiled import CompiledSystem
+
+        fast = CompiledSystem.linear(sys_obj.A, compiled.states, sys_obj.B, compiled.inputs)
     return Built(states=compiled.states, inputs=compiled.inputs, outputs=compiled.outputs, fun=fun,
                  output_fn=output_fn, resolved=resolved, linear=compiled.linear, system=sys_obj,
-                 x0=compiled.x0, signals=compiled.signals, diagram=compiled)
+                 x0=compiled.x0, signals=compiled.signals, diagram=compiled, compiled=fast)

@@ -606,11 +606,14 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
                                   "is \"exact\" (from [exact]) or \"none\"; event times can have exact values with "
                                   "`exact` in the event's table.", key="reference.method")
         events, resolved["events"] = compile_events(model.events, states, params)
+    fast = built.compiled  # the compiled backend's system, its inputs driven by the signals
+    if fast is not None and fast.inputs:
+        fast = fast.with_signals(signals)
     if backend != "auto":
         resolved["solver"]["backend"] = backend
         from odelab.experiment.backend import check_backend
 
-        check_backend(backend, method, built.compiled, "solver.backend", options, events)
+        check_backend(backend, method, fast, "solver.backend", options, events)
     if method.kind in ("adaptive", "implicit"):
         resolved["solver"].setdefault("rtol", 1e-3)
         resolved["solver"].setdefault("atol", 1e-6)
@@ -668,7 +671,7 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
         options=options, output_fn=built.output_fn, input_fn=input_fn, exact_fn=exact_fn, reference=kind,
         reference_solver=(ref.solver, float(ref.rtol), float(ref.atol)), system=built.system, signals=signals,
         linearize=model.linearize, parameters=params, diagram=built.diagram, events=events, backend=backend,
-        compiled=built.compiled, analysis=analysis,
+        compiled=fast, analysis=analysis,
     )
     return problem, resolved
 

@@ -42,13 +42,10 @@ def _integrate(problem, tspan, method, options, backend="python"):
 
 def _integrate_quietly(problem, tspan, method, options, backend="python"):
     if problem.signals:
-        from odelab.experiment.backend import solve_problem
-        from odelab.systems.simulate import simulate
+        from odelab.experiment.backend import simulate_problem
 
-        if backend == "compiled":
-            solve_problem(problem, tspan, method, options, backend)  # raises: it cannot run inputs
-        r = simulate(problem.system, tspan, problem.x0, u=list(problem.signals), method=method, **options)
-        return r.t, r.x, r.u, r.stats, r.status, r.message, (), "python"
+        r, ran = simulate_problem(problem, tspan, method, options, backend)
+        return r.t, r.x, r.u, r.stats, r.status, r.message, (), ran
     from odelab.exceptions import InputError
     from odelab.experiment.backend import solve_problem
 

@@ -108,6 +108,7 @@ def simulate(
     u: Any = None,
     *,
     method: str = "ode45",
+    piece_solver: Callable[..., Solution] | None = None,
     **options: Any,
 ) -> Response:
     """Integrate ``system`` over ``tspan`` from ``x0`` with inputs ``u``.
@@ -133,6 +134,11 @@ def simulate(
         ``max_step``, ``initial_step``, ``refine``, ``norm_control``, ``h``... When the
         span is cut at breakpoints and ``max_step`` is not given, ode23/ode45 get MATLAB's
         default for the *whole* span, 0.1*|tf - t0|, rather than one tenth of each piece.
+    piece_solver
+        ``piece_solver(grid, x, lo, hi, options) -> Solution`` solves one piece from state
+        ``x`` over ``grid`` with the inputs read at t clipped to ``[lo, hi]``; the default is
+        :func:`~odelab.solvers.api.solve` on ``system.dynamics``. The compiled backend passes
+        its own (:func:`odelab.experiment.backend.solve_problem`), so both take the same pieces.
 
     Returns
     -------
@@ -166,6 +172,8 @@ def simulate(
     x0 = as_initial_state(x0, len(states), states)
     signals = as_signals(u, inputs)
     kind = get_method(method).kind
+    if piece_solver is None:
+        piece_solver = python_piece_solver(system, signals, method)
 
     t0, tf = float(tspan[0]), float(tspan[-1])
     backward = tf < t0
@@ -195,12 +203,8 @@ def simulate(
         # read the inputs on this piece's side of a breakpoint (not at the user's ends)
         lo_is_cut = (lo == a and i > 0) or (lo == b and not last)
         hi_is_cut = (hi == a and i > 0) or (hi == b and not last)
-        fun = _piece_rhs(
-            dynamics,
-            signals,
-            lo if lo_is_cut else -math.inf,
-            float(np.nextafter(hi, -math.inf)) if hi_is_cut else math.inf,
-        )
+        u_lo = lo if lo_is_cut else -math.inf
+        u_hi = float(np.nextafter(hi, -math.inf)) if hi_is_cut else math.inf
         if npieces == 1:
             grid = tspan
         elif dense:
@@ -208,7 +212,7 @@ def simulate(
         else:
             inside = user_times[(user_times > lo) & (user_times < hi)]
             grid = np.concatenate([[a], inside, [b]])  # user_times run in the direction of a -> b
-        sol: Solution = solve(fun, grid, state, method=method, **options)
+        sol: Solution = piece_solver(grid, state, u_lo, u_hi, options)
 
         keep = np.ones(sol.t.size, dtype=bool)
         if not dense:
@@ -259,6 +263,17 @@ def simulate(
         breakpoints=tuple(float(c) for c in cuts),
         warnings=tuple(notes),
     )
+
+
+def python_piece_solver(system: Any, signals: Sequence[Signal], method: str) -> Callable[..., Solution]:
+    """The default ``piece_solver`` of :func:`simulate`: :func:`~odelab.solvers.api.solve` on
+    ``system.dynamics`` with the inputs read at t clipped to the piece's ``[lo, hi]``."""
+    from odelab.solvers.api import solve
+
+    def solve_piece(grid, x, lo, hi, options):
+        return solve(_piece_rhs(system.dynamics, signals, lo, hi), grid, x, method=method, **options)
+
+    return solve_piece
 
 
 def _is_max_step(key: str) -> bool:

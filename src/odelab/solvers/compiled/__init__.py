@@ -1,9 +1,9 @@
 """The compiled backend: expression systems and MATLAB's stepping loop compiled together.
 
-An experiment's equations (or a state-space model's A) are a closed, checked language, so
-odelab can generate one Python module holding the right-hand side and the stepping loops of
-:mod:`odelab.solvers.engine`, and compile it with numba (the field's standard JIT for numeric
-Python). The module is cached on disk by a hash of its text (:mod:`.cache`): the first run of a
+An experiment's equations (or a state-space model's A and B) are a closed, checked language,
+and its input signals are data of a few known kinds (:mod:`.inputs`), so odelab can generate
+one Python module holding the right-hand side, run by the stepping loops of
+:mod:`odelab.solvers.engine` rewritten for numba (the field's standard JIT for numeric Python). The module is cached on disk by a hash of its text (:mod:`.cache`): the first run of a
 system compiles it (a few seconds), later runs load it in a fraction of a second.
 
 The loop takes exactly the steps of the Python engine and gives the same values to round-off
@@ -19,7 +19,7 @@ runs on the Python path, which has no compile cost, and moves long ones here.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -52,6 +52,8 @@ class CompiledSystem:
     parameters: tuple[str, ...] = ()
     values: np.ndarray = field(default_factory=lambda: np.zeros(0))
     equations: tuple = ()  # (text, TOML key) per state
+    inputs: tuple[str, ...] = ()  # input names (equations) or one per column of B (linear)
+    signals: tuple = ()  # one odelab.signals signal per input, bound by with_signals()
 
     @classmethod
     def from_equations(cls, states: Sequence[str], equations: Sequence, parameters: Mapping[str, float] | None = None,
@@ -71,29 +73,82 @@ class CompiledSystem:
         from odelab.expressions import parse_expression
 
         parsed = [parse_expression(text, key=key) for text, key in self.equations]
-        known = {"t", *self.states, *self.parameters}
+        known = {"t", *self.states, *self.parameters, *self.inputs}
         for p in parsed:
             unknown = sorted(set(p.names) - known)
             if unknown:
-                raise InputError(f"`{p.key or p.text}` uses `{unknown[0]}`, which is not a state, a parameter "
-                                 "or t.", key=p.key)
+                raise InputError(f"`{p.key or p.text}` uses `{unknown[0]}`, which is not a state, "
+                                 f"{'an input, ' if self.inputs else ''}a parameter or t.", key=p.key)
         return parsed
 
     @classmethod
-    def linear(cls, A, states: Sequence[str]) -> "CompiledSystem":
-        """``x' = A x`` (a state-space model without inputs)."""
+    def from_system(cls, states: Sequence[str], equations: Sequence, parameters: Mapping[str, float] | None = None,
+                    inputs: Sequence[str] = (), keys: Sequence[str | None] | None = None) -> "CompiledSystem":
+        """An equations system whose expressions may also use the ``inputs`` (bind their signals
+        with :meth:`with_signals` before solving)."""
+        system = cls.from_equations(states, equations, parameters, keys)
+        return replace(system, inputs=tuple(inputs))
+
+    @classmethod
+    def linear(cls, A, states: Sequence[str], B=None, inputs: Sequence[str] = ()) -> "CompiledSystem":
+        """``x' = A x``, or ``x' = A x + B u`` with one input per column of ``B``."""
         A = np.asarray(A, dtype=float)
-        return cls(kind="linear", states=tuple(states), values=np.ascontiguousarray(A).ravel().copy())
+        values = [np.ascontiguousarray(A).ravel()]
+        if B is not None and np.shape(B)[1]:
+            values.append(np.ascontiguousarray(np.asarray(B, dtype=float)).ravel())
+            inputs = tuple(inputs) or tuple(f"u{k}" for k in range(np.shape(B)[1]))
+        else:
+            inputs = ()
+        return cls(kind="linear", states=tuple(states), values=np.concatenate(values), inputs=tuple(inputs))
+
+    def with_signals(self, signals: Sequence) -> "CompiledSystem":
+        """The system with its inputs driven by ``signals`` (:mod:`odelab.signals`, one per input)."""
+        if len(signals) != len(self.inputs):
+            raise InputError(f"the system has {len(self.inputs)} inputs but {len(signals)} signals were given.",
+                             key="signals")
+        return replace(self, signals=tuple(signals))
+
+    def why_not(self) -> str | None:
+        """Why this system cannot run compiled (an input the compiled engine cannot generate), or None."""
+        from odelab.solvers.compiled.inputs import why_not
+
+        if len(self.signals) != len(self.inputs):
+            return "its inputs have no signals"
+        for name, signal in zip(self.inputs, self.signals):
+            reason = why_not(signal)
+            if reason:
+                return f"input `{name}`: {reason}"
+        return None
+
+    def parameter_vector(self, lo: float = -np.inf, hi: float = np.inf) -> np.ndarray:
+        """The run-time data ``_p`` of the generated rhs: with inputs, the bounds of the inputs'
+        time (a piece of :func:`~odelab.systems.simulate.simulate`), the parameters and the
+        signals' numbers; without, the parameters (or A)."""
+        if not self.inputs:
+            return np.ascontiguousarray(self.values, dtype=float)
+        data: list[float] = []
+        self._inputs_lines(data)
+        return np.concatenate([[float(lo), float(hi)], self.values, np.asarray(data, dtype=float)])
+
+    def _inputs_lines(self, data: list[float]) -> list[str]:
+        from odelab.solvers.compiled.inputs import inputs_source
+
+        return inputs_source(self.signals, data, 2 + self.values.size)
 
     def source(self) -> str:
         """The generated module's text (right-hand side and loops)."""
         from odelab.solvers.compiled import cache, codegen
+        from odelab.solvers.compiled.inputs import INPUT_PRELUDE
 
+        reason = self.why_not() if self.inputs else None
+        if reason:
+            raise InputError(f"the compiled backend cannot run this system: {reason}.", key="backend")
+        lines = self._inputs_lines([]) if self.inputs else []
         if self.kind == "linear":
-            rhs = codegen.linear_source()
+            rhs = codegen.linear_source(len(self.inputs), lines)
         else:
-            rhs = codegen.equations_source(self.states, self.parameters, self._parsed())
-        return cache.module_text(codegen.PRELUDE, rhs)
+            rhs = codegen.equations_source(self.states, self.parameters, self._parsed(), self.inputs, lines)
+        return cache.module_text(codegen.PRELUDE + (INPUT_PRELUDE if self.inputs else ""), rhs)
 
     def module(self):
         """The module holding the compiled ``rhs`` (compiled or loaded from the cache on first use)."""
@@ -114,21 +169,25 @@ def unavailable() -> str | None:
     return None
 
 
-def solve_compiled(system: CompiledSystem, tspan, y0, method: str = "ode45", **options) -> Solution:
+def solve_compiled(system: CompiledSystem, tspan, y0, method: str = "ode45", *,
+                   input_bounds: tuple[float, float] = (-np.inf, np.inf), **options) -> Solution:
     """Solve ``system`` with an odelab method (ode23, ode45, fixed-step) on the compiled path.
 
     Same arguments, options and result as :func:`odelab.solvers.api.solve` with the
     system's right-hand side; SciPy's methods are not available here. A failed integration
     returns the partial solution and issues a SolverWarning, as :func:`~odelab.solve` does.
+    A system with inputs reads them at t clipped to ``input_bounds`` (one piece of
+    :func:`odelab.systems.simulate.simulate`, which restarts at the inputs' breakpoints).
     """
     from odelab.solvers import api
 
-    sol = _solve_compiled(system, tspan, y0, method, options)
+    sol = _solve_compiled(system, tspan, y0, method, options, input_bounds)
     api._warn_if_failed(sol, 3)
     return sol
 
 
-def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dict) -> Solution:
+def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dict,
+                    input_bounds: tuple[float, float] = (-np.inf, np.inf)) -> Solution:
     from odelab.solvers import api
     from odelab.solvers.options import as_tspan, as_y0, normalize_options, resolve_options
     from odelab.solvers.registry import get_method
@@ -162,7 +221,7 @@ def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dic
 
     kernels = load_kernels()
     rhs = system.module().rhs
-    p = np.ascontiguousarray(system.values, dtype=float)
+    p = system.parameter_vector(*input_bounds)
     tab = m.tableau
     t0 = float(tspan_arr[0])
     f0 = np.empty(n)

@@ -130,20 +130,30 @@ def expression_source(parsed: ParsedExpression) -> str:
     return code[id(parsed.tree.body)]
 
 
-def equations_source(states: Sequence[str], parameters: Sequence[str], equations: Sequence[ParsedExpression]) -> str:
-    """``rhs(t, _y, _p, _out)`` for ``d(states[i])/dt = equations[i]`` with parameters ``_p``."""
-    for name in (*states, *parameters):
+def equations_source(states: Sequence[str], parameters: Sequence[str], equations: Sequence[ParsedExpression],
+                     inputs: Sequence[str] = (), input_lines: Sequence[str] = ()) -> str:
+    """``rhs(t, _y, _p, _out)`` for ``d(states[i])/dt = equations[i]`` with parameters ``_p``.
+
+    With inputs, ``_p`` starts with the clipping bounds of the inputs' time (see
+    :func:`.inputs.inputs_source`, whose ``input_lines`` set ``_u0, _u1...``), then the parameters.
+    """
+    for name in (*states, *parameters, *inputs):
         _check_argument_name(name, "an argument")
+    first = 2 if inputs else 0
     lines = ["@_njit(_RHS, cache=True, error_model=\"numpy\")", "def rhs(t, _y, _p, _out):"]
+    lines += list(input_lines)
+    lines += [f"    {name} = _u{i}" for i, name in enumerate(inputs)]
     lines += [f"    {name} = _y[{i}]" for i, name in enumerate(states)]
-    lines += [f"    {name} = _p[{i}]" for i, name in enumerate(parameters)]
+    lines += [f"    {name} = _p[{first + i}]" for i, name in enumerate(parameters)]
     lines += [f"    _out[{i}] = {expression_source(p)}" for i, p in enumerate(equations)]
     return "\n".join(lines) + "\n"
 
 
-def linear_source() -> str:
-    """``rhs`` for x' = A x, with A (n x n, row-major) passed as the parameters ``_p``."""
-    return '''\
+def linear_source(ninputs: int = 0, input_lines: Sequence[str] = ()) -> str:
+    """``rhs`` for x' = A x (+ B u), A (n x n) then B (n x ninputs) row-major in the parameters
+    ``_p`` (after the clipping bounds when there are inputs), as ``A @ x + B @ u``."""
+    if not ninputs:
+        return '''\
 @_njit(_RHS, cache=True, error_model="numpy")
 def rhs(t, _y, _p, _out):
     n = _y.shape[0]
@@ -153,3 +163,13 @@ def rhs(t, _y, _p, _out):
             acc += _p[i * n + j] * _y[j]
         _out[i] = acc
 '''
+    bu = " + ".join(f"_p[_b + {k}] * _u{k}" for k in range(ninputs))
+    lines = ["@_njit(_RHS, cache=True, error_model=\"numpy\")", "def rhs(t, _y, _p, _out):", *input_lines,
+             "    n = _y.shape[0]",
+             "    for i in range(n):",
+             "        acc = 0.0",
+             "        for j in range(n):",
+             "            acc += _p[2 + i * n + j] * _y[j]",
+             f"        _b = 2 + n * n + i * {ninputs}",
+             f"        _out[i] = acc + ({bu})" if ninputs > 1 else f"        _out[i] = acc + {bu}"]
+    return "\n".join(lines) + "\n"
