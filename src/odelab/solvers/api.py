@@ -260,7 +260,7 @@ def _solve_adaptive(fun, tspan, y0, f0, m: Method, opts: SolverOptions, setup: d
         output = _output_function(opts, tspan, y0)
     threshold = opts.atol / opts.rtol
     (t, y, nsteps, nfailed, nfevals, status, t_stop, h_stop, exc, found, steps) = engine.integrate_adaptive(
-        fun, tspan, y0, f0, tab.A, tab.c, tab.error_weights, tab.dense, m.power, m.shrink_min,
+        fun, tspan, y0, f0, *_stepping_arrays(tab), m.power, m.shrink_min,
         opts.rtol, threshold, opts.max_step, opts.initial_step, opts.refine, opts.norm_control, opts.max_steps,
         events, v0, nonnegative, output, *_non_fsal(tab),
     )
@@ -277,9 +277,9 @@ def _solve_adaptive(fun, tspan, y0, f0, m: Method, opts: SolverOptions, setup: d
         completion = None
         if len(steps) == 5:  # a non-FSAL pair: steps whose interpolation stages are still to be evaluated
             *steps, complete = steps
-            completion = StageCompletion(fun, tab.extra_A, tab.extra_c, tab.stages, complete)
-        interpolant = DenseOutput(*steps, coefficients=tab.dense, y_final=y[-1].copy(), nonnegative=nonnegative,
-                                  completion=completion)
+            completion = StageCompletion(fun, tab.increment_form["extra_A"], tab.extra_c, tab.stages, complete)
+        interpolant = DenseOutput(*steps, coefficients=_stepping_arrays(tab)[3], y_final=y[-1].copy(),
+                                  nonnegative=nonnegative, completion=completion)
     return Solution(
         t=t, y=y, stats=stats, status="failed" if status in _FAILURES else "success", message=message,
         method=m.name, warnings=opts.warnings,
@@ -288,11 +288,20 @@ def _solve_adaptive(fun, tspan, y0, f0, m: Method, opts: SolverOptions, setup: d
     )
 
 
+def _stepping_arrays(tab) -> tuple:
+    """The engine's ``A, c, E, dense``: a non-FSAL pair's in increment form (K_0, K_j - K_0)."""
+    if tab.fsal:
+        return tab.A, tab.c, tab.error_weights, tab.dense
+    inc = tab.increment_form
+    return inc["A"], tab.c, inc["error_weights"], inc["dense"]
+
+
 def _non_fsal(tab) -> tuple:
-    """The engine's ``b`` and ``extra`` arguments: none for an FSAL pair."""
+    """The engine's ``b`` and ``extra`` arguments (increment form): none for an FSAL pair."""
     if tab.fsal:
         return ()
-    return (tab.b, None if tab.extra_c is None else (tab.extra_A, tab.extra_c))
+    inc = tab.increment_form
+    return (inc["b"], None if tab.extra_c is None else (inc["extra_A"], tab.extra_c))
 
 
 _FAILURES = (engine.STATUS_STEP_UNDERFLOW, engine.STATUS_NONFINITE, engine.STATUS_MAX_STEPS,

@@ -67,7 +67,8 @@ class StageCompletion:
     ``ode78``/``ode89`` (Verner's pairs) need a few stages beyond the step's own for their
     continuous extension; the engine evaluates them only for steps it interpolates itself
     (``Refine``, output times, events). The other steps are completed here, on first use,
-    with the same formula: stage ``s+1+j`` is ``f(t + c_j h, y + h A_j . K)``.
+    with the same formula: stage ``s+1+j`` is ``f(t + c_j h, y + h A_j . K)``, in the
+    increment form the engine uses (``K`` holds ``K_0`` and ``K_j - K_0``; ``A_extra`` acts on them).
     """
 
     def __init__(self, fun, A_extra: np.ndarray, c_extra: np.ndarray, stages: int, complete: np.ndarray):
@@ -86,6 +87,7 @@ class StageCompletion:
             for j, cj in enumerate(self.c_extra):
                 row = s + 1 + j
                 K[row] = self.fun(t + cj * h, y + (h * self.A_extra[j, :row]) @ K[:row])
+                K[row] -= K[0]
             self.nfevals += self.c_extra.size
             self.complete[i] = True
 

@@ -9,7 +9,9 @@ solution ``y + h sum_j b_j k_j``) read from a :class:`~odelab.solvers.tableau.Bu
   tableau, ``ode45`` with Dormand-Prince; nothing else differs. FSAL pairs (the last stage
   is ``f(t+h, y_new)``) are the default; a non-FSAL pair (``ode78``/``ode89``, Verner's)
   passes its weights ``b``: ``f(t+h, y_new)`` is evaluated once the step is accepted, and the
-  extra stages of its continuous extension only for a step whose interpolant is used.
+  extra stages of its continuous extension only for a step whose interpolant is used. Its
+  stages are held as increments ``K_j - K_0`` (Verner's coefficients reach 120, and summing
+  them against the nearly equal stages themselves would lose two digits to cancellation).
 * :func:`integrate_fixed` — the same stages on a prescribed grid of steps.
 
 The drivers are written for a later compiled backend: scalars and float arrays in, a tuple of
@@ -92,7 +94,9 @@ def integrate_adaptive(
         Tableau arrays. Without ``b`` the last stage must be FSAL (``A[-1]`` are the solution
         weights). With ``b``, ``A``, ``c`` and ``E`` cover the s stages of the step and
         ``dense`` has one row per stage of the extended step: the s stages,
-        ``f(t + h, y_new)``, then the stages of ``extra``.
+        ``f(t + h, y_new)``, then the stages of ``extra``; all of them (with ``b``, ``extra``)
+        in increment form (:attr:`~odelab.solvers.tableau.ButcherTableau.increment_form`): they
+        act on ``K_0`` and the increments ``K_j - K_0``, which is what ``K`` then holds.
     power
         Controller exponent ``1/(q+1)`` with q the embedded order (1/3 ode23, 1/5 ode45).
     shrink_min
@@ -174,6 +178,7 @@ def integrate_adaptive(
             np.multiply(A_extra, h, out=hA_extra)
             for (row, hA_row, K_head), cj in zip(extra_rows, extra_nodes):
                 K[row] = fun(t + cj * h, y + hA_row.dot(K_head))
+                K[row] -= K[0]
             nfevals += n_extra
             completed[0] = True
 
@@ -269,6 +274,7 @@ def integrate_adaptive(
                 else:  # every stage inside the step; f(tnew, ynew) once the step is accepted
                     for i in range(1, s):
                         K[i] = fun(t + nodes[i] * h, y + hA_rows[i].dot(K_heads[i]))
+                        K[i] -= K[0]
                     tnew = t + h
                     if done:
                         tnew = tfinal
@@ -329,7 +335,8 @@ def integrate_adaptive(
                 break
             nsteps += 1
             if not fsal:
-                K[s] = fun(tnew, ynew)
+                fnew = fun(tnew, ynew)
+                np.subtract(fnew, K[0], out=K[s])
                 nfevals += 1
                 if have_extra:
                     completed[0] = False
@@ -364,6 +371,8 @@ def integrate_adaptive(
                         # shortened step follows the same curve.
                         t_event = found_t[-1]
                         K[1:] = step_slopes(t + (t_event - t) * all_nodes[1:], t, y, h, K, dense, nonnegative)
+                        if not fsal:
+                            K[1:] -= K[0]
                         tnew = t_event
                         ynew = found_y[-1]
                         h = tnew - t
@@ -448,9 +457,12 @@ def integrate_adaptive(
                 absy = absynew
             if nn_reset:
                 # The stages interpolated the unclipped solution; move on along the clipped one.
-                K[fnew_row] = fun(tnew, ynew)
+                if fsal:
+                    K[fnew_row] = fun(tnew, ynew)
+                else:
+                    fnew = fun(tnew, ynew)
                 nfevals += 1
-            K[0] = K[fnew_row]
+            K[0] = K[last] if fsal else fnew
     except Exception as exc:  # the user's right-hand side (or events function) failed
         status = STATUS_FUN_RAISED
         exception = exc

@@ -16,6 +16,7 @@ every power of ``s`` separately. Verner's high-order pairs (``ode78``, ``ode89``
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from fractions import Fraction as Fr
 
 import numpy as np
@@ -247,6 +248,42 @@ class ButcherTableau:
         if self.extra_A is not None:
             full[s + 1:, :] = self.extra_A
         return full
+
+    @cached_property
+    def increment_form(self) -> dict[str, np.ndarray]:
+        """The arrays acting on ``K_0`` and the increments ``K_j - K_0`` instead of the stages.
+
+        Since the rows of ``A`` sum to ``c`` and ``b`` to 1, ``y + h sum_j a_ij K_j`` equals
+        ``y + h (c_i K_0 + sum_j a_ij (K_j - K_0))``: column 0 of ``A`` becomes ``c``, entry 0 of
+        ``b`` becomes 1, of the error weights 0, and row 0 of the continuous extension the
+        powers' sums (1, 0, ...). Same method; in floating point the large coefficients of
+        Verner's pairs multiply increments of size O(h) instead of whole stages. Keys ``A``,
+        ``b``, ``error_weights``, ``dense``, ``extra_A`` (those the tableau has).
+        """
+        out = {}
+        A = np.array(self.A)
+        A[:, 0] = self.c
+        A[0, 0] = 0.0
+        out["A"] = A
+        b = np.array(self.b)
+        b[0] = 1.0
+        out["b"] = b
+        if self.error_weights is not None:
+            E = np.array(self.error_weights)
+            E[0] = 0.0
+            out["error_weights"] = E
+        if self.dense is not None:
+            D = np.array(self.dense)
+            D[0] = 0.0
+            D[0, 0] = 1.0
+            out["dense"] = D
+        if self.extra_A is not None:
+            X = np.array(self.extra_A)
+            X[:, 0] = self.extra_c
+            out["extra_A"] = X
+        for arr in out.values():
+            arr.setflags(write=False)
+        return out
 
     def _dense_order_problems(self) -> list[str]:
         """The continuous extension's order conditions, one per tree and power of s."""
