@@ -208,3 +208,14 @@ def test_registry_rows_and_backend():
     with pytest.raises(InputError, match=r"ode89 is Verner's non-FSAL pair, which runs on the Python path: use "
                                          r"backend \"python\""):
         solve_compiled(None, [0, 1], [1.0], method="ode89")
+
+
+def test_odextend_nonnegative_and_mass_through_the_same_driver():
+    first = odelab.ode89(lambda t, y: -y, [0, 1], 1.0, RelTol=1e-10, AbsTol=1e-12)
+    whole = odelab.odextend(first, None, 2.0)  # completes both parts' interpolation stages
+    assert abs(whole.y[-1, 0] - np.exp(-2)) < 1e-11 and abs(whole.deval(1.5)[0] - np.exp(-1.5)) < 1e-11
+    # y' = -sqrt(y) reaches 0 at t = 2 and must stay there (MATLAB's NonNegative)
+    sink = odelab.ode78(lambda t, y: [-np.sqrt(max(y[0], 0.0))], [0, 3], [1.0], NonNegative=[1], RelTol=1e-8)
+    assert sink.success and sink.y[:, 0].min() == 0.0 and abs(sink.y[-1, 0]) == 0.0
+    heavy = odelab.ode78(lambda t, y: [-y[0]], [0, 1], [1.0], Mass=[[2.0]], RelTol=1e-10, AbsTol=1e-12)
+    assert abs(heavy.y[-1, 0] - np.exp(-0.5)) < 1e-11
