@@ -236,3 +236,22 @@ def test_the_run_step_budget_says_how_to_lift_it(tmp_path):
     assert result.message.endswith(
         "It was odelab run's step budget that stopped it (--max-steps, 5 steps): lift it with --max-steps 50 "
         "(or --max-steps 0 for no limit), or set max_steps in [solver].")
+
+
+def test_the_whole_block_csv_is_the_value_by_value_text_and_round_trips(tmp_path):
+    from odelab.experiment.store import _trajectory_csv
+
+    values = [0.0, -0.0, 0.1, 1e-05, 1e-4, 123456789012345680.0, 1.0000000000000002, -2.5e-310, math.inf,
+              -math.inf, math.nan, 1 / 3, 6.02214076e23]
+    data = np.array([values, values[::-1], [math.nan] * len(values)])
+    text = _trajectory_csv([f"c{i}" for i in range(len(values))], data)
+    expected = [",".join(f"c{i}" for i in range(len(values)))]
+    expected += [",".join("" if v != v else repr(v) for v in row) for row in data.tolist()]
+    assert text == "\n".join(expected) + "\n"
+    assert text.splitlines()[1] == ("0.0,-0.0,0.1,1e-05,0.0001,1.2345678901234568e+17,1.0000000000000002,"
+                                    "-2.5e-310,inf,-inf,,0.3333333333333333,6.02214076e+23")
+    assert text.splitlines()[3] == "," * (len(values) - 1)
+    back = np.array([[float(v) if v else math.nan for v in line.split(",")] for line in text.splitlines()[1:]])
+    np.testing.assert_array_equal(back, data)  # equal doubles, NaN where NaN, the sign of -0.0 kept
+    assert math.copysign(1, back[0, 1]) == -1
+    assert _trajectory_csv(["t", "y"], np.empty((0, 2))) == "t,y\n"
