@@ -194,8 +194,6 @@ def _interruptible(err, total: int):
 
 def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, store, total, done, jobs, executor,
              scheduler, backend=None) -> None:
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-
     from odelab.exceptions import InputError
     from odelab.experiment.executors import CaseError, run_cases
 
@@ -217,9 +215,7 @@ def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, st
     except InputError as exc:
         err.print(f"[bold red]error:[/] {_escape(_error_text(exc))}")
         raise typer.Exit(EXIT_INPUT) from None
-    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-               TextColumn("[red]{task.fields[failed]} failed[/]"), TimeRemainingColumn())
-    with Progress(*columns, console=err, transient=True, disable=total < 2 or not err.is_terminal) as progress:
+    with _progress(err, shown=total >= 2 and err.is_terminal) as progress:
         state["progress"], state["task"] = progress, progress.add_task("running", total=total, failed=0)
         for exp in loaded:
             progress.update(state["task"], description=_escape(exp.name))
@@ -269,6 +265,33 @@ def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, st
     elif stored:
         out.print(f"results stored in {_escape(str(runs))}/")
     raise typer.Exit(EXIT_INPUT if bad else EXIT_FAILED if any_failed else EXIT_OK)
+
+
+class _NoProgress:
+    """What ``_run_all`` asks of a progress bar, when none is shown (one case, or output not a terminal)."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        return None
+
+    def add_task(self, *args, **kwargs) -> int:
+        return 0
+
+    def update(self, *args, **kwargs) -> None:
+        return None
+
+
+def _progress(err, *, shown: bool):
+    """Rich's progress bar on the error console, or a stand-in (rich.progress is imported only when shown)."""
+    if not shown:
+        return _NoProgress()
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+               TextColumn("[red]{task.fields[failed]} failed[/]"), TimeRemainingColumn())
+    return Progress(*columns, console=err, transient=True)
 
 
 def _trajectory(result) -> dict:

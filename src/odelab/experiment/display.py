@@ -148,7 +148,7 @@ def print_grid(console: Console, columns, rows, *, wrap=()) -> None:
                     text.append(pad, style=cell.style)
                 if i < len(widths) - 1:
                     text.append("  ")
-        console.print(text)
+        console.print(text, soft_wrap=True)  # it fits: no wrapping to compute
         return
     table = Table(show_edge=False, pad_edge=False, header_style="bold", box=None)
     for name, justify in columns:

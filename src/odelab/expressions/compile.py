@@ -139,12 +139,23 @@ def _function_source(name: str, params: Sequence[str], body: list[str]) -> str:
 
 
 def _define(source_code: str, name: str, namespace: dict[str, Any], error: Callable[[], Exception]):
-    try:
-        code = compile(source_code, f"<odelab {name}>", "exec")
-    except (RecursionError, MemoryError):
-        raise error() from None
+    code = _CODE.get((source_code, name))
+    if code is None:
+        try:
+            code = compile(source_code, f"<odelab {name}>", "exec")
+        except (RecursionError, MemoryError):
+            raise error() from None
+        if len(_CODE) < _CODE_MAX:
+            _CODE[(source_code, name)] = code
     exec(code, namespace)  # the source holds validated names, numbers and helpers only
     return namespace[name]
+
+
+# Compiled code by generated source. Numbers live in the namespace (``_k0``), not in the
+# source, so ``sin(t) + 2`` and ``sin(t) + 3`` in two files of a batch share one code object:
+# Python's compile() was a fifth of loading a small experiment file. Code objects are immutable.
+_CODE: dict[tuple[str, str], Any] = {}
+_CODE_MAX = 4096
 
 
 class CompiledExpression:

@@ -18,6 +18,7 @@ runs on the Python path, which has no compile cost, and moves long ones here.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
@@ -157,8 +158,12 @@ class CompiledSystem:
         return cache.load_module(self.source())
 
 
+@functools.cache
 def unavailable() -> str | None:
-    """Why the compiled backend cannot run here (numba missing), or None if it can."""
+    """Why the compiled backend cannot run here (numba missing), or None if it can.
+
+    Looked up once per process: the search of sys.path for numba was a fifth of running a
+    small case, paid by every case of a batch."""
     try:
         import importlib.util
 
