@@ -1,15 +1,21 @@
-"""Benchmark: `odelab run experiments/exercise1.toml` end to end, as a user runs it.
+"""Benchmark: `odelab run experiments/exercise1.toml` end to end, as a user runs it, against GNU Octave.
 
 Wall time of the whole process (interpreter start, imports, loading, both solves, error
 tables, printing and storing), best of ``--repeat`` runs, against GNU Octave running the same
-two solves as a script (when ``octave-cli`` is installed). Target: under 0.4 s.
+two solves as a script (``octave-cli``), the runs interleaved so that both see the same
+machine. Also the floor odelab cannot go under: the interpreter with the packages the run needs
+(numpy, typer, pydantic, rich) imported and nothing done. Target: at most 2x Octave's time.
 
     python bench/bench_run.py [--repeat 10]
+
+Bytecode is written on the first run (as an installed odelab has it); PYTHONDONTWRITEBYTECODE
+is cleared for the measured processes.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
 import subprocess
 import sys
@@ -18,7 +24,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-TARGET = 0.4
+TARGET = 2.0
 
 OCTAVE = """
 [t, y] = ode23(@(t, y) cos(t), [0 pi], 2);
@@ -28,36 +34,47 @@ e45 = max(abs(sin(t) + 2 - y) ./ abs(sin(t) + 2));
 printf('%g %g\\n', e23, e45);
 """
 
-
-def best_wall(cmd: list[str], repeat: int, cwd: str) -> float:
-    best = float("inf")
-    for _ in range(repeat):
-        start = time.perf_counter()
-        subprocess.run(cmd, cwd=cwd, check=True, capture_output=True)
-        best = min(best, time.perf_counter() - start)
-    return best
+FLOOR = "import numpy, typer, pydantic, rich.console, rich.table"
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=10)
     args = parser.parse_args()
-    odelab = shutil.which("odelab", path=str(Path(sys.executable).parent)) or "odelab"
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    exp = str(ROOT / "experiments" / "exercise1.toml")
     with tempfile.TemporaryDirectory() as tmp:
-        exp = str(ROOT / "experiments" / "exercise1.toml")
-        rows = [("odelab run exercise1.toml", best_wall([odelab, "run", exp, "--runs", "runs"], args.repeat, tmp))]
-        rows.append(("odelab --help", best_wall([odelab, "--help"], args.repeat, tmp)))
+        commands = {
+            "odelab run exercise1.toml": [sys.executable, "-m", "odelab.cli", "run", exp, "--runs", "runs"],
+            "odelab run exercise1.toml --jobs 1": [sys.executable, "-m", "odelab.cli", "run", exp, "--runs", "runs",
+                                                   "--jobs", "1"],
+            "odelab --help": [sys.executable, "-m", "odelab.cli", "--help"],
+            "python: imports only (floor)": [sys.executable, "-c", FLOOR],
+            "python -c pass": [sys.executable, "-c", "pass"],
+        }
         octave = shutil.which("octave-cli")
         if octave:
             script = Path(tmp) / "ex1.m"
             script.write_text(OCTAVE)
-            rows.append(("octave-cli ex1.m", best_wall([octave, "--no-gui", "--quiet", str(script)],
-                                                       max(3, args.repeat // 3), tmp)))
-    print(f"best of {args.repeat} runs, wall time of the whole process")
-    for name, seconds in rows:
-        print(f"{name:<28} {seconds:6.3f} s")
-    verdict = "meets" if rows[0][1] < TARGET else "MISSES"
-    print(f"odelab run: {rows[0][1]:.3f} s ({verdict} the target of {TARGET} s)")
+            commands["octave-cli ex1.m"] = [octave, "--no-gui", "--quiet", str(script)]
+        best = {name: float("inf") for name in commands}
+        for cmd in commands.values():  # warm-up: bytecode, disk cache
+            subprocess.run(cmd, cwd=tmp, check=True, capture_output=True, env=env)
+        for _ in range(args.repeat):  # interleaved: every command sees the same load
+            for name, cmd in commands.items():
+                start = time.perf_counter()
+                subprocess.run(cmd, cwd=tmp, check=True, capture_output=True, env=env)
+                best[name] = min(best[name], time.perf_counter() - start)
+    print(f"best of {args.repeat} interleaved runs, wall time of the whole process")
+    print(f"{'command':<38} {'seconds':>8} {'x Octave':>9}")
+    ref = best.get("octave-cli ex1.m")
+    for name, seconds in best.items():
+        ratio = f"{seconds / ref:8.2f}x" if ref else ""
+        print(f"{name:<38} {seconds:8.3f} {ratio:>9}")
+    if ref:
+        ratio = best["odelab run exercise1.toml"] / ref
+        verdict = "meets" if ratio <= TARGET else "MISSES"
+        print(f"odelab run / Octave: {ratio:.2f}x ({verdict} the target of {TARGET}x)")
 
 
 if __name__ == "__main__":
