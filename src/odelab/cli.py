@@ -343,6 +343,8 @@ def report(
     fmt: Annotated[str, typer.Option("--format", help="html, md or both.")] = "both",
     template: Annotated[Optional[Path], typer.Option("--template",
                                                      help="A folder of Jinja templates to use instead.")] = None,
+    jobs: Annotated[Optional[int], typer.Option("--jobs", "-j", min=1, show_default="the number of cores",
+                                                help="Figures drawn at once (processes).")] = None,
 ) -> None:
     """Build the lab report (HTML and Markdown, with plots and error tables) from stored runs."""
     import warnings
@@ -354,7 +356,7 @@ def report(
     out_console, err = _consoles()
     try:
         result = build_report(runs, out, formats=fmt, experiments=_experiment_names(experiments) or None,
-                              template_dir=template)
+                              template_dir=template, jobs=jobs)
     except InputError as exc:
         err.print(f"[bold red]error:[/] {_escape(_error_text(exc))}")
         raise typer.Exit(EXIT_INPUT) from None

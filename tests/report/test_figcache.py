@@ -5,7 +5,7 @@ import shutil
 import numpy as np
 import pytest
 
-from odelab.report import figcache, plots
+from odelab.report import drawing, figcache, plots
 from odelab.report.plots import FigureSpec, Line, Panel
 from report_support import build
 
@@ -29,6 +29,7 @@ def test_the_key_follows_every_plotted_value_and_label_but_not_the_file_name():
 def test_a_rebuild_of_unchanged_runs_draws_nothing(lab_runs, tmp_path, monkeypatch):
     first = build(lab_runs, tmp_path / "one", formats=["md"])
     drawn = []
+    monkeypatch.setattr(drawing, "POOL_MIN", 10**6)  # drawn here, where the list below can see it
     monkeypatch.setattr(plots, "_draw_png", lambda s: drawn.append(s.name) or b"")
     second = build(lab_runs, tmp_path / "two", formats=["md"])
     assert drawn == []
@@ -49,6 +50,7 @@ def test_a_changed_run_redraws_only_its_figures(lab_runs, tmp_path, monkeypatch)
     cells[1] = repr(float(cells[1]) + 1e-3)  # y at one output point
     csv.write_text("\n".join([*lines[:3], ",".join(cells), *lines[4:]]) + "\n")
     drawn = []
+    monkeypatch.setattr(drawing, "POOL_MIN", 10**6)
     real = plots._draw_png
     monkeypatch.setattr(plots, "_draw_png", lambda s: drawn.append(s.name) or real(s))
     build(runs, tmp_path / "two", formats=["md"])

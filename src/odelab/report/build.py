@@ -33,9 +33,12 @@ MD_STEP_ROWS = 40
 PRINT_STEP_ROWS = 20
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(eq=False)
 class Figure:
-    """A drawn figure: the PNG bytes, embedded in the HTML and written for the Markdown."""
+    """A drawn figure: the PNG bytes, embedded in the HTML and written for the Markdown.
+
+    The bytes are filled in once every figure of the report is known (:class:`_Drawing`), so
+    that they can be drawn together, across the cores."""
 
     name: str
     caption: str
@@ -83,24 +86,41 @@ def _formats(formats: Iterable[str]) -> tuple[str, ...]:
     return tuple(chosen)
 
 
-def _draw(spec, taken: set[str]) -> Figure | None:
-    from odelab.report.plots import render_png
+class _Drawing:
+    """The report's figures: named as they are asked for, drawn all at once by :meth:`finish`."""
 
-    if spec is None:
-        return None
-    name, i = spec.name, 2
-    while name in taken:
-        name, i = f"{spec.name}-{i}", i + 1
-    taken.add(name)
-    return Figure(name=name, caption=spec.caption, alt=spec.alt, png=render_png(spec))
+    def __init__(self, jobs: int | None = None) -> None:
+        self.jobs = jobs
+        self.taken: set[str] = set()
+        self.pending: list[tuple[object, Figure]] = []
+
+    def __call__(self, spec) -> Figure | None:
+        if spec is None:
+            return None
+        name, i = spec.name, 2
+        while name in self.taken:
+            name, i = f"{spec.name}-{i}", i + 1
+        self.taken.add(name)
+        figure = Figure(name=name, caption=spec.caption, alt=spec.alt, png=b"")
+        self.pending.append((spec, figure))
+        return figure
+
+    def finish(self) -> None:
+        """Every figure asked for, from the cache or drawn (in parallel when there are many)."""
+        from odelab.report.drawing import render_pngs
+
+        for (_, figure), png in zip(self.pending, render_pngs([spec for spec, _ in self.pending], jobs=self.jobs)):
+            figure.png = png
+        self.pending = []
 
 
-def _draw_control(view, stem: str, taken: set[str]) -> list[Figure]:
+def _draw_control(view, stem: str, draw: _Drawing) -> list[Figure]:
     """The diagram (by Graphviz) and the Bode plot of a section, drawn."""
     if view is None:
         return []
     from odelab.report.control import render_dot
 
+    taken = draw.taken
     drawn = []
     if view.dot is not None:
         png, view.diagram_note = render_dot(view.dot)
@@ -112,7 +132,7 @@ def _draw_control(view, stem: str, taken: set[str]) -> list[Figure]:
             view.diagram_figure = Figure(name=name, caption="The block diagram as written in the experiment file, "
                                          "laid out by Graphviz.", alt="Block diagram of the experiment.", png=png)
             drawn.append(view.diagram_figure)
-    view.bode_figure = _draw(view.bode_figure, taken)
+    view.bode_figure = draw(view.bode_figure)
     if view.bode_figure is not None:
         drawn.append(view.bode_figure)
     return drawn
@@ -125,6 +145,7 @@ def build_report(
     formats: Iterable[str] = FORMATS,
     experiments: list[str] | None = None,
     template_dir: Path | None = None,
+    jobs: int | None = None,
 ) -> ReportResult:
     """Write the lab report of the runs stored in ``runs`` into the folder ``out``.
 
@@ -142,6 +163,9 @@ def build_report(
     template_dir
         A folder of the course's own templates (``report.html.j2``, ``report.md.j2``,
         ``report.css``); the package's are used for any it does not hold.
+    jobs
+        Figures drawn at once, in a pool of processes (default: the cores this process may
+        use; 1 draws them here). Figures found in the figure cache are not drawn.
 
     Returns
     -------
@@ -188,23 +212,24 @@ def build_report(
                                              "settings", *(s.anchor for s in sections)})
     warnings.extend(more)
 
-    taken: set[str] = set()
+    draw = _Drawing(jobs)
     figures: list[Figure] = []
     for section in sections:
-        section.solution_figure = _draw(section.solution_figure, taken)
-        section.error_figure = _draw(section.error_figure, taken)
+        section.solution_figure = draw(section.solution_figure)
+        section.error_figure = draw(section.error_figure)
         for view in section.linearisations:
-            view.figures = [_draw(spec, taken) for spec in view.figures]
+            view.figures = [draw(spec) for spec in view.figures]
         if section.stiffness is not None:
-            section.stiffness.figure = _draw(section.stiffness.figure, taken)
+            section.stiffness.figure = draw(section.stiffness.figure)
             if section.stiffness.figure is not None:
                 figures.append(section.stiffness.figure)
-        figures.extend(_draw_control(section.control, section.anchor, taken))
+        figures.extend(_draw_control(section.control, section.anchor, draw))
         figures.extend(f for f in (section.solution_figure, section.error_figure) if f is not None)
         figures.extend(f for view in section.linearisations for f in view.figures)
     for study in studies:
-        study.figures = [_draw(spec, taken) for spec in study.figures]
+        study.figures = [draw(spec) for spec in study.figures]
         figures.extend(f for f in study.figures if f is not None)
+    draw.finish()
 
     cases = [case for section in sections for case in section.cases]
     context = {
