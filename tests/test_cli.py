@@ -222,7 +222,8 @@ def _modules_after(*args) -> set[str]:
     import sys
 
     code = ("import sys\nfrom odelab.cli import app\ntry:\n    app(%r)\nexcept SystemExit:\n    pass\n"
-            "print(' '.join(m for m in ('numpy', 'scipy', 'matplotlib', 'pydantic') if m in sys.modules))" % (list(args),))
+            "print(' '.join(m for m in ('numpy', 'scipy', 'matplotlib', 'pydantic', 'rich.progress', 'rich.table') "
+            "if m in sys.modules))" % (list(args),))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     return set(out.split("\n")[-2].split())
 
@@ -234,6 +235,7 @@ def test_help_imports_neither_numpy_scipy_nor_matplotlib():
 def test_exercise1_run_imports_neither_scipy_nor_matplotlib(tmp_path):
     loaded = _modules_after("run", str(EXPERIMENTS / "exercise1.toml"), "--runs", str(tmp_path))
     assert "numpy" in loaded and "scipy" not in loaded and "matplotlib" not in loaded
+    assert "rich.progress" not in loaded  # no progress bar when the output is not a terminal
 
 
 def test_mat_export_loads_in_scipy(tmp_path):

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 from rich.cells import cell_len
 from rich.console import Console
-from rich.table import Table
 from rich.text import Text
 
 from odelab.terminal import shown, visible
@@ -150,6 +149,8 @@ def print_grid(console: Console, columns, rows, *, wrap=()) -> None:
                     text.append("  ")
         console.print(text, soft_wrap=True)  # it fits: no wrapping to compute
         return
+    from rich.table import Table
+
     table = Table(show_edge=False, pad_edge=False, header_style="bold", box=None)
     for name, justify in columns:
         table.add_column(Text(name), justify=justify, no_wrap=name not in wrap)
@@ -160,6 +161,8 @@ def print_grid(console: Console, columns, rows, *, wrap=()) -> None:
 
 def print_point_table(console: Console, r) -> None:
     """The lab's 'relative error at each step': t, value, reference, absolute and relative error."""
+    from rich.table import Table
+
     from odelab.analysis.errors import error_columns
 
     series = r.series()
@@ -189,6 +192,8 @@ def _num(v: float, digits: int = 4) -> str:
 
 def print_analysis(console: Console, case: str | None, info: dict) -> None:
     """[analysis]: transfer functions, poles, step metrics and margins of the linear model."""
+    from rich.table import Table
+
     where = f" ({_shown(case)})" if case else ""
     if "operating_point" in info:
         op = info["operating_point"]
@@ -237,6 +242,8 @@ def print_analysis(console: Console, case: str | None, info: dict) -> None:
 
 def print_linearization(console: Console, case: str, info: dict) -> None:
     """Operating point, linear model and the amplitude study of a [linearize] case."""
+    from rich.table import Table
+
     op = info["operating_point"]
     point = ", ".join(f"{k} = {v:.6g}" for k, v in {**op["x"], **op["u"]}.items())
     console.print(f"[bold]{_shown(case)}[/]: operating point {_shown(point)} (residual {op['residual']:.1e})")
@@ -268,6 +275,8 @@ EVENT_ROWS = 20  # events listed in the terminal; result.json and the report hav
 
 def print_events(console: Console, r) -> None:
     """The located events of a case: time (and exact time, if known), state, reset."""
+    from rich.table import Table
+
     states = list(r.case.problem.states)
     exact = any("exact_t" in e for e in r.events)
     t = Table(title=f"{_shown(r.case.name)}: {len(r.events)} event{'s' if len(r.events) != 1 else ''}",
@@ -290,6 +299,8 @@ def print_events(console: Console, r) -> None:
 
 def print_sweep(console: Console, exp, results) -> None:
     """A sweep in a few lines: how many cases ran, failures, and the study's table."""
+    from rich.table import Table
+
     from odelab.experiment.study import run_study, sweep_rows
 
     failed = [r for r in results if r.status != "success"]
