@@ -19,6 +19,14 @@ arrays and integer codes out, no objects, no strings, no closures. Every operati
 order of MATLAB's ``ode23.m``/``ode45.m`` so that results agree to round-off (for example the
 step multiplies ``h`` into the tableau first, ``hA = h*A``, then sums the stages, as MATLAB's
 ``f*hB`` does).
+
+The adaptive driver's step is a few small numpy calls around the right-hand side, so the loop
+avoids every call it can without changing a bit of the result: the tableau's rows and the
+stage matrix are bound to fixed views once, the error norm's maximum is taken over a Python
+list for small systems (a numpy reduction costs more than the division before it), each
+accepted step's end and stages go into arrays that grow in place, and the interior ``Refine``
+points are interpolated after the loop for all steps at once (a stacked product that gives the
+per-step product's bits), unless an output function needs them step by step.
 """
 
 from __future__ import annotations
@@ -51,6 +59,78 @@ STATUS_OUTPUT_STOP = 6  # the output function asked to stop (not a failure)
 def _hmin(t: float) -> float:
     """MATLAB's ``16*eps(t)``: 16 spacings of doubles at |t| (the smallest subnormal at 0)."""
     return 16.0 * math.ulp(t)
+
+#: Systems up to this size take the error norm's maximum over a Python list (cheaper than a
+#: numpy reduction for a few components; the same bits).
+_SMALL = 16
+#: Steps the step arrays hold at first; they grow by a quarter (at least this many) when full.
+_FIRST_CAPACITY = 64
+#: Steps per block when the Refine rows are interpolated after the loop (bounds the temporaries).
+_BLOCK = 16384
+
+
+def _grow(arr: np.ndarray, rows: int) -> None:
+    """Resize ``arr`` to ``rows`` rows in place.
+
+    A realloc: the first rows keep their values, and the operating system remaps a long run's
+    arrays instead of copying them (so growing one never holds two copies). The engine never
+    takes views of these arrays before their last resize.
+    """
+    arr.resize((rows,) + arr.shape[1:], refcheck=False)
+
+
+def _complete(fun, t: float, y: np.ndarray, h: float, K: np.ndarray, A_extra: np.ndarray, hA_extra: np.ndarray,
+              extra_rows) -> int:
+    """Evaluate a non-FSAL step's interpolation stages into K (stage ``s+1+j`` is
+    ``f(t + c_j h, y + h A_extra[j] . K)``, held as its increment over ``K_0``), for a step that
+    is interpolated; returns their number."""
+    np.multiply(A_extra, h, hA_extra)
+    for row, cj, hA_row, K_head in extra_rows:
+        K[row] = fun(t + cj * h, y + hA_row.dot(K_head))
+        K[row] -= K[0]  # increment form
+    return len(extra_rows)
+
+
+def _refine_rows(weights_T: np.ndarray, h, K: np.ndarray, y: np.ndarray, nonnegative) -> np.ndarray:
+    """MATLAB's interior Refine points of one step, ``y + h * W K`` with ``W`` the extension's
+    weights at s = j/refine: shape (refine-1, n) for one step's K (s, n)."""
+    block = h * weights_T.dot(K) + y
+    if nonnegative is not None:
+        block[:, nonnegative] = np.maximum(block[:, nonnegative], 0.0)
+    return block
+
+
+def _refine_output(t_ends, y_ends, step_K, fractions, weights_T, nonnegative):
+    """The output of a two-element tspan with Refine > 1, from every step's end and stages.
+
+    Row ``k*refine`` is the end of step k (t0 for k = 0) and the ``refine - 1`` rows after it
+    are the step's interior points, computed with :func:`_refine_rows`' formula for blocks of
+    steps at once (a stacked matmul gives the same bits as the per-step product).
+    """
+    N = t_ends.size - 1
+    r = fractions.size + 1
+    h = np.diff(t_ends)
+    t_arr = np.empty(N * r + 1)
+    t_arr[0] = t_ends[0]
+    t_view = t_arr[1:].reshape(N, r)
+    t_view[:, :-1] = t_ends[:-1, None] + h[:, None] * fractions
+    t_view[:, -1] = t_ends[1:]
+    y_arr = np.empty((N * r + 1, y_ends.shape[1]), dtype=y_ends.dtype)
+    y_arr[0] = y_ends[0]
+    y_view = y_arr[1:].reshape(N, r, y_ends.shape[1])
+    y_view[:, -1] = y_ends[1:]
+    if np.iscomplexobj(step_K):  # complex products: numpy's stacked matmul sums differently
+        for k in range(N):
+            y_view[k, :-1] = _refine_rows(weights_T, h[k], step_K[k], y_ends[k], nonnegative)
+        return t_arr, y_arr
+    for a in range(0, N, _BLOCK):
+        b = min(N, a + _BLOCK)
+        block = h[a:b, None, None] * np.matmul(weights_T, step_K[a:b]) + y_ends[a:b, None, :]
+        if nonnegative is not None:
+            block[..., nonnegative] = np.maximum(block[..., nonnegative], 0.0)
+        y_view[a:b, :-1] = block
+    return t_arr, y_arr
+
 
 
 def integrate_adaptive(
@@ -133,7 +213,7 @@ def integrate_adaptive(
         ``found = (te, ye, ie)`` lists of located events and ``steps = (t, h, y, K)`` arrays of
         every accepted step for dense output. With ``extra``, ``steps`` has a fifth array: which
         steps have their extra stages computed (the others are completed on demand by
-        :func:`odelab.solvers.dense.complete_steps`).
+        :class:`odelab.solvers.dense.StageCompletion`).
     b
         Solution weights (s,) of a non-FSAL pair, or None for an FSAL pair.
     extra
@@ -150,49 +230,52 @@ def integrate_adaptive(
     last = s - 1
     nodes = [float(ci) for ci in c]
     is_complex = np.iscomplexobj(y0)
+    dtype = y0.dtype
     # Preallocated work arrays and fixed views into them: per attempt the engine fills
     # hA = h*A in place, and stage i reads row i of hA against the first i stages.
     # A non-FSAL pair's K also holds f(t+h, y_new) (row s, the next step's first stage) and
     # the interpolation stages after it; K_main is the step's own s stages.
-    fnew_row = last if fsal else s
-    K = np.empty((s if fsal else dense.shape[0], n), dtype=y0.dtype)
+    K = np.empty((s if fsal else dense.shape[0], n), dtype=dtype)
     K[0] = f0
     K_main = K[:s]
-    if not fsal:
+    hA = np.empty_like(A)
+    # (row i of K, c_i, row i of hA, the stages before i) of each stage the loop computes
+    # after the first (an FSAL pair's last stage is f(tnew, ynew), computed apart); writing
+    # into a fixed row view is cheaper than K[i] = ...
+    middle = [(K[i], nodes[i], hA[i, :i].dot, K[:i]) for i in range(1, last if fsal else s)]
+    K_first, K_fnew = K[0], K[last if fsal else s]  # the next step's first stage is K_fnew
+    if fsal:
+        hA_last_dot, K_head_last = hA[last, :last].dot, K[:last]
+    else:
         b = np.asarray(b)
         hb = np.empty_like(b)
+        hb_dot = hb.dot
         if extra is not None:
             A_extra, c_extra = extra
-            n_extra = len(c_extra)
             hA_extra = np.empty_like(A_extra)
-            extra_nodes = [float(ci) for ci in c_extra]
-            extra_rows = [(s + 1 + j, hA_extra[j, :s + 1 + j], K[:s + 1 + j]) for j in range(n_extra)]
+            extra_rows = [(s + 1 + j, float(c_extra[j]), hA_extra[j, :s + 1 + j], K[:s + 1 + j])
+                          for j in range(len(c_extra))]
     have_extra = not fsal and extra is not None
     step_complete: list[bool] = []
-    completed = [True]  # this step's extra stages are in K (a list: the event closure sets it)
-
-    def complete():
-        """Evaluate the step's interpolation stages (once per step, only when it is interpolated)."""
-        nonlocal nfevals
-        if not completed[0]:
-            np.multiply(A_extra, h, out=hA_extra)
-            for (row, hA_row, K_head), cj in zip(extra_rows, extra_nodes):
-                K[row] = fun(t + cj * h, y + hA_row.dot(K_head))
-                K[row] -= K[0]
-            nfevals += n_extra
-            completed[0] = True
-
+    # [whether this step's interpolation stages are in K, evaluations made by the events'
+    # closure] (a list: the closure updates it)
+    completed = [True, 0]
     all_nodes = c if fsal else np.concatenate([c, [1.0], extra[1] if have_extra else []])
-    hA = np.empty_like(A)
-    hA_rows = [hA[i, :i] for i in range(s)]
-    K_heads = [K[:i] for i in range(s)]
-    scale = np.empty(n)
+    E_dot = E.dot
     absy = np.abs(y0)
     have_nonneg = nonnegative is not None
     if have_nonneg:
         threshold_nn = threshold if norm_control else threshold[nonnegative]
+    # The error norm max_i |fE_i| / max(|y_i|, |ynew_i|, threshold_i): for a small real system
+    # the maximum is taken over a Python list (numpy's reductions cost more than the whole
+    # division); both give the same bits.
+    small_real = not is_complex and n <= _SMALL
+    if not norm_control:
+        ywt = np.maximum(absy, threshold)  # max(|y|, threshold), the part known before the step
 
     ulp = math.ulp
+    absolute = np.abs
+    maximum = np.maximum
     t = t0
     y = y0
     normy = float(np.linalg.norm(y0)) if norm_control else 0.0
@@ -211,8 +294,6 @@ def integrate_adaptive(
     else:
         absh = min(hmax, max(hmin, htry))
 
-    t_out = [t0]
-    y_out = [y0]
     refine_output = ntspan == 2
     if refine_output and refine > 1:
         # Interior output at s = j/refine: the extension's weights sum_m dense[:, m] s^(m+1)
@@ -220,17 +301,23 @@ def integrate_adaptive(
         fractions = np.arange(1, refine) / refine
         weights_T = (dense @ np.cumprod(np.broadcast_to(fractions, (dense.shape[1], refine - 1)), axis=0)).T
     nxt = 1  # next tspan entry to output (vector tspan)
+    if not refine_output:
+        # MATLAB's output at the given times only: at most one row per entry, plus a terminal
+        # event's point.
+        t_out = [t0]
+        y_out = np.empty((ntspan + 1, n), dtype=dtype)
+        y_out[0] = y0
+        nout = 1
 
-    # Dense output: every accepted step's start, size, state and stages, in buffers that
-    # double when full (one slice assignment per step, no stacking at the end).
-    # With a two-element tspan every step adds exactly `refine` output points, the last one its
-    # end, so the steps' starts and sizes are read off the output afterwards and only the stages
-    # are stored here; a vector tspan also stores each step's start.
-    step_t: list[float] = []
-    step_h: list[float] = []
-    capacity = 64
-    step_y = np.empty((capacity, n), dtype=y0.dtype)
-    step_K = np.empty((capacity, K.shape[0], n), dtype=y0.dtype)
+    # Every accepted step's end time, end state and stages, in arrays grown in place (they
+    # serve the output, deval and the events' interpolation; the interior Refine points are
+    # interpolated from them after the loop, all steps at once).
+    capacity = _FIRST_CAPACITY
+    t_ends = np.empty(capacity + 1)
+    y_ends = np.empty((capacity + 1, n), dtype=dtype)
+    step_K = np.empty((capacity, K.shape[0], n), dtype=dtype)
+    t_ends[0] = t0
+    y_ends[0] = y0
     stored = 0
     te: list[float] = []
     ye: list[np.ndarray] = []
@@ -249,7 +336,10 @@ def integrate_adaptive(
     try:
         while True:
             hmin = 16.0 * ulp(t)  # _hmin(t), inlined: this runs every step
-            absh = min(hmax, max(hmin, absh))
+            if absh < hmin:  # absh = min(hmax, max(hmin, absh)) in two tests
+                absh = hmin
+            if absh > hmax:
+                absh = hmax
             h = tdir * absh
             done = False
             # Stretch (or shrink) the step to land on tfinal if within 10% of it.
@@ -260,30 +350,29 @@ def integrate_adaptive(
 
             nofailed = True
             while True:
-                np.multiply(A, h, out=hA)
+                np.multiply(A, h, hA)
                 if fsal:
-                    for i in range(1, last):
-                        K[i] = fun(t + nodes[i] * h, y + hA_rows[i].dot(K_heads[i]))
+                    for K_row, ci, hA_row_dot, K_head in middle:
+                        K_row[...] = fun(t + ci * h, y + hA_row_dot(K_head))
                     tnew = t + h
                     if done:
                         tnew = tfinal  # hit the end point exactly
                     h = tnew - t  # purify h
-                    ynew = y + hA_rows[last].dot(K_heads[last])
-                    K[last] = fun(tnew, ynew)
-                    nfevals += last
+                    ynew = y + hA_last_dot(K_head_last)
+                    K_fnew[...] = fun(tnew, ynew)
                 else:  # every stage inside the step; f(tnew, ynew) once the step is accepted
-                    for i in range(1, s):
-                        K[i] = fun(t + nodes[i] * h, y + hA_rows[i].dot(K_heads[i]))
-                        K[i] -= K[0]
+                    for K_row, ci, hA_row_dot, K_head in middle:
+                        K_row[...] = fun(t + ci * h, y + hA_row_dot(K_head))
+                        K_row -= K_first  # increment form
                     tnew = t + h
                     if done:
                         tnew = tfinal
-                    np.multiply(b, h, out=hb)  # with the h the stages used, as for hA
+                    np.multiply(b, h, hb)  # with the h the stages used, as for hA
                     h = tnew - t
-                    ynew = y + hb.dot(K_main)
-                    nfevals += last
+                    ynew = y + hb_dot(K_main)
+                nfevals += last
 
-                fE = E.dot(K_main)
+                fE = E_dot(K_main)
                 if have_nonneg:
                     nn_reject = False
                 if norm_control:
@@ -295,15 +384,16 @@ def integrate_adaptive(
                         if err_nn > rtol:
                             err, nn_reject = err_nn, True
                 else:
-                    absynew = np.abs(ynew)
-                    np.maximum(absy, absynew, out=scale)
-                    np.maximum(scale, threshold, out=scale)
-                    if is_complex:
-                        fE = np.abs(fE)
+                    absynew = absolute(ynew)
+                    scale = maximum(ywt, absynew)
+                    if small_real:
+                        q = (fE / scale).tolist()
+                        err = absh * max(map(abs, q))
+                        total = sum(q)
+                        if total != total:  # a NaN ratio, which max may skip
+                            err = math.nan
                     else:
-                        np.abs(fE, out=fE)
-                    fE /= scale
-                    err = absh * float(fE.max())
+                        err = absh * float((absolute(fE) / scale).max())
                     if have_nonneg and err <= rtol and (ynew[nonnegative] < 0).any():
                         # Shampine, Thompson, Kierzenka & Byrne (2005): a negative value of a
                         # non-negative component counts as error.
@@ -336,10 +426,9 @@ def integrate_adaptive(
             nsteps += 1
             if not fsal:
                 fnew = fun(tnew, ynew)
-                np.subtract(fnew, K[0], out=K[s])
+                np.subtract(fnew, K_first, K_fnew)
                 nfevals += 1
-                if have_extra:
-                    completed[0] = False
+                completed[0] = not have_extra
             nn_reset = False
             if have_nonneg and (ynew[nonnegative] < 0).any():
                 # Accepted: clip to the constraint; the interpolant keeps the unclipped stages.
@@ -356,7 +445,8 @@ def integrate_adaptive(
 
                 def interpolate(tq):
                     if not completed[0]:
-                        complete()
+                        completed[1] += _complete(fun, step_t0, step_y0, step_h0, K, A_extra, hA_extra, extra_rows)
+                        completed[0] = True
                     return step_value(tq, step_t0, step_y0, step_h0, K, dense, nonnegative)
 
                 found_t, found_y, found_i, v_left, stop = locate_events(
@@ -379,56 +469,57 @@ def integrate_adaptive(
                         done = True
                         status = STATUS_TERMINAL_EVENT
 
-            if have_extra and refine_output and refine > 1:
-                complete()
+            if not completed[0] and (
+                    (refine_output and refine > 1)
+                    or (not refine_output and nxt < ntspan and tdir * (tnew - float(tspan[nxt])) > 0)):
+                # The step is interpolated (Refine, or an output time inside it): its
+                # interpolation stages are needed now.
+                nfevals += _complete(fun, t, y, h, K, A_extra, hA_extra, extra_rows)
+                completed[0] = True
             if stored == capacity:
-                capacity *= 2
-                step_K = np.concatenate([step_K, np.empty_like(step_K)])
-                if not refine_output:
-                    step_y = np.concatenate([step_y, np.empty_like(step_y)])
-            if have_extra and not refine_output and not completed[0] and nxt < ntspan and (
-                    tdir * (tnew - float(tspan[nxt])) > 0):
-                complete()  # an output time inside the step
+                capacity += max(capacity >> 2, _FIRST_CAPACITY)
+                _grow(t_ends, capacity + 1)
+                _grow(y_ends, capacity + 1)
+                _grow(step_K, capacity)
             step_K[stored] = K
             if have_extra:
                 step_complete.append(completed[0])
-            if not refine_output:
-                step_t.append(t)
-                step_h.append(h)
-                step_y[stored] = y
             stored += 1
-            if output_fcn is not None:
-                n_before = len(t_out)
-                k_before = len(y_out)
-            if refine_output:
-                if refine > 1:
-                    t_out.extend((t + h * fractions).tolist())
-                    block = h * weights_T.dot(K) + y
-                    if have_nonneg:
-                        block[:, nonnegative] = np.maximum(block[:, nonnegative], 0.0)
-                    y_out.append(block)
-                t_out.append(tnew)
-                y_out.append(ynew)
-            else:
+            t_ends[stored] = tnew
+            y_ends[stored] = ynew
+            if not refine_output:
+                n_before = nout
                 while nxt < ntspan:
                     tn = float(tspan[nxt])
                     if tdir * (tnew - tn) < 0:
                         if stop:  # MATLAB outputs the terminal event's point too
                             t_out.append(tnew)
-                            y_out.append(ynew)
+                            y_out[nout] = ynew
+                            nout += 1
                         break
                     t_out.append(tn)
                     if tn == tnew:
-                        y_out.append(ynew)
+                        y_out[nout] = ynew
                     else:
                         powers = np.cumprod(np.full(dense.shape[1], (tn - t) / h))
                         yi = y + (K.T @ (h * dense)) @ powers
                         if have_nonneg:
                             yi[nonnegative] = np.maximum(yi[nonnegative], 0.0)
-                        y_out.append(yi)
+                        y_out[nout] = yi
+                    nout += 1
                     nxt += 1
-            if output_fcn is not None and len(t_out) > n_before:
-                if output_fcn(np.array(t_out[n_before:]), np.vstack(y_out[k_before:])):
+                if output_fcn is not None and nout > n_before:
+                    if output_fcn(np.array(t_out[n_before:]), y_out[n_before:nout].copy()):
+                        status = STATUS_OUTPUT_STOP
+                        t = tnew
+                        break
+            elif output_fcn is not None:  # this step's Refine rows, as the output will hold them
+                if refine > 1:
+                    t_new_rows = np.append(t + h * fractions, tnew)
+                    y_new_rows = np.vstack([_refine_rows(weights_T, h, K, y, nonnegative), ynew])
+                else:
+                    t_new_rows, y_new_rows = np.array([tnew]), ynew.reshape(1, n).copy()
+                if output_fcn(t_new_rows, y_new_rows):
                     status = STATUS_OUTPUT_STOP
                     t = tnew
                     break
@@ -454,34 +545,41 @@ def integrate_adaptive(
             if norm_control:
                 normy = normynew
             else:
-                absy = absynew
+                ywt = maximum(absynew, threshold)
             if nn_reset:
                 # The stages interpolated the unclipped solution; move on along the clipped one.
                 if fsal:
-                    K[fnew_row] = fun(tnew, ynew)
+                    K_fnew[...] = fun(tnew, ynew)
                 else:
                     fnew = fun(tnew, ynew)
                 nfevals += 1
-            K[0] = K[last] if fsal else fnew
+            if fsal:
+                K_first[...] = K_fnew
+            else:
+                K_first[...] = fnew
     except Exception as exc:  # the user's right-hand side (or events function) failed
         status = STATUS_FUN_RAISED
         exception = exc
+    nfevals += completed[1]
 
-    y_arr = np.vstack(y_out) if len(y_out) > 1 else y0.reshape(1, n).copy()
-    steps = None
-    if stored and refine_output:
-        t_arr = np.array(t_out)
-        ends = t_arr[::refine]  # t0 and every step's end
-        steps = (ends[:-1], np.diff(ends), y_arr[::refine][:-1], step_K[:stored])
-        if have_extra:
-            steps += (np.array(step_complete),)
-    elif stored:
-        t_arr = np.array(t_out)
-        steps = (np.array(step_t), np.array(step_h), step_y[:stored], step_K[:stored])
-        if have_extra:
-            steps += (np.array(step_complete),)
+    # Trim the step arrays to the steps taken (in place: no copy of a long run's arrays).
+    _grow(t_ends, stored + 1)
+    _grow(y_ends, stored + 1)
+    _grow(step_K, stored)
+    if refine_output:
+        t_arr, y_arr = t_ends, y_ends
+        if refine > 1 and stored:
+            t_arr, y_arr = _refine_output(t_ends, y_ends, step_K, fractions, weights_T, nonnegative)
+            del y_ends  # the step starts are read off the output, every refine-th row
+        step_y = y_arr[::refine][:-1]
     else:
         t_arr = np.array(t_out)
+        _grow(y_out, nout)
+        y_arr = y_out
+        step_y = y_ends[:-1]
+    steps = (t_ends[:-1], np.diff(t_ends), step_y, step_K) if stored else None
+    if steps is not None and have_extra:
+        steps += (np.array(step_complete),)
     return (t_arr, y_arr, nsteps, nfailed, nfevals, status, t, abs(h), exception, (te, ye, ie), steps)
 
 
