@@ -4,7 +4,9 @@ The rigid-body problem of MATLAB's documentation over [0, 1200] with rtol 1e-6, 
 the same Python right-hand side for odelab and SciPy. The methods take different numbers of
 steps (MATLAB's controller is not SciPy's), so the figure compared is the time per accepted
 step; each solver runs ``--repeat`` times interleaved and the best time is kept, so a busy
-machine slows both alike. Not a test: run it and read the ratio.
+machine slows both alike. Both the wall time and the process's CPU time are reported: on a
+machine shared with other work the CPU time is the steadier of the two (time spent waiting
+for a core is not counted). Not a test: run it and read the ratio (target: at most 0.40).
 
     python bench/bench_solvers.py [--repeat 7]
 """
@@ -27,7 +29,7 @@ import odelab
 TSPAN = (0.0, 1200.0)
 Y0 = (0.0, 1.0, 1.0)
 RTOL, ATOL = 1e-6, 1e-9
-TARGET = 0.7  # odelab's time per step must be at most this fraction of SciPy's
+TARGET = 0.40  # odelab's time per step must be at most this fraction of SciPy's (issue 13)
 
 
 def rigid(t, y):
@@ -35,15 +37,15 @@ def rigid(t, y):
 
 
 def time_odelab():
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     sol = odelab.ode45(rigid, TSPAN, Y0, rtol=RTOL, atol=ATOL)
-    return time.perf_counter() - start, sol.stats.nsteps
+    return time.perf_counter() - start, time.process_time() - cpu, sol.stats.nsteps
 
 
 def time_scipy():
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     res = solve_ivp(rigid, TSPAN, Y0, method="RK45", rtol=RTOL, atol=ATOL)
-    return time.perf_counter() - start, res.t.size - 1
+    return time.perf_counter() - start, time.process_time() - cpu, res.t.size - 1
 
 
 OCTAVE_SCRIPT = """
@@ -80,25 +82,34 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=7)
     args = parser.parse_args()
     time_odelab(), time_scipy()  # warm-up: imports and caches
-    best = {"odelab ode45": (np.inf, 0), "SciPy RK45": (np.inf, 0)}
+    wall = {"odelab ode45": np.inf, "SciPy RK45": np.inf}
+    cpu = dict(wall)
+    steps = {}
     for _ in range(args.repeat):
         for name, fn in (("odelab ode45", time_odelab), ("SciPy RK45", time_scipy)):
-            seconds, steps = fn()
-            best[name] = min(best[name], (seconds, steps))
+            seconds, cpu_seconds, steps[name] = fn()
+            wall[name] = min(wall[name], seconds)
+            cpu[name] = min(cpu[name], cpu_seconds)
     octave = time_octave(max(1, args.repeat // 3))
     if octave is not None:
-        best["Octave ode45"] = octave
-    scipy_per_step = best["SciPy RK45"][0] / best["SciPy RK45"][1]
-    print(f"rigid body, t in {list(TSPAN)}, rtol {RTOL:g}, atol {ATOL:g}, best of {args.repeat}")
-    print(f"{'solver':<14} {'steps':>7} {'seconds':>9} {'us/step':>9} {'x SciPy/step':>13}")
-    for name, (seconds, steps) in best.items():
-        per_step = seconds / steps
-        print(f"{name:<14} {steps:>7d} {seconds:>9.4f} {per_step * 1e6:>9.2f} {per_step / scipy_per_step:>13.2f}")
+        wall["Octave ode45"], steps["Octave ode45"] = octave
+    scipy_wall = wall["SciPy RK45"] / steps["SciPy RK45"]
+    scipy_cpu = cpu["SciPy RK45"] / steps["SciPy RK45"]
+    print(f"rigid body, t in {list(TSPAN)}, rtol {RTOL:g}, atol {ATOL:g}, Python right-hand side, best of {args.repeat}")
+    print(f"{'solver':<14} {'steps':>7} {'wall us/step':>13} {'x SciPy':>8} {'CPU us/step':>12} {'x SciPy':>8}")
+    for name in wall:
+        per_step = wall[name] / steps[name]
+        row = f"{name:<14} {steps[name]:>7d} {per_step * 1e6:>13.2f} {per_step / scipy_wall:>8.3f}"
+        if name in cpu:
+            per_cpu = cpu[name] / steps[name]
+            row += f" {per_cpu * 1e6:>12.2f} {per_cpu / scipy_cpu:>8.3f}"
+        print(row)
     if octave is None:
         print("(GNU Octave: octave-cli not found; `apt-get install octave` to include it)")
-    ratio = (best["odelab ode45"][0] / best["odelab ode45"][1]) / scipy_per_step
-    verdict = "meets" if ratio <= TARGET else "MISSES"
-    print(f"odelab/SciPy time per step: {ratio:.2f} ({verdict} the target of {TARGET})")
+    for label, ratio in (("wall", (wall["odelab ode45"] / steps["odelab ode45"]) / scipy_wall),
+                         ("CPU", (cpu["odelab ode45"] / steps["odelab ode45"]) / scipy_cpu)):
+        verdict = "meets" if ratio <= TARGET else "MISSES"
+        print(f"odelab/SciPy time per step ({label}): {ratio:.3f} ({verdict} the target of {TARGET})")
 
 
 if __name__ == "__main__":
