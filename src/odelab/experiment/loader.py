@@ -595,8 +595,8 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
     if model.events is not None:
         from odelab.experiment.events import compile_events
 
-        if method.kind != "adaptive":
-            raise ExperimentError(f"[events] are located by ode23 and ode45 (MATLAB's Events); `solver.method` is "
+        if method.kind not in ("adaptive", "multistep"):
+            raise ExperimentError(f"[events] are located by ode23, ode45 and ode113 (MATLAB's Events); `solver.method` is "
                                   f"{method.name!r}.", key="solver.method")
         if inputs or model.linearize is not None:
             raise ExperimentError("[events] work with systems without [inputs] and without [linearize]; remove one "
@@ -614,7 +614,7 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
         from odelab.experiment.backend import check_backend
 
         check_backend(backend, method, fast, "solver.backend", options, events)
-    if method.kind in ("adaptive", "implicit"):
+    if method.kind in ("adaptive", "implicit", "multistep"):
         resolved["solver"].setdefault("rtol", 1e-3)
         resolved["solver"].setdefault("atol", 1e-6)
     if system.kind == "ode" and system.jacobian is not None and built.jacobian is not None:

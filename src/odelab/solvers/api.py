@@ -163,8 +163,8 @@ def _solve(fun, tspan, y0, method: str, options: dict) -> Solution:
         raise InputError(f"`fun` must be a callable fun(t, y); got {fun!r}.", key="fun")
     tspan_arr = as_tspan(tspan)
     y0_arr = as_y0(y0, allow_complex=True)
-    if np.iscomplexobj(y0_arr) and m.kind != "adaptive":
-        raise InputError(f"a complex `y0` is integrated by ode23/ode45 (as MATLAB's); {m.name} takes real y0: "
+    if np.iscomplexobj(y0_arr) and m.kind not in ("adaptive", "multistep"):
+        raise InputError(f"a complex `y0` is integrated by ode23/ode45/ode113 (as MATLAB's); {m.name} takes real y0: "
                          "split it into real and imaginary parts.", key="y0")
     given = normalize_options(options, m)
     opts = resolve_options(m, given, tspan_arr, y0_arr.size)
@@ -192,7 +192,7 @@ def _solve(fun, tspan, y0, method: str, options: dict) -> Solution:
                                 f"({_fmt_vec(f0)}): check the right-hand side at the initial state")
     if m.kind == "implicit":
         return _solve_implicit(rhs, tspan_arr, y0_arr, f0, m, opts)
-    if m.kind == "adaptive":
+    if m.kind in ("adaptive", "multistep"):
         return _solve_adaptive(rhs, tspan_arr, y0_arr, f0, m, opts, {"fun": user_fun, "options": given})
     return _solve_fixed(rhs, tspan_arr, y0_arr, m, opts)
 
@@ -259,18 +259,26 @@ def _solve_adaptive(fun, tspan, y0, f0, m: Method, opts: SolverOptions, setup: d
     if opts.output_fcn is not None:
         output = _output_function(opts, tspan, y0)
     threshold = opts.atol / opts.rtol
-    (t, y, nsteps, nfailed, nfevals, status, t_stop, h_stop, exc, found, steps) = engine.integrate_adaptive(
-        fun, tspan, y0, f0, *_stepping_arrays(tab), m.power, m.shrink_min,
-        opts.rtol, threshold, opts.max_step, opts.initial_step, opts.refine, opts.norm_control, opts.max_steps,
-        events, v0, nonnegative, output, *_non_fsal(tab),
-    )
+    if m.kind == "multistep":  # ode113: Adams PECE, its own driver and interpolant
+        from odelab.solvers.adams import integrate_ode113
+
+        (t, y, nsteps, nfailed, nfevals, status, t_stop, h_stop, exc, found, interpolant) = integrate_ode113(
+            fun, tspan, y0, f0, opts.rtol, threshold, opts.max_step, opts.initial_step, opts.refine,
+            opts.norm_control, opts.max_steps, events, v0, nonnegative, output)
+        steps = None
+    else:
+        (t, y, nsteps, nfailed, nfevals, status, t_stop, h_stop, exc, found, steps) = engine.integrate_adaptive(
+            fun, tspan, y0, f0, *_stepping_arrays(tab), m.power, m.shrink_min,
+            opts.rtol, threshold, opts.max_step, opts.initial_step, opts.refine, opts.norm_control, opts.max_steps,
+            events, v0, nonnegative, output, *_non_fsal(tab),
+        )
+        interpolant = None
     if opts.output_fcn is not None:
         sel = slice(None) if opts.output_sel is None else opts.output_sel
         opts.output_fcn(np.empty(0), np.empty((0, y0[sel].size), dtype=y0.dtype), "done")
     stats = Stats(nsteps=nsteps, nfailed=nfailed, nfevals=nfevals + 1 + extra_fevals)
     te, ye, ie = found
     message = _status_message(status, m, t_stop, h_stop, y, y0, opts, exc, tspan, te, ie)
-    interpolant = None
     if steps is not None:
         from odelab.solvers.dense import DenseOutput, StageCompletion
 

@@ -284,7 +284,7 @@ def resolve_options(method: Method, opts: Mapping[str, object], tspan: np.ndarra
     if "max_step" in opts:
         max_step = min(span, _positive("max_step", opts["max_step"]))
     else:
-        max_step = 0.1 * span if method.kind in ("adaptive", "implicit") else math.inf
+        max_step = 0.1 * span if method.kind in ("adaptive", "implicit", "multistep") else math.inf
     initial_step = _positive("initial_step", opts["initial_step"]) if "initial_step" in opts else math.nan
 
     refine = opts.get("refine", method.refine)

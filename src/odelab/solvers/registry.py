@@ -23,7 +23,8 @@ class Method:
     kind
         ``"adaptive"`` (odelab's engine with MATLAB's controller), ``"fixed"`` (odelab's
         engine on a fixed step ``h``), ``"implicit"`` (odelab's stiff solvers in
-        :mod:`odelab.solvers.implicit`) or ``"scipy"`` (``scipy.integrate`` solver classes).
+        :mod:`odelab.solvers.implicit`), ``"multistep"`` (ode113, :mod:`odelab.solvers.adams`)
+        or ``"scipy"`` (``scipy.integrate`` solver classes).
     order
         Order of accuracy of the propagated solution; for variable-order methods the
         highest order used (see ``orders``).
@@ -63,7 +64,7 @@ class Method:
         if self.kind == "fixed":
             return "h required"
         text = "rtol 1e-3, atol 1e-6"
-        if self.kind in ("adaptive", "implicit"):
+        if self.kind in ("adaptive", "implicit", "multistep"):
             text += f", refine {self.refine}, max_step 0.1*span"
         if self.name == "ode15s":
             text += ", max_order 5, NDF (bdf off)"
@@ -85,7 +86,7 @@ class Method:
     @property
     def options(self) -> tuple[str, ...]:
         """Option names the method accepts."""
-        if self.kind == "adaptive":
+        if self.kind in ("adaptive", "multistep"):
             return ("rtol", "atol", "max_step", "initial_step", "refine", "norm_control", "max_steps",
                     "events", "nonnegative", "mass", "mstate_dependence", "output_fcn", "output_sel", "args")
         if self.kind == "fixed":
@@ -142,10 +143,10 @@ METHODS: dict[str, Method] = {
         Method("ode23tb", "implicit", 5, "MATLAB's ode23tb name: stiff problems at crude tolerances (here run by "
                "odelab's ode15s)", stiff=True, orders="1-5", problem="stiff", runs_as="ode15s",
                note="ode23tb ran as odelab's ode15s (NDFs, orders 1-5): odelab has no native TR-BDF2 solver yet"),
-        _mapped("ode113", "LSODA", 12, "1-12",
-                "MATLAB's ode113 name: variable-order Adams (here run by SciPy's LSODA)",
-                "ode113 ran as SciPy's LSODA (variable-order Adams-Moulton, switching to BDF if the problem "
-                "turns stiff): odelab has no native Adams-Bashforth-Moulton PECE yet"),
+        # Orders 1-13 as MATLAB documents them: predictor order k <= 12, corrector k+1 (local
+        # extrapolation). Shampine & Gordon's DE/STEP/INTRP in odelab.solvers.adams.
+        Method("ode113", "multistep", 13, "MATLAB's ode113: variable-order Adams-Bashforth-Moulton PECE "
+               "(Shampine & Gordon), for tight tolerances and expensive f", orders="1-13", refine=1),
         _adaptive("ode78", verner.VERNER87, 0.1, 1,
                   "MATLAB's ode78: Verner's most efficient 8(7) pair, 8th-order interpolant, adaptive"),
         _adaptive("ode89", verner.VERNER98, 0.1, 1,

@@ -1,0 +1,526 @@
+"""MATLAB's ``ode113``: variable-step, variable-order Adams-Bashforth-Moulton PECE.
+
+The method is Shampine & Gordon's ``STEP`` and ``INTRP`` (L. F. Shampine, M. K. Gordon,
+*Computer Solution of Ordinary Differential Equations: the Initial Value Problem*, Freeman,
+1975, chapters 5-7), which MATLAB's ``ode113`` implements (Shampine & Reichelt, *The MATLAB ODE
+Suite*, SIAM J. Sci. Comput. 18(1), 1997, Sec. 3):
+
+* the solution is carried as the value ``y_n`` and the *modified divided differences*
+  ``phi_1 .. phi_{k+1}`` of ``f`` at the last k+1 points, with ``psi_i = t_{n+1} - t_{n+1-i}``;
+  the coefficients ``alpha, beta, sigma`` and the integration coefficients ``g`` follow from
+  the step sizes by the recurrences of Sec. 5 (``g`` through the work vectors ``v, w``), and
+  are recomputed only while the step has changed within the last k steps (``ns``);
+* one step is PECE: predict ``p = y + h sum_{i<=k} g_i phi*_i`` (Adams-Bashforth of order k),
+  evaluate ``f(t+h, p)``, estimate the local errors at orders k, k-1, k-2, and if the step is
+  accepted correct with the order-k+1 Adams-Moulton formula ``y = p + h g_{k+1} (f - phi_1)``
+  (local extrapolation: the error estimate is the order-k corrector's) and evaluate again: two
+  evaluations per step;
+* the order starts at 1 and rises by one each step, the step doubling, until an order would be
+  lowered or reaches 12 ("phase 1"); afterwards it goes down when the estimates at orders k-1
+  (and k-2) are no larger than at order k, up when the order-k+1 estimate is smaller after k+1
+  steps of one size; the step doubles when the error at the new order is 2^-(k+1) of the
+  tolerance, else keeps its size unless that error exceeds half the tolerance, when it shrinks
+  by ``(0.5 rtol/err)^(1/(k+1))`` clipped to [0.5, 0.9];
+* a rejected step restores ``phi`` and ``psi`` and halves the step, on the third consecutive
+  failure drops to order 1, and from the fourth shrinks by ``sqrt(0.5 rtol/err)`` when smaller;
+* output between steps is ``INTRP``: the order-k+1 interpolating polynomial through the step's
+  end, evaluated with its own ``g, rho`` recurrences (MATLAB's ``ntrp113``).
+
+MATLAB's ``ode113`` differs from ``STEP`` in the error norm (the MATLAB weight
+``max(|y|, atol/rtol)`` and the max norm, or the 2-norm with ``NormControl``, tested against
+``rtol``), its initial step, hmin ``16 eps(t)``, MaxStep and landing on ``tfinal``; this module
+follows MATLAB there. Like ``ode45`` in :mod:`odelab.solvers.engine` the driver is plain arrays
+and scalars.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from odelab.exceptions import InputError
+from odelab.solvers.engine import (
+    STATUS_FUN_RAISED,
+    STATUS_MAX_STEPS,
+    STATUS_NONFINITE,
+    STATUS_OUTPUT_STOP,
+    STATUS_STEP_UNDERFLOW,
+    STATUS_SUCCESS,
+    STATUS_TERMINAL_EVENT,
+)
+
+__all__ = ["MAX_ORDER", "integrate_ode113", "AdamsDenseOutput", "ntrp113"]
+
+MAX_ORDER = 12  # highest predictor order k; the corrector (local extrapolation) is order k+1 <= 13
+# Shampine & Gordon's gstar_i: the constant-step error constants |gamma*_i| (book, Table 5.1 / STEP's
+# data statement), used to estimate the errors at orders k-2 .. k+1.
+GSTAR = np.array([np.nan, 0.5, 0.0833, 0.0417, 0.0264, 0.0188, 0.0143, 0.0114, 0.00936, 0.00789, 0.00679,
+                  0.00592, 0.00524, 0.00468])  # 1-based
+_NCOL = MAX_ORDER + 3  # phi columns 1 .. k+2 (1-based; column 0 unused)
+
+
+def _inv_weight(y, threshold, norm_control):
+    if norm_control:
+        return 1.0 / max(float(np.linalg.norm(y)), float(threshold))
+    return 1.0 / np.maximum(np.abs(y), threshold)
+
+
+def _wnorm(v, invwt, norm_control) -> float:
+    if norm_control:
+        return float(np.linalg.norm(v)) * invwt
+    return float(np.abs(v * invwt).max())
+
+
+def _interpolation_coefficients(hi: np.ndarray, psi: np.ndarray, ki: int):
+    """INTRP's ``g`` and ``rho`` for offsets ``hi`` (m,) from the step's end; shapes (m, ki).
+
+    ``psi`` holds ``psi_1 .. psi_{ki-1}`` (0-based), one row per offset (m, >= ki-1) or one for
+    all (>= ki-1,). ``g_j`` weighs ``phi_j`` in the value,
+    ``rho_j`` in the derivative (Shampine & Gordon, Sec. 6, subroutine INTRP).
+    """
+    m = hi.size
+    g = np.ones((m, ki))
+    rho = np.ones((m, ki))
+    w = np.broadcast_to(1.0 / np.arange(1, ki + 1), (m, ki)).copy()
+    term = np.zeros(m)
+    for j in range(2, ki + 1):
+        psi_j = psi[..., j - 2]
+        gamma = (hi + term) / psi_j
+        eta = hi / psi_j
+        top = ki + 1 - j
+        w[:, :top] = gamma[:, None] * w[:, :top] - eta[:, None] * w[:, 1:top + 1]
+        g[:, j - 1] = w[:, 0]
+        rho[:, j - 1] = gamma * rho[:, j - 2]
+        term = psi_j
+    return g, rho
+
+
+def ntrp113(tq, t, y, phi, psi, ki, nonnegative=None):
+    """The Adams interpolant of one step at times ``tq`` (m,): values (m, n) and slopes (m, n).
+
+    ``t, y`` are the step's end and the solution there; ``phi`` (ki, n) the differences after
+    the step and ``psi`` (ki-1,) the spacings (MATLAB's ``ntrp113``).
+    """
+    hi = np.asarray(tq, dtype=float).reshape(-1) - t
+    g, rho = _interpolation_coefficients(hi, psi, ki)
+    values = y + hi[:, None] * (g @ phi)
+    slopes = rho @ phi
+    if nonnegative is not None:
+        part = values[:, nonnegative]
+        neg = part < 0
+        values[:, nonnegative] = np.where(neg, 0.0, part)
+        slopes[:, nonnegative] = np.where(neg, 0.0, slopes[:, nonnegative])
+    return values, slopes
+
+
+@dataclass(frozen=True, eq=False)
+class AdamsDenseOutput:
+    """The piecewise Adams interpolant of a whole ode113 solution (MATLAB's ``sol.idata`` for ode113).
+
+    Attributes
+    ----------
+    t, t_end
+        Start and end of each accepted step (N,); a terminal event's step ends at the event.
+    t_ref, y_ref
+        Where each step's polynomial is anchored: the end of the step as taken and the
+        solution there, (N,) and (N, n).
+    order
+        Number of differences of each step's polynomial (``k + 1``), (N,).
+    offsets, phi
+        Step i's differences are ``phi[offsets[i] : offsets[i] + order[i]]`` of the flat array phi.
+    psi
+        ``psi_1 .. psi_12`` of each step, (N, 12) (unused entries 1).
+    y_final
+        The state at the end (returned exactly there).
+    nonnegative
+        Indices of components clipped at zero, or None.
+    """
+
+    t: np.ndarray
+    t_end: np.ndarray
+    t_ref: np.ndarray
+    y_ref: np.ndarray
+    order: np.ndarray
+    offsets: np.ndarray
+    phi: np.ndarray
+    psi: np.ndarray
+    y_final: np.ndarray
+    nonnegative: np.ndarray | None = None
+
+    @property
+    def t_start(self) -> float:
+        return float(self.t[0])
+
+    @property
+    def t_stop(self) -> float:
+        return float(self.t_end[-1])
+
+    def __call__(self, tq) -> np.ndarray:
+        """States at the times ``tq``: shape (n,) for a scalar, (m, n) for a sequence."""
+        tq_arr = np.asarray(tq)
+        scalar = tq_arr.ndim == 0
+        if np.iscomplexobj(tq_arr) or not np.issubdtype(tq_arr.dtype, np.number) or tq_arr.dtype == bool:
+            raise InputError(f"`t` must be a time or a sequence of times; got {tq!r}.", key="t")
+        times = np.atleast_1d(tq_arr).astype(float).ravel()
+        lo, hi = sorted((self.t_start, self.t_stop))
+        outside = (times < lo) | (times > hi) | ~np.isfinite(times)
+        if outside.any():
+            bad = float(times[int(np.argmax(outside))])
+            raise InputError(
+                f"cannot evaluate the solution at t = {bad:g}: it covers [{lo:g}, {hi:g}] only "
+                "(MATLAB's deval refuses to extrapolate too). Use odextend to continue the solution.",
+                key="t",
+            )
+        tdir = 1.0 if self.t_end[0] > self.t[0] else -1.0
+        # Step i covers (t_i, t_end_i]: a time on a boundary takes the step that ends there.
+        idx = np.clip(np.searchsorted(tdir * self.t_end, tdir * times, side="left"), 0, self.t.size - 1)
+        n = self.y_ref.shape[1]
+        width = int(self.order.max())
+        phi = np.zeros((times.size, width, n), dtype=self.phi.dtype)
+        orders = self.order[idx]
+        for j in range(width):
+            has = orders > j
+            phi[has, j] = self.phi[self.offsets[idx[has]] + j]
+        hi_all = times - self.t_ref[idx]
+        values = np.empty((times.size, n), dtype=self.y_ref.dtype)
+        # One INTRP recurrence per distinct order (its length depends on the order).
+        for ki in np.unique(orders):
+            sel = np.flatnonzero(orders == ki)
+            g, _ = _interpolation_coefficients(hi_all[sel], self.psi[idx[sel]], int(ki))
+            values[sel] = self.y_ref[idx[sel]] + hi_all[sel, None] * np.einsum("mj,mjn->mn", g, phi[sel, :ki])
+        values[times == self.t_stop] = self.y_final
+        if self.nonnegative is not None:
+            part = values[:, self.nonnegative]
+            values[:, self.nonnegative] = np.where(part < 0, 0.0, part)
+        return values[0] if scalar else values
+
+    def extended(self, other: "AdamsDenseOutput") -> "AdamsDenseOutput":
+        """This interpolant followed by ``other`` (which must start where this one ends)."""
+        return AdamsDenseOutput(
+            t=np.concatenate([self.t, other.t]), t_end=np.concatenate([self.t_end, other.t_end]),
+            t_ref=np.concatenate([self.t_ref, other.t_ref]), y_ref=np.concatenate([self.y_ref, other.y_ref]),
+            order=np.concatenate([self.order, other.order]),
+            offsets=np.concatenate([self.offsets, other.offsets + self.phi.shape[0]]),
+            phi=np.concatenate([self.phi, other.phi]), psi=np.concatenate([self.psi, other.psi]),
+            y_final=other.y_final, nonnegative=self.nonnegative,
+        )
+
+
+def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, norm_control, max_steps,
+                     events=None, v0=None, nonnegative=None, output_fcn=None):
+    """Integrate with Shampine & Gordon's Adams PECE method as MATLAB's ``ode113`` drives it.
+
+    Arguments and result are those of :func:`odelab.solvers.engine.integrate_adaptive` without
+    the tableau; the last entry of the result is an :class:`AdamsDenseOutput` (or None).
+    Statistics count as MATLAB's: each attempt evaluates ``f`` once (at the prediction), each
+    accepted step once more (at the correction); the caller adds the evaluation at ``t0``.
+    """
+    n = y0.size
+    t0 = float(tspan[0])
+    tfinal = float(tspan[-1])
+    ntspan = tspan.size
+    tdir = 1.0 if tfinal > t0 else -1.0
+    have_nonneg = nonnegative is not None
+    if have_nonneg:
+        threshold_nn = threshold if norm_control else threshold[nonnegative]
+    sqrt = math.sqrt
+    ulp = math.ulp
+
+    t = t0
+    y = y0.copy()
+    hmin = 16.0 * ulp(t)
+    if htry != htry:  # NaN: MATLAB's ode113 first step, Shampine & Gordon's h = 0.25 sqrt(tol / ||y'||)
+        absh = min(hmax, abs(float(tspan[1]) - t0))
+        rh = _wnorm(f0, _inv_weight(y, threshold, norm_control), norm_control) / (0.25 * sqrt(rtol))
+        if absh * rh > 1.0:
+            absh = 1.0 / rh
+        absh = max(absh, hmin)
+    else:
+        absh = min(hmax, max(hmin, htry))
+
+    # Method state, 1-based as in the book: phi[i] is the i-th modified divided difference.
+    phi = np.zeros((_NCOL, n), dtype=y0.dtype)
+    phi[1] = f0
+    psi = [0.0] * 14
+    alpha = [0.0] * 14
+    beta = [0.0] * 14
+    sig = [0.0] * 15
+    sig[1] = 1.0
+    v = [0.0] * 15
+    w = [0.0] * 15
+    g = [0.0] * 15
+    g[1], g[2] = 1.0, 0.5
+    k = 1
+    klast = 0
+    hlast = 0.0
+    ns = 0
+    phase1 = True
+
+    t_out = [t0]
+    y_out = [y0.copy()]
+    refine_output = ntspan == 2
+    fractions = np.arange(1, refine) / refine if refine_output and refine > 1 else None
+    nxt = 1
+    te: list[float] = []
+    ye: list[np.ndarray] = []
+    ie: list[int] = []
+    v_left = v0
+    if events is not None:
+        from odelab.solvers.events import locate_events
+    # Dense output: each step's start, end, anchor and polynomial (differences stored ragged).
+    d_t: list[float] = []
+    d_end: list[float] = []
+    d_ref: list[float] = []
+    d_y: list[np.ndarray] = []
+    d_order: list[int] = []
+    d_phi: list[np.ndarray] = []
+    d_psi: list[list[float]] = []
+
+    nsteps = nfailed = nfevals = 0
+    status = STATUS_SUCCESS
+    exception = None
+    h = tdir * absh
+    try:
+        while True:
+            hmin = 16.0 * ulp(t)
+            absh = min(hmax, max(hmin, absh))
+            h = tdir * absh
+            done = False
+            if 1.1 * absh >= abs(tfinal - t):  # stretch the step to land on tfinal
+                h = tfinal - t
+                absh = abs(h)
+                done = True
+            invwt = _inv_weight(y, threshold, norm_control)
+            failed = 0
+            while True:
+                # --- coefficients (book, Sec. 5): only those changed since the step size changed ---
+                if h != hlast:
+                    ns = 0
+                if ns <= klast:
+                    ns += 1
+                if k >= ns:
+                    beta[ns] = 1.0
+                    alpha[ns] = 1.0 / ns
+                    temp1 = h * ns
+                    sig[ns + 1] = 1.0
+                    for i in range(ns + 1, k + 1):
+                        temp2 = psi[i - 1]
+                        psi[i - 1] = temp1
+                        temp1 = temp2 + h
+                        beta[i] = beta[i - 1] * psi[i - 1] / temp2
+                        alpha[i] = h / temp1
+                        sig[i + 1] = i * alpha[i] * sig[i]
+                    psi[k] = temp1
+                    if ns == 1:  # constant-step values of the integration coefficients
+                        for iq in range(1, k + 1):
+                            v[iq] = 1.0 / (iq * (iq + 1))
+                            w[iq] = v[iq]
+                    else:
+                        if k > klast:  # the order went up: the new diagonal entry of v
+                            v[k] = 1.0 / (k * (k + 1))
+                            for j in range(1, ns - 1):
+                                v[k - j] -= alpha[j + 1] * v[k - j + 1]
+                        a = alpha[ns]
+                        for iq in range(1, k + 2 - ns):
+                            v[iq] -= a * v[iq + 1]
+                            w[iq] = v[iq]
+                        g[ns + 1] = w[1]
+                    for i in range(ns + 2, k + 2):
+                        a = alpha[i - 1]
+                        for iq in range(1, k + 3 - i):
+                            w[iq] -= a * w[iq + 1]
+                        g[i] = w[1]
+
+                # --- predict: phi -> phi*, p = y + h sum g_i phi*_i, the differences at t + h ---
+                if k > ns:
+                    phi[ns + 1:k + 1] *= np.array(beta[ns + 1:k + 1])[:, None]
+                phi[k + 2] = phi[k + 1]
+                phi[k + 1] = 0.0
+                p = y + h * (np.array(g[1:k + 1]) @ phi[1:k + 1])
+                phi[1:k + 1] = np.cumsum(phi[k:0:-1], axis=0)[::-1]
+                tlast = t
+                tnew = tfinal if done else t + h
+                yp = fun(tnew, p)
+                nfevals += 1
+
+                # --- errors at orders k, k-1, k-2 as if the step had been constant ---
+                phikp1 = yp - phi[1]
+                temp3 = _wnorm(phikp1, invwt, norm_control)
+                err = absh * (g[k] - g[k + 1]) * temp3
+                erk = absh * sig[k + 1] * GSTAR[k] * temp3
+                erkm1 = absh * sig[k] * GSTAR[k - 1] * _wnorm(phi[k] + phikp1, invwt, norm_control) if k >= 2 else 0.0
+                erkm2 = (absh * sig[k - 1] * GSTAR[k - 2] * _wnorm(phi[k - 1] + phikp1, invwt, norm_control)
+                         if k >= 3 else 0.0)
+                knew = k
+                if k == 2 and erkm1 <= 0.5 * erk:
+                    knew = 1
+                if k > 2 and max(erkm1, erkm2) <= erk:
+                    knew = k - 1
+                ynew = p + (h * g[k + 1]) * phikp1
+                if have_nonneg and err <= rtol and (ynew[nonnegative] < 0).any():
+                    # Shampine, Thompson, Kierzenka & Byrne (2005): a negative value of a
+                    # non-negative component counts as error.
+                    if norm_control:
+                        err_nn = float(np.linalg.norm(np.maximum(0.0, -ynew[nonnegative]))) * invwt
+                    else:
+                        err_nn = float((np.maximum(0.0, -ynew[nonnegative]) / threshold_nn).max())
+                    if err_nn > rtol:
+                        err = err_nn
+
+                if err > rtol:  # failed: restore t, phi and psi, then halve (book, block 3)
+                    nfailed += 1
+                    if absh <= hmin:
+                        status = STATUS_STEP_UNDERFLOW
+                        break
+                    phase1 = False
+                    phi[1:k + 1] = (phi[1:k + 1] - phi[2:k + 2]) / np.array(beta[1:k + 1])[:, None]
+                    for i in range(2, k + 1):
+                        psi[i - 1] = psi[i] - h
+                    failed += 1
+                    reduce = 0.5
+                    if failed == 3:
+                        knew = 1
+                    elif failed > 3:
+                        reduce = min(0.5, sqrt(0.5 * rtol / erk))
+                        knew = 1
+                    absh = max(reduce * absh, hmin)
+                    h = tdir * absh
+                    k = knew
+                    done = False
+                elif err <= rtol:
+                    break
+                else:  # NaN: a derivative or the prediction is not finite
+                    status = STATUS_NONFINITE
+                    break
+            if status != STATUS_SUCCESS:
+                break
+            nsteps += 1
+            klast = k
+            hlast = h
+
+            # --- correct (order k+1, local extrapolation) and evaluate; update the differences ---
+            ylast = y
+            y = ynew
+            if have_nonneg and (y[nonnegative] < 0).any():
+                y[nonnegative] = np.maximum(y[nonnegative], 0.0)
+            yp = fun(tnew, y)
+            nfevals += 1
+            phi[k + 1] = yp - phi[1]
+            phi[k + 2] = phi[k + 1] - phi[k + 2]
+            phi[1:k + 1] += phi[k + 1]
+
+            # --- the order for the next step (book, block 4) ---
+            if knew == k - 1 or k == MAX_ORDER:
+                phase1 = False
+            if phase1:
+                k += 1
+                erk = 0.0
+            elif knew == k - 1:
+                k -= 1
+                erk = erkm1
+            elif k + 1 <= ns:
+                erkp1 = absh * GSTAR[k + 1] * _wnorm(phi[k + 2], invwt, norm_control)
+                if k == 1:
+                    if erkp1 < 0.5 * erk:
+                        k += 1
+                        erk = erkp1
+                elif erkm1 <= min(erk, erkp1):
+                    k -= 1
+                    erk = erkm1
+                elif erkp1 < erk and k < MAX_ORDER:
+                    k += 1
+                    erk = erkp1
+
+            # --- this step's interpolant: phi_1 .. phi_{klast+1} and psi_1 .. psi_klast after it ---
+            ki = klast + 1
+            step_phi = phi[1:ki + 1].copy()
+            step_psi = np.array(psi[1:ki])
+            t_end, y_end = tnew, y
+            stop = False
+            if events is not None:
+                def interpolate(tq):
+                    return ntrp113(np.array([tq]), tnew, y, step_phi, step_psi, ki, nonnegative)[0][0]
+
+                found_t, found_y, found_i, v_left, stop = locate_events(
+                    interpolate, events, v_left, tlast, ylast, tnew, y, t0)
+                if found_t:
+                    te.extend(found_t)
+                    ye.extend(found_y)
+                    ie.extend(found_i)
+                    if stop:
+                        t_end, y_end = found_t[-1], found_y[-1]
+                        done = True
+                        status = STATUS_TERMINAL_EVENT
+            d_t.append(tlast)
+            d_end.append(t_end)
+            d_ref.append(tnew)
+            d_y.append(y)
+            d_order.append(ki)
+            d_phi.append(step_phi)
+            d_psi.append(step_psi)
+
+            n_before = len(t_out)
+            k_before = len(y_out)
+            if refine_output:
+                if fractions is not None:
+                    tref = tlast + (t_end - tlast) * fractions
+                    t_out.extend(tref.tolist())
+                    y_out.append(ntrp113(tref, tnew, y, step_phi, step_psi, ki, nonnegative)[0])
+                t_out.append(t_end)
+                y_out.append(y_end[None, :])
+            else:
+                wanted = []
+                while nxt < ntspan:
+                    tn = float(tspan[nxt])
+                    if tdir * (t_end - tn) < 0:
+                        break
+                    wanted.append(tn)
+                    nxt += 1
+                if wanted:
+                    values = ntrp113(np.array(wanted), tnew, y, step_phi, step_psi, ki, nonnegative)[0]
+                    for j, tn in enumerate(wanted):
+                        if tn == t_end:
+                            values[j] = y_end
+                    t_out.extend(wanted)
+                    y_out.append(values)
+                if stop and (not wanted or wanted[-1] != t_end):  # MATLAB outputs the terminal event's point
+                    t_out.append(t_end)
+                    y_out.append(y_end[None, :])
+            if output_fcn is not None and len(t_out) > n_before:
+                if output_fcn(np.array(t_out[n_before:]), np.vstack(y_out[k_before:])):
+                    status = STATUS_OUTPUT_STOP
+                    t = t_end
+                    break
+
+            # --- the step size for the next step ---
+            if phase1:
+                absh = 2.0 * absh
+            elif 0.5 * rtol >= erk * 2.0 ** (k + 1):
+                absh = 2.0 * absh
+            elif 0.5 * rtol < erk:
+                absh = absh * max(0.5, min(0.9, (0.5 * rtol / erk) ** (1.0 / (k + 1))))
+            t = t_end
+            if done:
+                break
+            if max_steps and nsteps >= max_steps:
+                status = STATUS_MAX_STEPS
+                break
+    except Exception as exc:  # the user's right-hand side (or events function) failed
+        status = STATUS_FUN_RAISED
+        exception = exc
+
+    t_arr = np.array(t_out)
+    y_arr = np.vstack([row.reshape(-1, n) for row in y_out])
+    dense = None
+    if d_t:
+        order = np.array(d_order, dtype=np.intp)
+        psi_arr = np.ones((len(d_psi), MAX_ORDER))
+        for i, row in enumerate(d_psi):
+            psi_arr[i, :len(row)] = row
+        dense = AdamsDenseOutput(
+            t=np.array(d_t), t_end=np.array(d_end), t_ref=np.array(d_ref), y_ref=np.array(d_y),
+            order=order, offsets=np.concatenate([[0], np.cumsum(order)[:-1]]).astype(np.intp),
+            phi=np.concatenate(d_phi), psi=psi_arr, y_final=y_arr[-1].copy(), nonnegative=nonnegative)
+    return (t_arr, y_arr, nsteps, nfailed, nfevals, status, t, abs(h), exception, (te, ye, ie), dense)
