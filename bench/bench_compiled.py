@@ -9,6 +9,10 @@ atol 1e-9. Measured in one run, on this machine:
 * the first run in a fresh process with an empty cache: import, generating the module,
   numba's compile and the solve, end to end (``python -c`` in a subprocess).
 * a second process with that cache now warm: import, load and solve.
+* a third process solving a new system (a damped oscillator driven by a sine input) with the
+  loops cached: only its right-hand side is compiled; the first run a student sees on a machine
+  where odelab has run before.
+* a fourth process solving the bouncing ball with [events]: the events loop's one-time compile.
 
 Not a test: run it and read the ratios (target: compiled ≤ 0.01x SciPy per step, first run ≤ 4 s).
 
@@ -39,15 +43,37 @@ print(sol.stats.nsteps, time.perf_counter() - start)
 """
 
 
+NEW_SYSTEM = """
+import time
+start = time.perf_counter()
+from odelab.signals import Sine
+from odelab.solvers.compiled import CompiledSystem, solve_compiled
+system = CompiledSystem.from_system(["x", "v"], ["v", "(f - b*v - k*x)/m"], {{"m": 1.0, "b": 0.4, "k": 3.0}},
+                                    inputs=["f"]).with_signals([Sine(amplitude=1.0, frequency=0.2)])
+sol = solve_compiled(system, [0, {stop}], [0, 0], "ode45", rtol={rtol}, atol={atol})
+print(sol.stats.nsteps, time.perf_counter() - start)
+"""
+
+EVENTS = """
+import time
+start = time.perf_counter()
+from odelab.solvers.compiled import CompiledSystem, solve_compiled
+ball = CompiledSystem.from_equations(["h", "v"], ["v", "-g"], {{"g": 9.81}}).with_events(["h"], [True], [-1],
+                                                                                       {{"g": 9.81}})
+sol = solve_compiled(ball, [0, 10], [10, 0], "ode45")
+print(sol.stats.nsteps, time.perf_counter() - start)
+"""
+
+
 def rigid(t, y):
     return np.array([y[1] * y[2], -y[0] * y[2], -0.51 * y[0] * y[1]])
 
 
-def child(stop: float, cache: str) -> tuple[float, float]:
+def child(stop: float, cache: str, code: str = CHILD) -> tuple[float, float]:
     """Wall time of a fresh process (interpreter start included) and the in-process time."""
     env = {**os.environ, "ODELAB_CACHE_DIR": cache}
     start = time.perf_counter()
-    out = subprocess.run([sys.executable, "-c", CHILD.format(stop=stop, rtol=RTOL, atol=ATOL)], env=env,
+    out = subprocess.run([sys.executable, "-c", code.format(stop=stop, rtol=RTOL, atol=ATOL)], env=env,
                          capture_output=True, text=True, check=True).stdout.split()
     return time.perf_counter() - start, float(out[1])
 
@@ -66,6 +92,8 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as cache:
         first_wall, first_inside = child(args.stop, cache)
         warm_wall, warm_inside = child(args.stop, cache)
+        new_wall, new_inside = child(args.stop, cache, NEW_SYSTEM)
+        events_wall, events_inside = child(args.stop, cache, EVENTS)
         os.environ["ODELAB_CACHE_DIR"] = cache
         system = CompiledSystem.from_equations(["y1", "y2", "y3"], ["y2*y3", "-y1*y3", "a*y1*y2"], {"a": -0.51})
         system.module()
@@ -96,6 +124,10 @@ def main() -> None:
     print(f"first run, empty cache (fresh process, compile included): {first_wall:.2f} s wall "
           f"({first_inside:.2f} s inside Python)")
     print(f"second run, warm cache (fresh process): {warm_wall:.2f} s wall ({warm_inside:.2f} s inside Python)")
+    print(f"a new system with a sine input, loops cached (fresh process): {new_wall:.2f} s wall "
+          f"({new_inside:.2f} s inside Python)")
+    print(f"bouncing ball with [events], first use of the events loop (fresh process): {events_wall:.2f} s wall "
+          f"({events_inside:.2f} s inside Python)")
 
 
 if __name__ == "__main__":

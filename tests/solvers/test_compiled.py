@@ -46,10 +46,7 @@ def _shipped():
 
 def _why_python(case):
     p = case.problem
-    reason = why_not_compiled(get_method(p.method), p.compiled, p.options)
-    if reason is None and p.events is not None:
-        reason = "[events] are located on the Python path"
-    return reason
+    return why_not_compiled(get_method(p.method), p.compiled, p.options)
 
 
 def compiled_cases():
@@ -70,6 +67,12 @@ def test_every_shipped_case_runs_the_same_steps_compiled(path, i, j):
         python = run_case(case, backend="python")
         compiled = run_case(case, backend="compiled")
         assert (python.backend, compiled.backend) == ("python", "compiled")
+        assert [(e["name"], e["occurrence"]) for e in compiled.events] == [(e["name"], e["occurrence"])
+                                                                            for e in python.events]
+        for ec, ep in zip(compiled.events, python.events):  # the bouncing ball's bounces
+            assert ec["t"] == pytest.approx(ep["t"], rel=1e-12)
+        if python.event_marks is not None:
+            np.testing.assert_array_equal(compiled.event_marks, python.event_marks)
         for q, e in python.errors.items():
             assert compiled.errors[q].max_rel == pytest.approx(e.max_rel, rel=1e-6, abs=1e-12)
     assert compiled.stats == python.stats
@@ -92,7 +95,6 @@ def test_the_shipped_cases_left_on_python_are_the_documented_ones():
     left = {(path.stem, _why_python(case).split(",")[0].split(":")[0]) for path, _, _, case in _shipped()
             if _why_python(case) is not None}
     assert left == {
-        ("bouncing_ball", "[events] are located on the Python path"),
         ("feedback_pi", "it compiles systems written as expressions (equations"),  # a saturation block
         ("stiff", "it runs odelab's explicit Runge-Kutta methods (ode23"),  # ode15s, ode23s, Radau
         ("work-precision", "it runs odelab's explicit Runge-Kutta methods (ode23"),  # SciPy's RK45, DOP853...
@@ -101,7 +103,7 @@ def test_the_shipped_cases_left_on_python_are_the_documented_ones():
 
 def test_the_shipped_lab_has_compiled_cases():
     names = {path.stem for path, _, _, case in _shipped() if _why_python(case) is None}
-    assert names == {"convergence", "damping", "exercise1", "exercise1_2pi", "exercise2", "figure1",
+    assert names == {"bouncing_ball", "convergence", "damping", "exercise1", "exercise1_2pi", "exercise2", "figure1",
                      "linearisation", "rigid_body", "stiff", "work-precision"}
 
 
@@ -329,3 +331,39 @@ def test_auto_moves_a_long_run_with_inputs_to_the_compiled_path(tmp_path, monkey
     assert "Integrated in 400 pieces" in result.message and result.message == python.message
     np.testing.assert_allclose(result.t, python.t, rtol=0, atol=1e-8 * 400)
     np.testing.assert_allclose(result.x, python.x, rtol=0, atol=1e-9 * np.max(np.abs(python.x)))
+
+
+BALL = CompiledSystem.from_equations(["h", "v"], ["v", "-g"], {"g": 9.81}).with_events(
+    ["h", "v", "h - 2"], [True, False, False], [-1, 0, 1], {"g": 9.81}, ["events.floor.when", "events.apex.when", None])
+
+
+def ball(t, y):
+    return np.array([y[1], -9.81])
+
+
+def ball_events(t, y):
+    return np.array([y[0], y[1], y[0] - 2]), np.array([True, False, False]), np.array([-1.0, 0.0, 1.0])
+
+
+@pytest.mark.parametrize("y0, tspan, options", [
+    ([10.0, 0.0], [0, 5], {}),  # the floor stops it; the apex and h = 2 rising never come
+    ([0.0, 12.0], [0, 5], {"refine": 1}),  # up through h = 2 (rising), the apex, down to the floor
+    ([0.0, 12.0], list(np.linspace(0, 5, 41)), {"rtol": 1e-6}),  # output times; the floor's point added
+    ([0.0, 12.0], [0, 1.5], {}),  # the end comes first: h = 2 and the apex only
+    ([0.0, 0.0], [0, 5], {}),  # h = 0 at t0: registered, not terminal, then it falls through
+])
+def test_events_are_located_as_the_python_engine_does(y0, tspan, options):
+    a = solve_compiled(BALL, tspan, y0, "ode45", **options)
+    b = odelab.solve(ball, tspan, y0, "ode45", events=ball_events, **options)
+    assert a.stats == b.stats and a.status == b.status and a.message == b.message
+    np.testing.assert_array_equal(a.ie, b.ie)
+    np.testing.assert_allclose(a.te, b.te, rtol=1e-13, atol=1e-15)
+    np.testing.assert_allclose(a.ye, b.ye, rtol=1e-12, atol=1e-12)
+    assert a.t.shape == b.t.shape
+    np.testing.assert_allclose(a.t, b.t, rtol=1e-13, atol=1e-15)
+    np.testing.assert_allclose(a.y, b.y, rtol=1e-12, atol=1e-12)
+
+
+def test_events_need_an_adaptive_method():
+    with pytest.raises(InputError, match=r"\[events\] are located by ode23 and ode45"):
+        solve_compiled(BALL, [0, 1], [10.0, 0.0], "rk4", h=0.1)

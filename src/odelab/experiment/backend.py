@@ -47,8 +47,8 @@ def check_backend(backend: str, method, compiled, key: str, options=None, events
     if backend != "compiled":
         return
     reason = why_not_compiled(method, compiled, options)
-    if reason is None and events is not None:
-        reason = "the compiled loop does not locate [events] (they call back into Python)"
+    if reason is None and events is not None and not compiled.events:
+        reason = "the compiled loop locates [events] of expression systems only"
     if reason:
         raise ExperimentError(f"`{key}` is \"compiled\", but the compiled backend cannot run this case: {reason}. "
                               "Use backend = \"auto\" (or \"python\").", key=key)
@@ -115,6 +115,47 @@ def simulate_problem(problem, tspan, method_name: str, options: dict, backend: s
                    lambda opts: python(opts, compiled_piece), pilot)
 
 
+def solve_events_problem(problem, tspan, method_name: str, options: dict, backend: str):
+    """Integrate a problem with [events] (:func:`odelab.experiment.events.solve_with_events`,
+    restarting after each reset); returns ``(its tuple, backend that ran)``. The compiled path
+    locates the same events in the compiled loop; the pilot of ``"auto"`` spends one budget of
+    steps over all the restarts."""
+    from odelab.experiment.events import solve_with_events
+    from odelab.solvers.api import solve
+    from odelab.solvers.compiled import AUTO_STEPS, solve_compiled
+
+    events = problem.events
+
+    def run(opts, solve_piece=None):
+        return solve_with_events(problem.fun, tspan, problem.x0, method_name, opts, events, problem.states,
+                                 solve_piece=solve_piece)
+
+    def python_piece(ts, x, o):
+        return solve(problem.fun, ts, x, method=method_name, events=events.function, **o)
+
+    def compiled_piece(ts, x, o):
+        return solve_compiled(problem.compiled, ts, x, method_name, **o)
+
+    def pilot(opts):
+        left = [AUTO_STEPS]
+
+        def piece(ts, x, o):
+            if left[0] <= 0:
+                raise _BudgetSpent
+            sol = python_piece(ts, x, {**o, "max_steps": left[0]})
+            left[0] -= sol.stats.nsteps
+            if sol.status == "failed" and left[0] <= 0:
+                raise _BudgetSpent
+            return sol
+
+        try:
+            return run(opts, piece)
+        except _BudgetSpent:
+            return None
+
+    return _choose(problem, tspan, method_name, options, backend, run, lambda opts: run(opts, compiled_piece), pilot)
+
+
 def _choose(problem, tspan, method_name, options, backend, python, compiled, pilot):
     """Run ``python(options)`` or ``compiled(options)`` as ``backend`` says (see the module
     docstring); ``pilot(options)`` is the Python run within the budget, None if it ran out."""
@@ -123,6 +164,8 @@ def _choose(problem, tspan, method_name, options, backend, python, compiled, pil
 
     method = get_method(method_name)
     reason = why_not_compiled(method, problem.compiled, options)
+    if reason is None and problem.events is not None and not problem.compiled.events:
+        reason = "the compiled loop locates [events] of expression systems only"
     if backend == "compiled" and reason:
         raise InputError(f"`--backend compiled` cannot run this case: {reason}. Use --backend auto.")
     if backend == "python" or reason:

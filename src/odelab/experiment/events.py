@@ -49,6 +49,7 @@ class EventSet:
     resets: dict[int, Callable]  # event index -> reset(t, x) -> new x
     exact: dict[int, Callable]  # event index -> exact time of occurrence k (0-based)
     max_events: int
+    whens: tuple = ()  # (text, TOML key) of each event's `when`: the compiled backend generates them
 
     def function(self, t, x):
         """MATLAB's events function: (value, isterminal, direction)."""
@@ -156,13 +157,18 @@ def compile_events(section: dict[str, Any], states: tuple[str, ...], params: dic
         exact_time(0)  # evaluate once now: a bad expression fails at load time
         exact[i] = exact_time
     events = EventSet(names=tuple(names), terminal=np.array(terminal), direction=np.array(direction, dtype=float),
-                      values=values, resets=resets, exact=exact, max_events=max_events)
+                      values=values, resets=resets, exact=exact, max_events=max_events,
+                      whens=tuple((str(w), f"events.{n}.when") for w, n in zip(whens, names)))
     return events, resolved
 
 
 def solve_with_events(fun, tspan: np.ndarray, x0: np.ndarray, method: str, options: dict, events: EventSet,
-                      states: tuple[str, ...]):
+                      states: tuple[str, ...], solve_piece=None):
     """Integrate with events, restarting after each terminal event that has a reset.
+
+    ``solve_piece(tspan, x0, options)`` solves one piece, locating the events (default:
+    :func:`odelab.solvers.api.solve` with ``fun`` and ``events.function``; the compiled backend
+    passes its own, which locates the same events in the compiled loop).
 
     Returns ``(t, x, stats, status, message, warnings, records, marks)``: ``records`` lists the
     events in time order (name, index, occurrence, t, state, exact time, reset state), ``marks``
@@ -187,7 +193,10 @@ def solve_with_events(fun, tspan: np.ndarray, x0: np.ndarray, method: str, optio
     scale = float(np.max(np.abs(events.values(float(tspan[0]), x)))) if x.size else 0.0
     status, message = "success", f"{method} reached t = {tfinal:g}."
     while True:
-        sol = solve(fun, piece_tspan, x, method=method, events=events.function, **options)
+        if solve_piece is None:
+            sol = solve(fun, piece_tspan, x, method=method, events=events.function, **options)
+        else:
+            sol = solve_piece(piece_tspan, x, options)
         nsteps, nfevals = nsteps + sol.stats.nsteps, nfevals + sol.stats.nfevals
         nfailed += sol.stats.nfailed or 0
         warnings.extend(w for w in sol.warnings if w not in warnings)

@@ -609,6 +609,9 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
     fast = built.compiled  # the compiled backend's system, its inputs driven by the signals
     if fast is not None and fast.inputs:
         fast = fast.with_signals(signals)
+    if fast is not None and events is not None:
+        fast = fast.with_events([w for w, _ in events.whens], events.terminal, events.direction, params,
+                                [k for _, k in events.whens])
     if backend != "auto":
         resolved["solver"]["backend"] = backend
         from odelab.experiment.backend import check_backend

@@ -20,23 +20,22 @@ def _integrate(problem, tspan, method, options, backend="python"):
     """Solve (no inputs) or simulate (inputs, restarting at their discontinuities).
 
     Returns ``(t, x, u, stats, status, message, warnings, backend)``, the last being the
-    engine that ran (with [events]: ``solve_with_events``'s tuple, always on Python) ("python" or "compiled", see :mod:`odelab.experiment.backend`). A failed
+    engine that ran, "python" or "compiled" (see :mod:`odelab.experiment.backend`); with
+    [events], ``solve_with_events``'s tuple and the backend. A failed
     integration is reported in the case's result, so the solvers' SolverWarning is not
     repeated here.
     """
     import warnings
 
-    from odelab.exceptions import InputError, SolverWarning
+    from odelab.exceptions import SolverWarning
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SolverWarning)
         if problem.events is not None:
-            from odelab.experiment.events import solve_with_events
+            from odelab.experiment.backend import solve_events_problem
 
-            if backend == "compiled":
-                raise InputError("`--backend compiled` cannot run this case: the compiled loop does not locate "
-                                 "[events] (they call back into Python). Use --backend auto.")
-            return solve_with_events(problem.fun, tspan, problem.x0, method, options, problem.events, problem.states)
+            found, ran = solve_events_problem(problem, tspan, method, options, backend)
+            return (*found, ran)
         return _integrate_quietly(problem, tspan, method, options, backend)
 
 
@@ -78,8 +77,8 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
     events, marks = [], None
     ran = "python"
     if p.events is not None:
-        t, x, stats, status, message, warnings, events, marks = _integrate(p, p.tspan, p.method, options,
-                                                                           backend or p.backend)
+        t, x, stats, status, message, warnings, events, marks, ran = _integrate(p, p.tspan, p.method, options,
+                                                                                backend or p.backend)
         u = None
     else:
         t, x, u, stats, status, message, warnings, ran = _integrate(p, p.tspan, p.method, options,

@@ -55,6 +55,11 @@ class CompiledSystem:
     equations: tuple = ()  # (text, TOML key) per state
     inputs: tuple[str, ...] = ()  # input names (equations) or one per column of B (linear)
     signals: tuple = ()  # one odelab.signals signal per input, bound by with_signals()
+    events: tuple = ()  # (text, TOML key) of each [events] `when`, bound by with_events()
+    event_parameters: tuple[str, ...] = ()
+    event_values: np.ndarray = field(default_factory=lambda: np.zeros(0))  # of the event parameters
+    terminal: np.ndarray = field(default_factory=lambda: np.zeros(0))  # 1.0 / 0.0 per event
+    direction: np.ndarray = field(default_factory=lambda: np.zeros(0))  # 1, -1, 0 per event
 
     @classmethod
     def from_equations(cls, states: Sequence[str], equations: Sequence, parameters: Mapping[str, float] | None = None,
@@ -109,6 +114,17 @@ class CompiledSystem:
                              key="signals")
         return replace(self, signals=tuple(signals))
 
+    def with_events(self, whens: Sequence, terminal, direction, parameters: Mapping[str, float] | None = None,
+                    keys: Sequence[str | None] | None = None) -> "CompiledSystem":
+        """The system with [events]: zeros of the ``whens`` (expressions of t, the states and the
+        ``parameters``), located by the compiled loop as :mod:`odelab.solvers.events` does."""
+        keys = tuple(keys) if keys is not None else (None,) * len(whens)
+        parameters = dict(parameters or {})
+        return replace(self, events=tuple(zip(whens, keys)), event_parameters=tuple(parameters),
+                       event_values=np.array([float(v) for v in parameters.values()], dtype=float),
+                       terminal=np.array([1.0 if f else 0.0 for f in terminal], dtype=float),
+                       direction=np.array(direction, dtype=float).reshape(len(whens)))
+
     def why_not(self) -> str | None:
         """Why this system cannot run compiled (an input the compiled engine cannot generate), or None."""
         from odelab.solvers.compiled.inputs import why_not
@@ -126,7 +142,7 @@ class CompiledSystem:
         time (a piece of :func:`~odelab.systems.simulate.simulate`), the parameters and the
         signals' numbers; without, the parameters (or A)."""
         if not self.inputs:
-            return np.ascontiguousarray(self.values, dtype=float)
+            return np.ascontiguousarray(np.concatenate([self.values, self.event_values]), dtype=float)
         data: list[float] = []
         self._inputs_lines(data)
         return np.concatenate([[float(lo), float(hi)], self.values, np.asarray(data, dtype=float)])
@@ -149,6 +165,19 @@ class CompiledSystem:
             rhs = codegen.linear_source(len(self.inputs), lines)
         else:
             rhs = codegen.equations_source(self.states, self.parameters, self._parsed(), self.inputs, lines)
+        if self.events:
+            if self.inputs:
+                raise InputError("[events] work with systems without inputs.", key="events")
+            from odelab.expressions import parse_expression
+
+            whens = [parse_expression(text, key=key) for text, key in self.events]
+            known = {"t", *self.states, *self.event_parameters}
+            for w in whens:
+                unknown = sorted(set(w.names) - known)
+                if unknown:
+                    raise InputError(f"`{w.key or w.text}` uses `{unknown[0]}`, which is not a state, a parameter "
+                                     "or t.", key=w.key)
+            rhs += "\n\n" + codegen.events_source(self.states, self.event_parameters, whens, self.values.size)
         return cache.module_text(codegen.PRELUDE + (INPUT_PRELUDE if self.inputs else ""), rhs)
 
     def module(self):
@@ -235,6 +264,9 @@ def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dic
     if not np.all(np.isfinite(f0)):
         return api._failed_at_start(m, tspan_arr, y0_arr, opts, f"the derivative at t = {t0:g} is not finite "
                                     f"({api._fmt_vec(f0)}): check the right-hand side at the initial state")
+    if system.events and m.kind != "adaptive":
+        raise InputError(f"[events] are located by ode23 and ode45 (MATLAB's Events); the method is {m.name}.",
+                         key="method")
     if m.kind == "fixed":
         grid, keep = api.fixed_grid(tspan_arr, opts.h)
         ys, nsteps, nfevals, status, t_stop = kernels.loop("fixed")(rhs, _c(grid), y0_arr, p, _c(tab.A), _c(tab.b), _c(tab.c))
@@ -256,18 +288,28 @@ def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dic
     threshold = np.broadcast_to(np.atleast_1d(np.asarray(opts.atol / opts.rtol, dtype=float)), (n,)).copy()
     htry = float(opts.initial_step)
     capacity = tspan_arr.size if tspan_arr.size > 2 else 1 + refine * 64
-    (t_out, y_out, count, nsteps, nfailed, nfevals, status, t_stop, h_stop) = kernels.loop("adaptive")(
-        rhs, _c(tspan_arr), y0_arr, f0, p, _c(tab.A), _c(tab.c), _c(tab.error_weights), _c(tab.dense), _c(weights),
-        float(m.power), float(m.shrink_min), float(opts.rtol), threshold, float(opts.max_step), htry, int(refine),
-        bool(opts.norm_control), int(opts.max_steps), int(capacity))
+    args = (rhs, _c(tspan_arr), y0_arr, f0, p, _c(tab.A), _c(tab.c), _c(tab.error_weights), _c(tab.dense), _c(weights),
+            float(m.power), float(m.shrink_min), float(opts.rtol), threshold, float(opts.max_step), htry, int(refine),
+            bool(opts.norm_control), int(opts.max_steps), int(capacity))
+    found = {}
+    if system.events:
+        events = system.module().events
+        v0 = np.empty(len(system.events))
+        events(t0, y0_arr.copy(), p, v0)
+        (t_out, y_out, count, nsteps, nfailed, nfevals, status, t_stop, h_stop, te, ye, ie) = kernels.loop("events")(
+            *args, events, v0, _c(system.terminal), _c(system.direction))
+        found = {"te": te, "ye": ye, "ie": ie}
+    else:
+        (t_out, y_out, count, nsteps, nfailed, nfevals, status, t_stop, h_stop) = kernels.loop("adaptive")(*args)
     t = t_out[:count]
     y = y_out[:count]
     if count < t_out.size // 2:  # do not keep a mostly empty buffer alive
         t, y = t.copy(), y.copy()
-    message = api._status_message(status, m, t_stop, h_stop, y, y0_arr, opts, None, tspan_arr)
+    message = api._status_message(status, m, t_stop, h_stop, y, y0_arr, opts, None, tspan_arr,
+                                  list(found.get("te", ())), list(found.get("ie", ())))
     return Solution(t=t, y=y, stats=Stats(nsteps=nsteps, nfailed=nfailed, nfevals=nfevals + 1),
-                    status="success" if status == 0 else "failed", message=message, method=m.name,
-                    warnings=opts.warnings)
+                    status="failed" if status in api._FAILURES else "success", message=message, method=m.name,
+                    warnings=opts.warnings, **found)
 
 
 

@@ -25,7 +25,7 @@ from types import ModuleType
 
 __all__ = ["cache_dir", "load_kernels", "load_module", "module_digest"]
 
-_KERNELS = Path(__file__).with_name("kernels.py")
+_KERNELS = (Path(__file__).with_name("kernels.py"), Path(__file__).with_name("kernels_events.py"))
 _LOADED: dict[str, ModuleType] = {}
 
 
@@ -43,8 +43,10 @@ def module_text(prelude: str, rhs: str) -> str:
 
 
 def load_kernels() -> ModuleType:
-    """The shared stepping loops, imported from (and compiled into) the cache folder."""
-    return load_module(_KERNELS.read_text(encoding="utf-8"), prefix="odelab_kernels")
+    """The shared stepping loops (``kernels.py`` and, appended to it, ``kernels_events.py``),
+    imported from (and compiled into) the cache folder as one module."""
+    text = "\n\n".join(path.read_text(encoding="utf-8") for path in _KERNELS)
+    return load_module(text, prefix="odelab_kernels")
 
 
 def module_digest(text: str) -> str:

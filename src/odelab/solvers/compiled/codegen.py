@@ -21,7 +21,7 @@ from odelab.expressions.compile import _check_argument_name, _operands
 from odelab.expressions.functions import _BINARY, _COMPARATORS, _UNARY, CONSTANTS, FUNCTIONS
 from odelab.expressions.parse import ParsedExpression
 
-__all__ = ["PRELUDE", "equations_source", "linear_source"]
+__all__ = ["PRELUDE", "equations_source", "events_source", "linear_source"]
 
 _NUMPY = {
     "sin": "sin", "cos": "cos", "tan": "tan", "asin": "arcsin", "acos": "arccos", "atan": "arctan",
@@ -146,6 +146,16 @@ def equations_source(states: Sequence[str], parameters: Sequence[str], equations
     lines += [f"    {name} = _y[{i}]" for i, name in enumerate(states)]
     lines += [f"    {name} = _p[{first + i}]" for i, name in enumerate(parameters)]
     lines += [f"    _out[{i}] = {expression_source(p)}" for i, p in enumerate(equations)]
+    return "\n".join(lines) + "\n"
+
+
+def events_source(states: Sequence[str], parameters: Sequence[str], whens: Sequence[ParsedExpression],
+                  first: int = 0) -> str:
+    """``events(t, _y, _p, _out)``: the [events] ``when`` values, parameters from ``_p[first]`` on."""
+    lines = ["@_njit(_RHS, cache=True, error_model=\"numpy\")", "def events(t, _y, _p, _out):"]
+    lines += [f"    {name} = _y[{i}]" for i, name in enumerate(states)]
+    lines += [f"    {name} = _p[{first + i}]" for i, name in enumerate(parameters)]
+    lines += [f"    _out[{i}] = {expression_source(p)}" for i, p in enumerate(whens)]
     return "\n".join(lines) + "\n"
 
 

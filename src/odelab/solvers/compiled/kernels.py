@@ -336,12 +336,13 @@ _SIGNATURES = {
                  _I8),
     "fixed": (_RHS_ARG, _V, _V, _V, _M, _V, _V),
 }
-_LOOPS = {"adaptive": _adaptive, "fixed": _fixed}
+_SIGNATURES["events"] = (*_SIGNATURES["adaptive"], _RHS_ARG, _V, _V, _V)  # kernels_events._adaptive_events
+_LOOPS = {"adaptive": "_adaptive", "fixed": "_fixed", "events": "_adaptive_events"}
 _COMPILED = {}
 
 
 def loop(name):
-    """The compiled loop ``"adaptive"`` or ``"fixed"``."""
+    """The compiled loop ``"adaptive"``, ``"fixed"`` or ``"events"`` (adaptive with [events])."""
     if name not in _COMPILED:
-        _COMPILED[name] = _njit(_SIGNATURES[name], cache=True, error_model="numpy")(_LOOPS[name])
+        _COMPILED[name] = _njit(_SIGNATURES[name], cache=True, error_model="numpy")(globals()[_LOOPS[name]])
     return _COMPILED[name]
