@@ -241,15 +241,31 @@ refine = 1
 
 
 def test_auto_keeps_lab_runs_on_python_and_moves_long_runs(tmp_path):
+    from odelab.solvers.compiled import COMPILE_SECONDS, expected_compile_seconds
+
     short = load_experiment(ROOT / "experiments" / "rigid_body.toml").cases[0]
     assert run_case(short).backend == "python"
     (tmp_path / "long.toml").write_text(LONG, encoding="utf-8")
     case = load_experiment(tmp_path / "long.toml").cases[0]
-    result = run_case(case)
-    assert result.backend == "compiled" and result.stats.nsteps > AUTO_STEPS
+    solve_compiled(RIGID, [0, 1], [0, 1, 1])  # the same module text as the file's: built now
+    assert expected_compile_seconds(case.problem.compiled) == COMPILE_SECONDS["load"]
+    result = run_case(case)  # ~30 000 steps: about 1 s on Python against a 0.5 s load
+    assert result.backend == "compiled" and result.stats.nsteps == 29546
     assert run_case(case, backend="python").stats == result.stats
     capped = run_case(case, max_steps=500)
     assert capped.backend == "python" and capped.stats.nsteps == 500
+
+
+def test_auto_stays_on_python_when_the_compile_costs_more_than_the_run(tmp_path, monkeypatch):
+    import odelab.solvers.compiled
+
+    (tmp_path / "long.toml").write_text(LONG.replace("stop = 6000", "stop = 2500"), encoding="utf-8")
+    case = load_experiment(tmp_path / "long.toml").cases[0]
+    # as a first run on a machine would be: the loop and the system to compile, several seconds
+    monkeypatch.setattr(odelab.solvers.compiled, "expected_compile_seconds", lambda system, loop="adaptive": 60.0)
+    result = run_case(case)
+    assert result.backend == "python" and AUTO_STEPS < result.stats.nsteps < 2 * AUTO_STEPS
+    assert result.status == "success" and result.stats == run_case(case, backend="compiled").stats
 
 
 def test_every_compiled_signal_type_gives_the_python_values():
@@ -322,6 +338,7 @@ def test_auto_moves_a_long_run_with_inputs_to_the_compiled_path(tmp_path, monkey
     import odelab.solvers.compiled
 
     monkeypatch.setattr(odelab.solvers.compiled, "AUTO_STEPS", 1000)  # one budget for all 400 pieces
+    monkeypatch.setattr(odelab.solvers.compiled, "expected_compile_seconds", lambda system, loop="adaptive": 0.0)
     (tmp_path / "long.toml").write_text(LONG_INPUT, encoding="utf-8")
     case = load_experiment(tmp_path / "long.toml").cases[0]
     result = run_case(case)

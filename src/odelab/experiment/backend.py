@@ -4,10 +4,14 @@
 :func:`odelab.solvers.compiled.solve_compiled` (numba) and is refused, with the reason, for a
 system it cannot compile; ``"auto"`` chooses from the expected work. A fixed-step run knows
 its work in advance (the number of steps of its grid). An adaptive run does not, so it starts
-on the Python path with a budget of :data:`~odelab.solvers.compiled.AUTO_STEPS` steps: a lab
-run finishes inside it and pays no compile cost; a run that exhausts it is long, and is run
-again from the start on the compiled path, which takes the same steps (the budget's work,
-about 0.2 s, is the price of not guessing).
+on the Python path with a budget of :data:`~odelab.solvers.compiled.AUTO_STEPS` steps (over
+all its pieces, with inputs or event restarts): a lab run finishes inside it and pays no compile
+cost. A run that exhausts it is long: from the pilot's speed and the share of the time span it
+covered, the whole run on Python is estimated and compared with the compile it would need
+(:func:`~odelab.solvers.compiled.expected_compile_seconds`: seconds when the loops and the
+system are not built yet, a fraction of a second when they are cached); the cheaper one runs,
+from the start (the compiled path takes the same steps). The budget's work, about 0.3 s, is
+the price of not guessing.
 """
 
 from __future__ import annotations
@@ -67,13 +71,38 @@ def solve_problem(problem, tspan, method_name: str, options: dict, backend: str)
 
     def pilot(opts):
         sol = python({**opts, "max_steps": AUTO_STEPS})
-        return None if sol.status == "failed" and sol.stats.nsteps == AUTO_STEPS else sol
+        if sol.status == "failed" and sol.stats.nsteps == AUTO_STEPS:
+            return None, float(sol.t[-1])
+        return sol, None
 
     return _choose(problem, tspan, method_name, options, backend, python, compiled, pilot)
 
 
 class _BudgetSpent(Exception):
-    """The pilot of ``backend = "auto"`` used its steps: the run is long."""
+    """The pilot of ``backend = "auto"`` used its steps at time ``t``: the run is long."""
+
+    def __init__(self, t: float):
+        super().__init__(t)
+        self.t = t
+
+
+def _budgeted(solve_piece):
+    """``solve_piece(..., options)`` sharing one budget of AUTO_STEPS steps over all the pieces."""
+    from odelab.solvers.compiled import AUTO_STEPS
+
+    left = [AUTO_STEPS]
+
+    def piece(*args):
+        *rest, options = args
+        if left[0] <= 0:
+            raise _BudgetSpent(float(args[0][0]))
+        sol = solve_piece(*rest, {**options, "max_steps": left[0]})
+        left[0] -= sol.stats.nsteps
+        if sol.status == "failed" and left[0] <= 0:
+            raise _BudgetSpent(float(sol.t[-1]))
+        return sol
+
+    return piece
 
 
 def simulate_problem(problem, tspan, method_name: str, options: dict, backend: str):
@@ -81,7 +110,7 @@ def simulate_problem(problem, tspan, method_name: str, options: dict, backend: s
     :func:`odelab.systems.simulate.simulate`); returns ``(Response, backend that ran)``. The
     compiled path takes the same pieces, each solved by the compiled loop; the pilot of
     ``"auto"`` spends one budget of steps over all the pieces."""
-    from odelab.solvers.compiled import AUTO_STEPS, solve_compiled
+    from odelab.solvers.compiled import solve_compiled
     from odelab.systems.simulate import python_piece_solver, simulate
 
     signals = list(problem.signals)
@@ -94,22 +123,10 @@ def simulate_problem(problem, tspan, method_name: str, options: dict, backend: s
         return solve_compiled(problem.compiled, grid, x, method_name, input_bounds=(lo, hi), **opts)
 
     def pilot(opts):
-        base = python_piece_solver(problem.system, signals, method_name)
-        left = [AUTO_STEPS]
-
-        def piece(grid, x, lo, hi, o):
-            if left[0] <= 0:
-                raise _BudgetSpent
-            sol = base(grid, x, lo, hi, {**o, "max_steps": left[0]})
-            left[0] -= sol.stats.nsteps
-            if sol.status == "failed" and left[0] <= 0:
-                raise _BudgetSpent
-            return sol
-
         try:
-            return python(opts, piece)
-        except _BudgetSpent:
-            return None
+            return python(opts, _budgeted(python_piece_solver(problem.system, signals, method_name))), None
+        except _BudgetSpent as spent:
+            return None, spent.t
 
     return _choose(problem, tspan, method_name, options, backend, python,
                    lambda opts: python(opts, compiled_piece), pilot)
@@ -122,7 +139,7 @@ def solve_events_problem(problem, tspan, method_name: str, options: dict, backen
     steps over all the restarts."""
     from odelab.experiment.events import solve_with_events
     from odelab.solvers.api import solve
-    from odelab.solvers.compiled import AUTO_STEPS, solve_compiled
+    from odelab.solvers.compiled import solve_compiled
 
     events = problem.events
 
@@ -137,29 +154,21 @@ def solve_events_problem(problem, tspan, method_name: str, options: dict, backen
         return solve_compiled(problem.compiled, ts, x, method_name, **o)
 
     def pilot(opts):
-        left = [AUTO_STEPS]
-
-        def piece(ts, x, o):
-            if left[0] <= 0:
-                raise _BudgetSpent
-            sol = python_piece(ts, x, {**o, "max_steps": left[0]})
-            left[0] -= sol.stats.nsteps
-            if sol.status == "failed" and left[0] <= 0:
-                raise _BudgetSpent
-            return sol
-
         try:
-            return run(opts, piece)
-        except _BudgetSpent:
-            return None
+            return run(opts, _budgeted(python_piece)), None
+        except _BudgetSpent as spent:
+            return None, spent.t
 
     return _choose(problem, tspan, method_name, options, backend, run, lambda opts: run(opts, compiled_piece), pilot)
 
 
 def _choose(problem, tspan, method_name, options, backend, python, compiled, pilot):
     """Run ``python(options)`` or ``compiled(options)`` as ``backend`` says (see the module
-    docstring); ``pilot(options)`` is the Python run within the budget, None if it ran out."""
-    from odelab.solvers.compiled import AUTO_STEPS
+    docstring); ``pilot(options)`` is the Python run within the budget and None, or None and the
+    time it reached when the budget ran out."""
+    import time
+
+    from odelab.solvers.compiled import AUTO_STEPS, expected_compile_seconds
     from odelab.solvers.registry import get_method
 
     method = get_method(method_name)
@@ -183,7 +192,16 @@ def _choose(problem, tspan, method_name, options, backend, python, compiled, pil
             limit = options.get("max_steps") or 0
             if limit and limit <= AUTO_STEPS:
                 return python(options), "python"
-            result = pilot(options)
+            start = time.perf_counter()
+            result, reached = pilot(options)
             if result is not None:
                 return result, "python"  # finished (or failed for its own reason) within the budget
+            # A long run. Compile only if that costs less than the whole run on Python, estimated
+            # from the pilot's speed and the share of the time span it covered.
+            elapsed = time.perf_counter() - start
+            t0, tf = float(tspan[0]), float(tspan[-1])
+            progress = abs(reached - t0) / abs(tf - t0) if tf != t0 else 1.0
+            loop = "events" if getattr(problem, "events", None) is not None else "adaptive"
+            if progress > 0 and elapsed / progress < expected_compile_seconds(problem.compiled, loop):
+                return python(options), "python"
     return compiled(options), "compiled"

@@ -27,16 +27,22 @@ import numpy as np
 from odelab.exceptions import InputError
 from odelab.solution import Solution, Stats
 
-__all__ = ["BACKENDS", "AUTO_STEPS", "CompiledSystem", "unavailable", "solve_compiled"]
+__all__ = ["BACKENDS", "AUTO_STEPS", "COMPILE_SECONDS", "CompiledSystem", "expected_compile_seconds", "unavailable",
+           "solve_compiled"]
 
 BACKENDS = ("auto", "python", "compiled")
 
 #: Solver options that call back into Python (or are not in the compiled loop yet).
 PYTHON_ONLY_OPTIONS = ("events", "nonnegative", "mass", "output_fcn", "args")
 
-#: ``backend = "auto"`` moves a run to the compiled path once it needs more than this many
-#: steps: about 0.2 s on the Python path, the time a warm compiled load takes.
+#: ``backend = "auto"`` considers the compiled path once a run needs more than this many steps
+#: (about 0.3 s on the Python path), and takes it if the compile costs less than the rest.
 AUTO_STEPS = 10_000
+
+#: Seconds a compile costs, measured on a 2-core machine (bench/bench_compiled.py), idle: the
+#: shared adaptive loop (once per machine), the events loop, one system's rhs, and loading a
+#: cached build (numba's import and the cache index).
+COMPILE_SECONDS = {"adaptive": 2.5, "events": 4.0, "rhs": 0.6, "load": 0.5}
 
 
 @dataclass(frozen=True, eq=False)
@@ -185,6 +191,24 @@ class CompiledSystem:
         from odelab.solvers.compiled import cache
 
         return cache.load_module(self.source())
+
+
+def expected_compile_seconds(system: CompiledSystem, loop: str = "adaptive") -> float:
+    """What running ``system`` on the compiled ``loop`` ("adaptive" or "events") would cost
+    before its first step: nothing to compile if both are cached, else their compile times
+    (:data:`COMPILE_SECONDS`). ``backend = "auto"`` weighs it against the Python run."""
+    from odelab.solvers.compiled import cache
+
+    try:
+        seconds = COMPILE_SECONDS["load"]
+        if not cache.is_built(cache.kernels_text(), "odelab_kernels", "_adaptive_events" if loop == "events"
+                              else "_adaptive"):
+            seconds += COMPILE_SECONDS[loop]
+        if not cache.is_built(system.source()):
+            seconds += COMPILE_SECONDS["rhs"]
+        return seconds
+    except ImportError:  # pragma: no cover - numba missing: why_not_compiled says so first
+        return float("inf")
 
 
 @functools.cache

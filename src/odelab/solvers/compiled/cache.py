@@ -23,7 +23,7 @@ import tempfile
 from pathlib import Path
 from types import ModuleType
 
-__all__ = ["cache_dir", "load_kernels", "load_module", "module_digest"]
+__all__ = ["cache_dir", "is_built", "kernels_text", "load_kernels", "load_module", "module_digest"]
 
 _KERNELS = (Path(__file__).with_name("kernels.py"), Path(__file__).with_name("kernels_events.py"))
 _LOADED: dict[str, ModuleType] = {}
@@ -45,8 +45,7 @@ def module_text(prelude: str, rhs: str) -> str:
 def load_kernels() -> ModuleType:
     """The shared stepping loops (``kernels.py`` and, appended to it, ``kernels_events.py``),
     imported from (and compiled into) the cache folder as one module."""
-    text = "\n\n".join(path.read_text(encoding="utf-8") for path in _KERNELS)
-    return load_module(text, prefix="odelab_kernels")
+    return load_module(kernels_text(), prefix="odelab_kernels")
 
 
 def module_digest(text: str) -> str:
@@ -55,6 +54,22 @@ def module_digest(text: str) -> str:
 
     stamp = f"{numba.__version__}|{numpy.__version__}|{sys.version}|{platform.machine()}\n"
     return hashlib.sha256((stamp + text).encode("utf-8")).hexdigest()
+
+
+def is_built(text: str, prefix: str = "odelab_compiled", function: str | None = None) -> bool:
+    """Whether the module with this source is in the cache with numba's machine code (of
+    ``function``, or of any function) beside it, so that loading it compiles nothing."""
+    name = f"{prefix}_{module_digest(text)[:24]}"
+    folder = cache_dir() / "compiled"
+    if not (folder / f"{name}.py").is_file():
+        return False
+    pattern = f"{name}.{function}-*.nbi" if function else f"{name}.*.nbi"
+    return any((folder / "__pycache__").glob(pattern))
+
+
+def kernels_text() -> str:
+    """The text of the shared loops' module (``kernels.py`` and ``kernels_events.py``)."""
+    return "\n\n".join(path.read_text(encoding="utf-8") for path in _KERNELS)
 
 
 def load_module(text: str, prefix: str = "odelab_compiled") -> ModuleType:
