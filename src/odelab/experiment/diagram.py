@@ -182,11 +182,19 @@ def build_diagram(model: schema.Experiment, params: dict[str, float], path: Path
     if not compiled.inputs:
         def fun(t, x, _f=compiled.dynamics):
             return _f(t, x)
-    fast = None  # the compiled backend runs a diagram of linear blocks as its state-space model
-    if compiled.linear:
-        from odelab.solvers.compiled import CompiledSystem
+    # the compiled backend runs a diagram of linear blocks as its state-space model, any other
+    # block by block from generated code (nothing is compiled unless that backend runs)
+    from odelab.solvers.compiled import CompiledSystem
 
+    if compiled.linear:
         fast = CompiledSystem.linear(sys_obj.A, compiled.states, sys_obj.B, compiled.inputs)
+    else:
+        from odelab.systems.diagram.codegen import diagram_source, why_not
+
+        reason = why_not(compiled)
+        data: list[float] = []
+        body = [] if reason else diagram_source(compiled, data, 2 if compiled.inputs else 0)
+        fast = CompiledSystem.generated(compiled.states, compiled.inputs, body, data, unsupported=reason)
     return Built(states=compiled.states, inputs=compiled.inputs, outputs=compiled.outputs, fun=fun,
                  output_fn=output_fn, resolved=resolved, linear=compiled.linear, system=sys_obj,
                  x0=compiled.x0, signals=compiled.signals, diagram=compiled, compiled=fast)
