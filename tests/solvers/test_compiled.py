@@ -321,7 +321,7 @@ B = [[0], ["1/m"]]
 x = 0
 v = 0
 [time]
-stop = 400
+stop = 100
 [inputs.f]
 type = "pulse"
 period = 2
@@ -336,16 +336,16 @@ refine = 1
 def test_auto_moves_a_long_run_with_inputs_to_the_compiled_path(tmp_path, monkeypatch):
     import odelab.solvers.compiled
 
-    monkeypatch.setattr(odelab.solvers.compiled, "AUTO_STEPS", 1000)  # one budget for all 400 pieces
+    monkeypatch.setattr(odelab.solvers.compiled, "AUTO_STEPS", 300)  # one budget for all 100 pieces
     monkeypatch.setattr(odelab.solvers.compiled, "expected_compile_seconds", lambda system, loop="adaptive": 0.0)
     (tmp_path / "long.toml").write_text(LONG_INPUT, encoding="utf-8")
     case = load_experiment(tmp_path / "long.toml").cases[0]
     result = run_case(case)
     python = run_case(case, backend="python")
     assert result.backend == "compiled" and python.backend == "python"
-    assert result.stats == python.stats and result.stats.nsteps == 4425  # each piece far below the budget
-    assert "Integrated in 400 pieces" in result.message and result.message == python.message
-    np.testing.assert_allclose(result.t, python.t, rtol=0, atol=1e-8 * 400)
+    assert result.stats == python.stats and result.stats.nsteps == 1125  # each piece far below the budget
+    assert "Integrated in 100 pieces" in result.message and result.message == python.message
+    np.testing.assert_allclose(result.t, python.t, rtol=0, atol=1e-8 * 100)
     np.testing.assert_allclose(result.x, python.x, rtol=0, atol=1e-9 * np.max(np.abs(python.x)))
 
 
