@@ -383,3 +383,14 @@ def test_events_are_located_as_the_python_engine_does(y0, tspan, options):
 def test_events_need_an_adaptive_method():
     with pytest.raises(InputError, match=r"\[events\] are located by ode23 and ode45"):
         solve_compiled(BALL, [0, 1], [10.0, 0.0], "rk4", h=0.1)
+
+
+def test_auto_counts_only_the_steps_max_steps_allows(monkeypatch):
+    import odelab.solvers.compiled
+
+    # stiff.toml's ode45 covers a sliver of [0, 3000] in 10 000 steps (millions needed), but its
+    # max_steps = 20 000 leaves one more budget's work: not worth a 10 s compile
+    case = next(c for c in load_experiment(ROOT / "experiments" / "stiff.toml").cases if c.name == "ode45")
+    monkeypatch.setattr(odelab.solvers.compiled, "expected_compile_seconds", lambda system, loop="adaptive": 10.0)
+    result = run_case(case)
+    assert result.backend == "python" and result.stats.nsteps == 20_000 and result.status == "failed"

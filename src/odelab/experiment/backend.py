@@ -201,7 +201,10 @@ def _choose(problem, tspan, method_name, options, backend, python, compiled, pil
             elapsed = time.perf_counter() - start
             t0, tf = float(tspan[0]), float(tspan[-1])
             progress = abs(reached - t0) / abs(tf - t0) if tf != t0 else 1.0
+            steps = AUTO_STEPS / progress if progress > 0 else float("inf")
+            if limit:  # max_steps (or odelab run's budget) caps the work: stiff.toml's ode45 stops at 20 000
+                steps = min(steps, limit)
             loop = "events" if getattr(problem, "events", None) is not None else "adaptive"
-            if progress > 0 and elapsed / progress < expected_compile_seconds(problem.compiled, loop):
+            if elapsed * steps / AUTO_STEPS < expected_compile_seconds(problem.compiled, loop):
                 return python(options), "python"
     return compiled(options), "compiled"
