@@ -16,8 +16,8 @@ def test_every_matlab_name_runs_as_method_and_function(name):
     by_name = odelab.solve(decay, [0, 1], 1.0, method=name, rtol=1e-6, atol=1e-9)
     assert by_function.success and by_function.method == name
     np.testing.assert_array_equal(by_function.y, by_name.y)
-    # global error in units of rtol; ode23s propagates its second-order solution (about 22 units here)
-    units = 30 if name == "ode23s" else 10
+    # global error in units of rtol; the second-order ode23s, ode23t, ode23tb: about 22, 34, 22 units here
+    units = {"ode23s": 30, "ode23t": 40, "ode23tb": 30}.get(name, 10)
     assert abs(by_function.y[-1, 0] - np.exp(-1)) < units * 1e-6 * np.exp(-1)
     m = METHODS[name]
     if m.runs_as:  # an honest mapping says which method ran

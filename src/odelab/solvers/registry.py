@@ -136,13 +136,11 @@ METHODS: dict[str, Method] = {
                   "MATLAB's ode15s: variable-order NDF/BDF (orders 1-5), for stiff problems and index-1 DAEs"),
         _implicit("ode23s", 2, "2(3)", "stiff",
                   "MATLAB's ode23s: modified Rosenbrock (2,3) W-method, for stiff problems at crude tolerances"),
-        Method("ode23t", "implicit", 5, "MATLAB's ode23t name: moderately stiff problems and DAEs (here run by "
-               "odelab's ode15s)", stiff=True, orders="1-5", problem="stiff, DAE", runs_as="ode15s",
-               note="ode23t ran as odelab's ode15s (NDFs, orders 1-5): odelab has no native trapezoidal-rule "
-                    "solver yet"),
-        Method("ode23tb", "implicit", 5, "MATLAB's ode23tb name: stiff problems at crude tolerances (here run by "
-               "odelab's ode15s)", stiff=True, orders="1-5", problem="stiff", runs_as="ode15s",
-               note="ode23tb ran as odelab's ode15s (NDFs, orders 1-5): odelab has no native TR-BDF2 solver yet"),
+        _implicit("ode23t", 2, "2", "stiff, DAE",
+                  "MATLAB's ode23t: trapezoidal rule with its free interpolant, for moderately stiff problems "
+                  "and index-1 DAEs"),
+        _implicit("ode23tb", 2, "2(3)", "stiff",
+                  "MATLAB's ode23tb: TR-BDF2 (gamma = 2 - sqrt 2), for stiff problems at crude tolerances"),
         # Orders 1-13 as MATLAB documents them: predictor order k <= 12, corrector k+1 (local
         # extrapolation). Shampine & Gordon's DE/STEP/INTRP in odelab.solvers.adams.
         Method("ode113", "multistep", 13, "MATLAB's ode113: variable-order Adams-Bashforth-Moulton PECE "

@@ -106,6 +106,16 @@ def solve_implicit(fun, tspan, y0, f0, m, opts):
 
         result = integrate_ode23s(work, tspan, y0, f0, opts.rtol, atol, opts.max_step, opts.initial_step,
                                   opts.refine, opts.max_steps)
+    elif name == "ode23t":
+        from odelab.solvers.implicit.ode23t import integrate_ode23t
+
+        result = integrate_ode23t(work, tspan, y0, f0, opts.rtol, atol, opts.max_step, opts.initial_step,
+                                  opts.refine, opts.max_steps)
+    elif name == "ode23tb":
+        from odelab.solvers.implicit.ode23tb import integrate_ode23tb
+
+        result = integrate_ode23tb(work, tspan, y0, f0, opts.rtol, atol, opts.max_step, opts.initial_step,
+                                   opts.refine, opts.max_steps)
     else:  # pragma: no cover - the registry lists only the solvers above as implicit
         raise ValueError(name)
     return result, work

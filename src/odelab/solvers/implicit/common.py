@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-__all__ = ["Work", "Output", "rms_or_max", "initial_step"]
+__all__ = ["Work", "Output", "rms_or_max", "initial_step", "clamp_step", "newton", "Newton"]
 
 EPS = float(np.finfo(float).eps)
 SQRT_EPS = math.sqrt(EPS)
@@ -196,6 +196,87 @@ def initial_step(f0, y0, threshold, rtol, power, hmax, htspan, t0, htry, normcon
     if absh * rh > 1:
         absh = 1.0 / rh
     return max(absh, hmin)
+
+
+class Newton:
+    """The simplified Newton iteration's memory across steps: the last observed rate of convergence."""
+
+    __slots__ = ("rate", "havrate")
+
+    def __init__(self):
+        self.rate = 0.0
+        self.havrate = False
+
+
+MAX_NEWTON = 4
+
+
+def newton(work: "Work", lu, residual, z: np.ndarray, scale: float, wt: np.ndarray, rtol: float, memory: Newton):
+    """Solve ``residual(z) = 0`` by simplified Newton with the factorisation ``lu`` of its matrix.
+
+    Each iteration is one evaluation (in ``residual``) and one linear solve:
+    ``z += lu \\ residual(z)``. The change in the solution is ``scale * dz``; convergence is
+    judged as ode15s judges it (Shampine & Reichelt 1997, Section 2.3): from the observed rate
+    ``rho`` the remaining error ``||dy|| rho / (1 - rho)`` must fall below ``rtol / 2`` (``0.05
+    rtol`` on the first iteration, with the rate kept from earlier steps), at most
+    :data:`MAX_NEWTON` iterations, and the iteration is abandoned as soon as it diverges
+    (``||dy||`` not shrinking by 0.9) or cannot converge in the iterations left.
+
+    Returns ``(z, converged)``; ``memory`` carries the rate to the next call.
+    """
+    minnrm = 100 * EPS * float(np.max(np.abs(z) * abs(scale) / wt)) if z.size else 0.0
+    oldnrm = 0.0
+    for it in range(1, MAX_NEWTON + 1):
+        dz = work.solve(lu, residual(z))
+        z = z + dz
+        newnrm = abs(scale) * float(np.max(np.abs(dz) / wt))
+        if not math.isfinite(newnrm):
+            return z, False
+        if newnrm <= minnrm:
+            return z, True
+        if it == 1:
+            if memory.havrate:
+                if newnrm * memory.rate / (1 - memory.rate) <= 0.05 * rtol:
+                    return z, True
+            else:
+                memory.rate = 0.0
+        elif newnrm > 0.9 * oldnrm:
+            return z, False
+        else:
+            memory.rate = max(0.9 * memory.rate, newnrm / oldnrm)
+            memory.havrate = True
+            errit = newnrm * memory.rate / (1 - memory.rate)
+            if errit <= 0.5 * rtol:
+                return z, True
+            if it == MAX_NEWTON or 0.5 * rtol < errit * memory.rate ** (MAX_NEWTON - it):
+                return z, False
+        oldnrm = newnrm
+    return z, False
+
+
+def consistent_slope(work: "Work", t: float, y: np.ndarray, f0: np.ndarray, J) -> np.ndarray:
+    """``y'(t)`` from ``M y' = f``: ``M^-1 f`` for a nonsingular (or no) mass matrix.
+
+    For a singular ``M`` (an index-1 DAE) the algebraic equations ``u^T f = 0`` (``u`` spanning
+    the left null space of ``M``) are differentiated, ``u^T (f_t + J y') = 0``, and solved
+    together with ``M y' = f``: the slope of the algebraic states is then consistent, which the
+    trapezoidal rule needs because it carries the slope from step to step (it never damps an
+    error in it). ``f_t`` is one forward difference (one evaluation).
+    """
+    if work.mass is None:
+        return f0
+    M = work.mass.toarray() if hasattr(work.mass, "toarray") else np.asarray(work.mass, dtype=float)
+    U, s, _ = np.linalg.svd(M)
+    rank = int(np.sum(s > s[0] * work.n * EPS)) if s.size and s[0] > 0 else 0
+    if rank == work.n:
+        return np.linalg.solve(M, f0)
+    null = U[:, rank:]
+    tdel = SQRT_EPS * max(abs(t), 1.0)
+    ft = (work.f(t + tdel, y) - f0) / tdel
+    Jd = J.toarray() if hasattr(J, "toarray") else np.asarray(J)
+    A = np.vstack([M, null.T @ Jd])
+    b = np.concatenate([f0, -(null.T @ ft)])
+    return np.linalg.lstsq(A, b, rcond=None)[0]
 
 
 class Output:
