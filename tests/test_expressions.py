@@ -419,3 +419,17 @@ def test_random_trees_match_reference(tree, x, y):
         expected = reference(tree, env)
     result = compile_expression(render(tree), names=["x", "y"])(**env)
     np.testing.assert_array_equal(result, expected)  # same operations, same bits
+
+
+def test_a_sweep_compiles_each_text_once():
+    from odelab.expressions import compile_expression
+    from odelab.expressions.constants import evaluate_parameters
+
+    a = compile_expression("k/m + t", names=["k", "m", "t"])
+    assert compile_expression("k/m + t", names=["k", "m", "t"]) is a
+    assert compile_expression("k/m + t", names=["k", "m", "t", "b"]) is not a  # other names: its own entry
+    assert a(k=6.0, m=2.0, t=1.0) == 4.0
+    first = evaluate_parameters({"m": 2, "k": "m*3"})
+    first["k"] = -1.0  # the caller's copy: the next case gets the true values
+    assert evaluate_parameters({"m": 2, "k": "m*3"}) == {"m": 2.0, "k": 6.0}
+    assert evaluate_parameters({"m": 2.5, "k": "m*3"}) == {"m": 2.5, "k": 7.5}

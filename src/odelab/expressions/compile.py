@@ -233,6 +233,29 @@ def compile_expression(
     ExpressionError
         If the text is invalid or uses a name not in ``names`` (with a did-you-mean hint).
     """
+    names = tuple(names)
+    memo = (text, type(text), names, key, source, complex_step) if isinstance(text, (str, int, float)) else None
+    if memo is not None:
+        try:
+            return _COMPILED[memo]
+        except (KeyError, TypeError):  # TypeError: a name that cannot be hashed, checked below
+            pass
+    compiled = _compile_expression(text, names, key, source, complex_step)
+    if memo is not None and len(_COMPILED) < _COMPILED_MAX:
+        try:
+            _COMPILED[memo] = compiled
+        except TypeError:
+            pass
+    return compiled
+
+
+# The cases of a sweep compile the same texts (parameters, [exact], times) over and over; a
+# CompiledExpression holds no state, so each (text, names) is compiled once per process.
+_COMPILED: dict[tuple, CompiledExpression] = {}
+_COMPILED_MAX = 4096
+
+
+def _compile_expression(text, names: tuple, key, source, complex_step: bool) -> CompiledExpression:
     parsed = parse_expression(text, key=key, source=source)
     key = parsed.key if key is None else key
     source = parsed.source if source is None else source

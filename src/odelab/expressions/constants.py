@@ -161,6 +161,25 @@ def evaluate_parameters(
     ExpressionError
         If an expression is invalid or uses an unknown name.
     """
+    try:  # a sweep's cases evaluate the same [parameters] again and again: once per process
+        memo = (tuple((k, type(v), v) for k, v in params.items()), source, key_prefix)
+        return dict(_EVALUATED[memo])
+    except (KeyError, TypeError):  # TypeError: an unhashable value, rejected below
+        pass
+    values = _evaluate_parameters(params, source, key_prefix)
+    try:
+        if len(_EVALUATED) < 1024:
+            _EVALUATED[memo] = dict(values)
+    except TypeError:
+        pass
+    return values
+
+
+_EVALUATED: dict[tuple, dict[str, float]] = {}
+
+
+def _evaluate_parameters(params: Mapping[str, float | int | str], source: str | None,
+                         key_prefix: str) -> dict[str, float]:
     names = list(params)
 
     def key_of(name: str) -> str:
