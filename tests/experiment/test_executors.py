@@ -98,3 +98,27 @@ def test_bad_executor_and_scheduler_without_dask(tmp_path):
     assert result.exit_code == 2 and "`--executor` is 'cluster'; it must be one of serial, process, dask." in result.output
     result = runner.invoke(app, ["run", str(tmp_path / "sweep.toml"), "--scheduler", "tcp://x:1"])
     assert result.exit_code == 2 and "add `--executor dask`" in result.output
+
+
+def test_pools_hand_out_each_experiments_cases_longest_first():
+    from pathlib import Path
+
+    from odelab.experiment.executors import case_cost, schedule
+    from odelab.experiment.loader import load_experiments
+
+    root = Path(__file__).resolve().parents[2] / "experiments"
+    exps = load_experiments(root / "convergence.toml")
+    cases = [c for e in exps for c in e.cases]
+    order = schedule(cases)
+    assert sorted(order) == list(range(60)) and set(order[:30]) == set(range(30))  # experiments keep their order
+    first = [cases[i] for i in order[:30]]
+    assert first[0].name == "method=rk4, h=0.003125" and first[-1].name == "method=euler, h=0.1"
+    # a fixed-step case costs steps x stages: rk4 over [0, pi] at h = 0.003125
+    assert case_cost(first[0]) == pytest.approx(4 * np.pi / 0.003125)
+    assert [case_cost(c) for c in first] == sorted((case_cost(c) for c in first), reverse=True)
+    # adaptive cases: tighter tolerances first
+    wp = load_experiments(root / "work-precision.toml")[0].cases
+    by_rtol = {}
+    for i in schedule(list(wp)):
+        by_rtol.setdefault(wp[i].problem.method, []).append(wp[i].problem.options["rtol"])
+    assert all(r == sorted(r) for r in by_rtol.values())

@@ -9,6 +9,12 @@ the cases already run. Pool workers are forked from the running process and inhe
 experiments it has loaded; Dask workers need the experiment files at the same paths (a shared
 file system, as on any cluster).
 
+In a pool or on a cluster the cases are handed out **longest first** within each experiment
+(:func:`schedule`: a fixed-step case costs its number of steps times its stages; an adaptive
+one grows as its tolerance tightens), so that the last case to finish is a short one and no
+worker idles while another runs a long tail. The experiments themselves keep their order, so
+that the first one's results can be stored and printed while the next one runs.
+
 ``on_done(done, failed)`` is called in the calling thread each time a case finishes, for a
 progress bar; nothing here prints.
 """
@@ -16,13 +22,14 @@ progress bar; nothing here prints.
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from pathlib import Path
 from typing import Callable, Iterable, Iterator
 
 from odelab.exceptions import InputError
 
-__all__ = ["EXECUTORS", "CaseError", "default_jobs", "run_cases"]
+__all__ = ["EXECUTORS", "CaseError", "case_cost", "default_jobs", "run_cases", "schedule"]
 
 EXECUTORS = ("serial", "process", "dask")
 
@@ -44,6 +51,42 @@ def default_jobs() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # pragma: no cover - not on Linux
         return max(1, os.cpu_count() or 1)
+
+
+def case_cost(case) -> float:
+    """A relative estimate of a case's run time, for scheduling (only the order matters).
+
+    A fixed-step method: steps (span / h) times stages. An adaptive one: its stages times
+    rtol^(-1/order) per unit of span (the step size an error-per-step controller settles at),
+    which orders a tolerance sweep correctly. Anything else counts 1.
+    """
+    from odelab.solvers.registry import get_method
+
+    p = case.problem
+    try:
+        method = get_method(p.method)
+        span = float(abs(p.tspan[-1] - p.tspan[0]))
+        tableau = getattr(method, "tableau", None)
+        stages = tableau.c.size if tableau is not None else 1
+        h = p.options.get("h")
+        if method.kind == "fixed" and h:
+            return stages * span / float(h)
+        rtol = float(p.options.get("rtol", 1e-3))
+        order = float(method.order or 4)
+        return stages * max(span, 1e-300) * rtol ** (-1.0 / order)
+    except (TypeError, ValueError, KeyError, AttributeError, ZeroDivisionError, OverflowError):
+        return 1.0
+
+
+def schedule(cases: list) -> list[int]:
+    """The order in which to hand ``cases`` to a pool: experiments in order, each one's cases longest first."""
+    position: dict[tuple[str, str], int] = {}
+    keys = []
+    for i, case in enumerate(cases):
+        exp = position.setdefault((str(case.source), case.experiment), len(position))
+        cost = case_cost(case)
+        keys.append((exp, -cost if math.isfinite(cost) else 0.0, i))
+    return [i for _, _, i in sorted(keys)]
 
 
 def _case_in_worker(source: str, file_hash: str, index: int, experiment: str):
@@ -160,7 +203,9 @@ def _run_pool(cases, jobs, opts, done):
     # that no lock can be inherited held.
     pool = ProcessPoolExecutor(max_workers=min(jobs, len(cases)), mp_context=multiprocessing.get_context("fork"),
                                initializer=_ignore_sigint)
-    futures = [pool.submit(_run_remote, *_submit_args(c, opts)) for c in cases]
+    futures = [None] * len(cases)
+    for i in schedule(cases):
+        futures[i] = pool.submit(_run_remote, *_submit_args(cases[i], opts))
 
     def results():
         try:
@@ -235,11 +280,15 @@ def _dask_results(cases, jobs, scheduler, opts, done, Client, LocalCluster, wait
         cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None)
         client = Client(cluster)
     try:
-        futures = [client.submit(_run_remote, *_submit_args(c, opts), pure=False) for c in cases]
+        futures = [None] * len(cases)
+        order = schedule(cases)
+        for rank, i in enumerate(order):  # the scheduler runs higher priorities first
+            futures[i] = client.submit(_run_remote, *_submit_args(cases[i], opts), pure=False,
+                                       priority=len(order) - rank)
         yield from _in_order(cases, futures, lambda f: f.result(), done,
                              lambda pending: wait(list(pending), return_when="FIRST_COMPLETED").done)
     except BaseException:
-        client.cancel(futures if "futures" in locals() else [])
+        client.cancel([f for f in locals().get("futures") or [] if f is not None])
         raise
     finally:
         client.close()
