@@ -35,6 +35,24 @@ def test_version_and_help():
         assert command in result.output
 
 
+def test_help_shows_readable_metavars_not_python_types():
+    result = runner.invoke(app, ["run", "--help"], terminal_width=100)
+    assert result.exit_code == 0
+    usage, *rest = [line.strip() for line in result.output.splitlines() if line.strip()]
+    assert usage.endswith("run [OPTIONS] FILES...")
+    assert "FILES...  Experiment files or folders of them.  [required]" in rest
+    for option in ("--runs FOLDER", "--max-steps N", "--limit NAME=N", "--jobs N", "--executor NAME",
+                   "--scheduler ADDRESS", "--backend NAME"):
+        assert any(line.startswith(option) or f", {option}" in line for line in rest), option
+    report = runner.invoke(app, ["report", "--help"], terminal_width=100).output
+    assert "report [OPTIONS] [EXPERIMENTS...]" in report and "--out FOLDER" in report
+    for text in (result.output, report, runner.invoke(app, ["validate", "--help"]).output,
+                 runner.invoke(app, ["new", "--help"]).output):
+        assert "<" not in text and "list[" not in text, text
+    missing = runner.invoke(app, ["run"])
+    assert missing.exit_code == 2 and "Missing argument 'FILES...'" in missing.output
+
+
 def test_run_exercise1_prints_the_lab_numbers(tmp_path):
     result = invoke("run", EXPERIMENTS / "exercise1.toml", "--runs", tmp_path / "runs")
     assert result.exit_code == 0, result.output

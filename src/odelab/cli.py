@@ -28,6 +28,18 @@ app = typer.Typer(
 EXIT_OK, EXIT_FAILED, EXIT_INPUT = 0, 1, 2
 
 
+class _Command(typer.core.TyperCommand):
+    """A command whose arguments show their metavar as written (``FILES...``), not Typer's ``<list[Path]>``."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        for param in self.params:
+            if isinstance(param, typer.core.TyperArgument) and param.metavar:
+                shown = param.metavar if param.required else f"[{param.metavar}]"
+                param.display_type = lambda ctx: ""  # the metavar says it: no type after it
+                param._usage_display_name = lambda shown=shown: shown
+
+
 def _version(value: bool) -> None:
     if value:
         typer.echo(f"odelab {__version__}")
@@ -79,26 +91,29 @@ def expand_paths(paths: list[Path]) -> tuple[list[Path], list[tuple[Path, str]]]
     return files, problems
 
 
-@app.command()
+@app.command(cls=_Command)
 def run(
-    paths: Annotated[list[Path], typer.Argument(help="Experiment files or folders of them.", show_default=False)],
-    runs: Annotated[Path, typer.Option("--runs", help="Results folder.")] = Path("runs"),
+    paths: Annotated[list[Path], typer.Argument(help="Experiment files or folders of them.", show_default=False,
+                                                metavar="FILES...")],
+    runs: Annotated[Path, typer.Option("--runs", help="Results folder.", metavar="FOLDER")] = Path("runs"),
     json_out: Annotated[bool, typer.Option("--json", help="Print one JSON document instead of tables.")] = False,
     trajectories: Annotated[bool, typer.Option(
         "--trajectories", help="With --json: add each case's trajectory (t, states, inputs, outputs, references, "
         "errors); --table does too.")] = False,
     table: Annotated[bool, typer.Option("--table", help="Print the per-point error table of every case.")] = False,
     mat: Annotated[bool, typer.Option("--mat", help="Also store result.mat for MATLAB.")] = False,
-    max_steps: Annotated[int, typer.Option("--max-steps", min=0, help=MAX_STEPS_HELP)] = 1_000_000,
-    limit: Annotated[Optional[list[str]], typer.Option("--limit", help=LIMIT_HELP, show_default=False)] = None,
+    max_steps: Annotated[int, typer.Option("--max-steps", min=0, help=MAX_STEPS_HELP, metavar="N")] = 1_000_000,
+    limit: Annotated[Optional[list[str]], typer.Option("--limit", help=LIMIT_HELP, show_default=False,
+                                                               metavar="NAME=N")] = None,
     store: Annotated[bool, typer.Option("--store/--no-store", help="Write results to the results folder.")] = True,
     backend: Annotated[Optional[str], typer.Option(
-        "--backend", help="auto, python or compiled (numba); overrides [solver] backend.", show_default=False)] = None,
-    jobs: Annotated[Optional[int], typer.Option("--jobs", "-j", min=1, show_default="the number of cores",
+        "--backend", help="auto, python or compiled (numba); overrides [solver] backend.", show_default=False,
+        metavar="NAME")] = None,
+    jobs: Annotated[Optional[int], typer.Option("--jobs", "-j", min=1, show_default="the number of cores", metavar="N",
                                                 help="Cases run at once (a process pool).")] = None,
-    executor: Annotated[str, typer.Option("--executor", help="process (a local pool; 1 job: serial), serial or "
+    executor: Annotated[str, typer.Option("--executor", metavar="NAME", help="process (a local pool; 1 job: serial), serial or "
                                                              "dask.")] = "process",
-    scheduler: Annotated[Optional[str], typer.Option("--scheduler", help="Dask scheduler address (tcp://host:8786) "
+    scheduler: Annotated[Optional[str], typer.Option("--scheduler", metavar="ADDRESS", help="Dask scheduler address (tcp://host:8786) "
                                                      "for --executor dask; none: a local Dask cluster.")] = None,
 ) -> None:
     """Run experiments: solve every case, print the error tables and store the results."""
@@ -333,18 +348,18 @@ def _escape(text: str) -> str:
     return shown(text, lines=True)
 
 
-@app.command()
+@app.command(cls=_Command)
 def report(
     experiments: Annotated[Optional[list[str]], typer.Argument(
         help="Experiments to include, by name or by experiment file (default: every one in the results folder).",
-        show_default=False)] = None,
-    runs: Annotated[Path, typer.Option("--runs", help="Results folder to read.")] = Path("runs"),
-    out: Annotated[Path, typer.Option("--out", help="Folder to write the report to.")] = Path("report"),
-    fmt: Annotated[str, typer.Option("--format", help="html, md or both.")] = "both",
-    template: Annotated[Optional[Path], typer.Option("--template",
+        show_default=False, metavar="EXPERIMENTS...")] = None,
+    runs: Annotated[Path, typer.Option("--runs", help="Results folder to read.", metavar="FOLDER")] = Path("runs"),
+    out: Annotated[Path, typer.Option("--out", help="Folder to write the report to.", metavar="FOLDER")] = Path("report"),
+    fmt: Annotated[str, typer.Option("--format", help="html, md or both.", metavar="FORMAT")] = "both",
+    template: Annotated[Optional[Path], typer.Option("--template", metavar="FOLDER",
                                                      help="A folder of Jinja templates to use instead.")] = None,
     jobs: Annotated[Optional[int], typer.Option("--jobs", "-j", min=1, show_default="the number of cores",
-                                                help="Figures drawn at once (processes).")] = None,
+                                                metavar="N", help="Figures drawn at once (processes).")] = None,
 ) -> None:
     """Build the lab report (HTML and Markdown, with plots and error tables) from stored runs."""
     import warnings
@@ -390,11 +405,13 @@ def _experiment_names(given: list[str] | None) -> list[str]:
     return names
 
 
-@app.command()
+@app.command(cls=_Command)
 def validate(
-    paths: Annotated[list[Path], typer.Argument(help="Experiment files or folders of them.", show_default=False)],
-    max_steps: Annotated[int, typer.Option("--max-steps", min=0, help=MAX_STEPS_HELP)] = 1_000_000,
-    limit: Annotated[Optional[list[str]], typer.Option("--limit", help=LIMIT_HELP, show_default=False)] = None,
+    paths: Annotated[list[Path], typer.Argument(help="Experiment files or folders of them.", show_default=False,
+                                                metavar="FILES...")],
+    max_steps: Annotated[int, typer.Option("--max-steps", min=0, help=MAX_STEPS_HELP, metavar="N")] = 1_000_000,
+    limit: Annotated[Optional[list[str]], typer.Option("--limit", help=LIMIT_HELP, show_default=False,
+                                                               metavar="NAME=N")] = None,
 ) -> None:
     """Check experiment files without running them (with the budgets `odelab run` would use)."""
     from odelab.exceptions import InputError
@@ -426,10 +443,10 @@ def validate(
     raise typer.Exit(EXIT_INPUT if bad else EXIT_OK)
 
 
-@app.command()
+@app.command(cls=_Command)
 def new(
-    file: Annotated[Path, typer.Argument(help="The experiment file to write.", show_default=False)],
-    kind: Annotated[str, typer.Option("--kind", help="ode, state-space or python.")] = "ode",
+    file: Annotated[Path, typer.Argument(help="The experiment file to write.", show_default=False, metavar="FILE")],
+    kind: Annotated[str, typer.Option("--kind", help="ode, state-space or python.", metavar="KIND")] = "ode",
     force: Annotated[bool, typer.Option("--force", help="Overwrite an existing file.")] = False,
 ) -> None:
     """Write a commented starter experiment file."""
