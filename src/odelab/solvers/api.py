@@ -278,7 +278,7 @@ def _solve_adaptive(fun, tspan, y0, f0, m: Method, opts: SolverOptions, setup: d
         opts.output_fcn(np.empty(0), np.empty((0, y0[sel].size), dtype=y0.dtype), "done")
     stats = Stats(nsteps=nsteps, nfailed=nfailed, nfevals=nfevals + 1 + extra_fevals)
     te, ye, ie = found
-    message = _status_message(status, m, t_stop, h_stop, y, y0, opts, exc, tspan, te, ie)
+    message = _status_message(status, m, t_stop, h_stop, y, y0, opts, exc, tspan, te, ie, fun=fun)
     if steps is not None:
         from odelab.solvers.dense import DenseOutput, StageCompletion
 
@@ -422,7 +422,8 @@ def _fmt_vec(v: np.ndarray) -> str:
     return "[" + ", ".join(f"{x:g}" for x in v[:6]) + (", ..." if v.size > 6 else "") + "]"
 
 
-def _status_message(status, m: Method, t_stop, h_stop, y, y0, opts: SolverOptions, exc, tspan, te=(), ie=()) -> str:
+def _status_message(status, m: Method, t_stop, h_stop, y, y0, opts: SolverOptions, exc, tspan, te=(), ie=(),
+                    fun=None) -> str:
     tf = float(tspan[-1])
     if status == engine.STATUS_SUCCESS:
         return f"{m.name} reached t = {tf:g}."
@@ -452,12 +453,16 @@ def _status_message(status, m: Method, t_stop, h_stop, y, y0, opts: SolverOption
             "of a negative number, or a blow-up near there; the solution up to that point is kept."
         )
     if status == engine.STATUS_MAX_STEPS:
-        return (
-            f"{m.name} stopped {where} of {tf:g} after max_steps = {opts.max_steps} steps: "
-            + ("the problem is probably stiff: use method 'ode15s' (or 'ode23s' at crude tolerances), "
-               "which take a few hundred steps where explicit methods need millions; or raise max_steps."
-               if not m.stiff else "raise max_steps, or loosen rtol/atol.")
-        )
+        head = f"{m.name} stopped {where} of {tf:g} after max_steps = {opts.max_steps} steps: "
+        if m.stiff:
+            return head + "raise max_steps, or loosen rtol/atol."
+        from odelab.solvers.stiffness import diagnose_step_limit, step_limit_advice
+
+        tab = m.tableau
+        diagnosis = (diagnose_step_limit(fun, float(t_stop), y[-1], float(h_stop), tab.A, tab.b,
+                                         scale=float(np.max(np.abs(y))))
+                     if fun is not None and tab is not None and len(y) else None)
+        return head + step_limit_advice(m.name, diagnosis, opts.max_steps, float(tspan[0]), float(t_stop), tf)
     from odelab.solvers.events import CallbackError
 
     if isinstance(exc, CallbackError):

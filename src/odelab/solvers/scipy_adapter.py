@@ -75,12 +75,8 @@ def solve_scipy(fun, tspan: np.ndarray, y0: np.ndarray, m: Method, opts: SolverO
                     nxt = stop
             if opts.max_steps and nsteps >= opts.max_steps and solver.status == "running":
                 status = "failed"
-                message = (
-                    f"{m.name} stopped at t = {solver.t:.10g} of {tf:g} after max_steps = {opts.max_steps} "
-                    + ("steps: raise max_steps, or loosen rtol/atol." if m.stiff else
-                       "steps: the problem is probably stiff: use method 'ode15s' (or 'ode23s' at crude "
-                       "tolerances); or raise max_steps.")
-                )
+                message = (f"{m.name} stopped at t = {solver.t:.10g} of {tf:g} after max_steps = {opts.max_steps} "
+                           "steps: " + _step_limit_advice(m, solver, fun, y_out, opts.max_steps, t0, tf))
                 break
     except Exception as exc:
         if not raised:
@@ -98,3 +94,18 @@ def solve_scipy(fun, tspan: np.ndarray, y0: np.ndarray, m: Method, opts: SolverO
         method=m.name,
         warnings=opts.warnings,
     )
+
+
+def _step_limit_advice(m: Method, solver, fun, y_out: list, max_steps: int, t0: float, tf: float) -> str:
+    """Stiff or only long? SciPy's explicit classes carry their tableau (A, B) for the indicator."""
+    if m.stiff:
+        return "raise max_steps, or loosen rtol/atol."
+    from odelab.solvers.stiffness import diagnose_step_limit, step_limit_advice
+
+    A, B = getattr(solver, "A", None), getattr(solver, "B", None)
+    h = getattr(solver, "step_size", None)
+    diagnosis = None
+    if A is not None and B is not None and h is not None:
+        scale = max((float(np.max(np.abs(v))) for v in y_out), default=None)
+        diagnosis = diagnose_step_limit(fun, float(solver.t), solver.y, float(h), A, B, scale=scale)
+    return step_limit_advice(m.name, diagnosis, max_steps, t0, float(solver.t), tf)
