@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 
-from odelab.analysis.studies import convergence_order, work_precision
+from odelab.analysis.studies import convergence_order, quadrature_order, quadrature_rule, work_precision
 
 
 def test_exact_power_law_gives_the_order():
@@ -52,6 +52,27 @@ def test_nominal_mismatch_warns():
     h = np.array([0.1, 0.05, 0.025])
     fit = convergence_order(h, h ** 4, nominal=3, label="rk3")
     assert fit.warnings == ("rk3: observed order 4.00 is not the nominal 3",)
+
+
+def test_quadrature_orders_and_rules_of_the_fixed_step_methods():
+    from odelab.solvers.registry import get_method
+
+    expected = {"euler": (1, "the left rectangle rule"), "heun": (2, "the trapezoidal rule"),
+                "midpoint": (2, "the midpoint rule"), "rk3": (4, "Simpson's rule"), "rk4": (4, "Simpson's rule")}
+    for name, (order, rule) in expected.items():
+        tab = get_method(name).tableau
+        assert (quadrature_order(tab.b, tab.c), quadrature_rule(tab.b, tab.c)) == (order, rule), name
+    tab = get_method("ode45").tableau  # Dormand-Prince's b: a quadrature of order 5, no name
+    assert quadrature_order(tab.b, tab.c) == 5 and quadrature_rule(tab.b, tab.c) == "its quadrature rule"
+
+
+def test_an_order_explained_by_the_quadrature_rule_says_why():
+    h = np.array([0.1, 0.05, 0.025])
+    fit = convergence_order(h, h ** 4, nominal=3, label="rk3", quadrature=(4, "Simpson's rule"))
+    assert fit.note == "Simpson's rule, order 4: dy/dt does not depend on y"
+    assert fit.warnings[0].startswith("rk3: observed order 4.00, not the nominal 3, because dy/dt does not depend")
+    other = convergence_order(h, h ** 2, nominal=3, label="rk3", quadrature=(4, "Simpson's rule"))
+    assert other.note == "" and other.warnings == ("rk3: observed order 2.00 is not the nominal 3",)
 
 
 def test_work_precision_sorts_and_fits_cost_per_digit():

@@ -43,7 +43,14 @@ def test_exercise1_orders_and_simpson_superconvergence(studies):
     # y' = cos t is a quadrature, on which Kutta's third-order method is Simpson's rule: order 4
     order, nominal = found["rk3"]
     assert nominal == 3 and abs(order - 4) < 0.1
-    assert "rk3: observed order 4.00 is not the nominal 3" in study["warnings"]
+    assert ("rk3: observed order 4.00, not the nominal 3, because dy/dt does not depend on y here: rk3 then "
+            "integrates it with the quadrature rule of its weights and nodes, Simpson's rule, which is of order 4"
+            in study["warnings"])
+    notes = {c["label"]: c["note"] for c in study["curves"]}
+    assert notes == {"euler": "", "heun": "", "midpoint": "", "rk3": "Simpson's rule, order 4: dy/dt does not depend "
+                     "on y", "rk4": ""}
+    _, _, plant = studies["convergence_exercise2"]  # x' = Ax + Bu depends on x: no such note
+    assert all(not c["note"] for c in plant["curves"]) and not any("quadrature" in w for w in plant["warnings"])
 
 
 def test_summary_table_has_one_row_per_case(studies):

@@ -11,6 +11,11 @@ things spoil that line, and the points they spoil are left out of the fit, visib
   steps (about N eps |y|), refining h no longer reduces the error (it grows again);
 * **steps too large**: before the asymptotic regime, the error is not yet C h^p, and the local
   slope between the coarsest steps differs from the rest.
+
+On a pure quadrature, dy/dt = f(t) (Exercise 1), a Runge-Kutta method is only its quadrature
+rule, sum b_i f(t + c_i h), whose order can exceed the method's: Kutta's third-order method is
+Simpson's rule there, of order 4. :func:`quadrature_order` gives that order, and a fit that
+finds it says so instead of reporting a puzzle.
 """
 
 from __future__ import annotations
@@ -26,6 +31,8 @@ __all__ = [
     "ConvergenceFit",
     "WorkPrecisionCurve",
     "convergence_order",
+    "quadrature_order",
+    "quadrature_rule",
     "work_precision",
 ]
 
@@ -58,6 +65,7 @@ class ConvergenceFit:
     intercept: float  # log10 C in error = C h^order
     nominal: float | None
     warnings: tuple[str, ...]
+    note: str = ""  # why the observed order differs from the nominal one, where that is known
 
     @property
     def used(self) -> tuple[bool, ...]:
@@ -77,7 +85,7 @@ class ConvergenceFit:
     def as_dict(self) -> dict:
         return {"label": self.label, "h": list(self.h), "error": list(self.error), "excluded": list(self.excluded),
                 "order": self.order, "intercept": self.intercept, "nominal": self.nominal,
-                "warnings": list(self.warnings)}
+                "warnings": list(self.warnings), "note": self.note}
 
 
 def _fit(logh: np.ndarray, loge: np.ndarray) -> tuple[float, float]:
@@ -85,8 +93,41 @@ def _fit(logh: np.ndarray, loge: np.ndarray) -> tuple[float, float]:
     return float(slope), float(intercept)
 
 
+def quadrature_order(b, c, *, highest: int = 16) -> int:
+    """The order of the quadrature rule sum b_i g(c_i) of a tableau: the largest q with
+    sum b_i c_i^(k-1) = 1/k for k = 1..q (1 for Euler, 2 for Heun and the midpoint rule, 4 for
+    Kutta's third-order method and RK4, both Simpson's rule)."""
+    b = np.asarray(b, dtype=float)
+    c = np.asarray(c, dtype=float)
+    q = 0
+    for k in range(1, highest + 1):
+        if abs(float(b @ c ** (k - 1)) - 1.0 / k) > 1e-12:
+            break
+        q = k
+    return q
+
+
+_RULES = {((0.0, 1.0),): "the left rectangle rule", ((0.5, 1.0),): "the midpoint rule",
+          ((0.0, 0.5), (1.0, 0.5)): "the trapezoidal rule",
+          ((0.0, 1 / 6), (0.5, 2 / 3), (1.0, 1 / 6)): "Simpson's rule"}
+
+
+def quadrature_rule(b, c) -> str:
+    """The name of a tableau's quadrature rule (equal nodes merged), e.g. "Simpson's rule"."""
+    weights: dict[float, float] = {}
+    for bi, ci in zip(np.asarray(b, dtype=float).tolist(), np.asarray(c, dtype=float).tolist()):
+        if bi != 0.0:
+            weights[round(ci, 12)] = weights.get(round(ci, 12), 0.0) + bi
+    nodes = tuple(sorted(weights.items()))
+    for rule, name in _RULES.items():
+        if len(rule) == len(nodes) and all(abs(a - x) < 1e-12 and abs(w - v) < 1e-12
+                                           for (a, w), (x, v) in zip(rule, nodes)):
+            return name
+    return "its quadrature rule"
+
+
 def convergence_order(h, error, *, nominal: float | None = None, label: str = "", steps=None,
-                      scale: float = 1.0) -> ConvergenceFit:
+                      scale: float = 1.0, quadrature: tuple[int, str] | None = None) -> ConvergenceFit:
     """Fit the observed order of accuracy, leaving out points spoiled by round-off or large steps.
 
     Parameters
@@ -101,6 +142,9 @@ def convergence_order(h, error, *, nominal: float | None = None, label: str = ""
         Number of steps at each ``h`` (for the round-off floor; default: none, no floor).
     scale
         Size of the solution (max |reference|), for the round-off floor.
+    quadrature
+        ``(order, rule name)`` of the method's quadrature rule when the problem is a pure
+        quadrature (dy/dt does not depend on y): an observed order that matches it is explained.
     """
     h = np.asarray(h, dtype=float)
     error = np.asarray(error, dtype=float)
@@ -147,10 +191,18 @@ def convergence_order(h, error, *, nominal: float | None = None, label: str = ""
     if left_out:
         warnings.append(f"{label}: {len(left_out)} point{'s' if len(left_out) != 1 else ''} left out of the fit: "
                         f"{', '.join(left_out)}".lstrip(": "))
+    note = ""
     if nominal is not None and math.isfinite(slope) and abs(slope - nominal) > 0.2:
-        warnings.append(f"{label}: observed order {slope:.2f} is not the nominal {nominal:g}".lstrip(": "))
+        if quadrature is not None and quadrature[0] != nominal and abs(slope - quadrature[0]) <= 0.2:
+            order_q, rule = quadrature
+            note = f"{rule}, order {order_q}: dy/dt does not depend on y"
+            warnings.append(f"{label}: observed order {slope:.2f}, not the nominal {nominal:g}, because dy/dt does "
+                            f"not depend on y here: {label} then integrates it with the quadrature rule of its "
+                            f"weights and nodes, {rule}, which is of order {order_q}".lstrip(": "))
+        else:
+            warnings.append(f"{label}: observed order {slope:.2f} is not the nominal {nominal:g}".lstrip(": "))
     return ConvergenceFit(label=label, h=tuple(h.tolist()), error=tuple(error.tolist()), excluded=tuple(excluded),
-                          order=slope, intercept=intercept, nominal=nominal, warnings=tuple(warnings))
+                          order=slope, intercept=intercept, nominal=nominal, warnings=tuple(warnings), note=note)
 
 
 def _local_slopes(h: np.ndarray, error: np.ndarray, idx: list[int]) -> np.ndarray:

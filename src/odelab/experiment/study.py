@@ -131,10 +131,30 @@ def _metrics(result) -> dict[str, dict[str, float]]:
     return out
 
 
+def is_quadrature(problem) -> bool:
+    """Whether dy/dt = f(t) only (a pure quadrature, as Exercise 1): f is unchanged when the state is moved."""
+    x0 = np.asarray(problem.x0, dtype=float)
+    t0, t1 = float(problem.tspan[0]), float(problem.tspan[-1])
+    try:
+        for t in (t0, t0 + 0.37 * (t1 - t0), t1):
+            for shift in (1.0, -2.5):
+                moved = x0 + shift * (1.0 + np.abs(x0))
+                if not np.array_equal(np.asarray(problem.fun(t, x0.copy()), dtype=float),
+                                      np.asarray(problem.fun(t, moved), dtype=float)):
+                    return False
+    except Exception:  # a right-hand side that cannot take the moved state: not a plain quadrature
+        return False
+    return True
+
+
 def sweep_rows(results) -> list[dict[str, Any]]:
     """One row per case: its swept values, method, status, statistics and errors (JSON-ready)."""
     rows = []
+    quadrature: dict[int, bool] = {}  # by problem: a sweep's cases usually share one right-hand side
     for r in results:
+        fun = r.case.problem.fun
+        if id(fun) not in quadrature:
+            quadrature[id(fun)] = is_quadrature(r.case.problem)
         ends = _end_errors(r)
         row: dict[str, Any] = {
             "case": r.case.name,
@@ -152,6 +172,7 @@ def sweep_rows(results) -> list[dict[str, Any]]:
             "end_abs": ends,
             "scale": {n: float(np.max(np.abs(v))) if v.size else 0.0 for n, v in r.reference.items()},
             "metrics": _metrics(r),
+            "quadrature": quadrature[id(fun)],  # dy/dt = f(t): a method shows its quadrature rule's order
         }
         rows.append(row)
     return rows
@@ -185,7 +206,14 @@ def run_study(spec: StudySpec, rows: list[dict[str, Any]]) -> dict[str, Any]:
             nominal = float(method.order) if spec.over == "solver.h" else None
             steps = [m["nsteps"] or 1 for m in members]
             scale = max(float(m["scale"].get(spec.quantity, 1.0)) for m in members)
-            fit = convergence_order(x, err, nominal=nominal, label=label, steps=steps, scale=scale)
+            quadrature = None
+            if nominal is not None and method.tableau is not None and all(m.get("quadrature") for m in members):
+                from odelab.analysis.studies import quadrature_order, quadrature_rule
+
+                quadrature = (quadrature_order(method.tableau.b, method.tableau.c),
+                              quadrature_rule(method.tableau.b, method.tableau.c))
+            fit = convergence_order(x, err, nominal=nominal, label=label, steps=steps, scale=scale,
+                                    quadrature=quadrature)
             curves.append({"method": method.name, **fit.as_dict()})
             warnings.extend(fit.warnings)
         else:

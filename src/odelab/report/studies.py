@@ -115,7 +115,8 @@ def _convergence(record: dict, study: dict, section: StudySection) -> None:
                               linewidth=1.0))
         diff = order - nominal if fitted and nominal is not None else None
         section.rows.append([c["label"], _g(min(h)), _g(max(h)), f"{int(used.sum())} of {h.size}",
-                             f"{order:.3f}" if fitted else "—", "—" if nominal is None else f"{nominal:g}",
+                             (f"{order:.3f} ({c['note']})" if c.get("note") else f"{order:.3f}") if fitted else "—",
+                             "—" if nominal is None else f"{nominal:g}",
                              "—" if diff is None else f"{diff:+.3f}"])
     panel = Panel(title=record.get("title") or record["experiment"], xlabel=f"{over} (log)",
                   ylabel=f"{study['quantity']} error (log)", lines=tuple(lines), xscale="log", yscale="log",
