@@ -228,6 +228,16 @@ def expected_compile_seconds(system: CompiledSystem, loop: str = "adaptive") -> 
         return float("inf")
 
 
+def _python_rhs(rhs, p: np.ndarray, n: int):
+    """``fun(t, y)`` over the compiled ``rhs(t, y, p, out)``, for the few calls made after a run."""
+    def fun(t, y):
+        out = np.empty(n)
+        rhs(float(t), np.array(y, dtype=float, order="C").reshape(n), p, out)
+        return out
+
+    return fun
+
+
 @functools.cache
 def unavailable() -> str | None:
     """Why the compiled backend cannot run here (numba missing), or None if it can.
@@ -347,7 +357,8 @@ def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dic
     if count < t_out.size // 2:  # do not keep a mostly empty buffer alive
         t, y = t.copy(), y.copy()
     message = api._status_message(status, m, t_stop, h_stop, y, y0_arr, opts, None, tspan_arr,
-                                  list(found.get("te", ())), list(found.get("ie", ())))
+                                  list(found.get("te", ())), list(found.get("ie", ())),
+                                  fun=_python_rhs(rhs, p, n))  # a step-limit message's stiffness check
     return Solution(t=t, y=y, stats=Stats(nsteps=nsteps, nfailed=nfailed, nfevals=nfevals + 1),
                     status="failed" if status in api._FAILURES else "success", message=message, method=m.name,
                     warnings=opts.warnings, **found)
