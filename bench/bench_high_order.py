@@ -1,4 +1,4 @@
-"""Benchmark: work against precision of ode78/ode89 (Verner) next to ode45 and SciPy's DOP853.
+"""Benchmark: work against precision of ode78/ode89 (Verner) and ode113 (Adams) next to ode45 and SciPy's DOP853.
 
 Three non-stiff problems with an exact answer at the final time, the same Python right-hand
 side for every solver, rtol = 1e-6 ... 1e-12 (atol = rtol / 1000):
@@ -30,7 +30,7 @@ from scipy.integrate import solve_ivp
 import odelab
 
 RTOLS = [1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12]
-METHODS = ["ode45", "ode78", "ode89", "DOP853 (SciPy)"]
+METHODS = ["ode45", "ode113", "ode78", "ode89", "DOP853 (SciPy)"]
 TARGETS = [1e-6, 1e-9, 1e-11]
 
 

@@ -152,3 +152,11 @@ def test_odelab_run_lists_the_events(tmp_path):
     case = json.loads(out.output)["experiments"][0]["cases"][0]
     assert len(case["events"]) == 7 and case["events"][6]["name"] == "floor"
     assert abs(case["events"][6]["t"] - exact_bounce(6)) < 1e-12
+
+
+def test_bouncing_ball_with_ode113(tmp_path):
+    # ode113's interpolant (order k+1 >= 2) is exact on free fall, so the bounces are exact too.
+    (r,) = run_experiment(variant(tmp_path, 'method = "ode45"', 'method = "ode113"'))
+    assert r.status == "success" and r.message == "ode113 reached t = 10 after 7 restarts."
+    times = np.array([e["t"] for e in r.events])
+    np.testing.assert_allclose(times, [exact_bounce(k) for k in range(7)], rtol=0, atol=1e-12)

@@ -182,3 +182,18 @@ def test_messages():
     with pytest.warns(odelab.SolverWarning):
         capped = odelab.ode113(lambda t, y: -y, [0, 2], 1.0, max_steps=5)
     assert capped.stats.nsteps == 5 and capped.message.startswith("ode113 stopped at t = ")
+
+
+def test_norm_control_and_output_function():
+    ref = odelab.solve(rigid, [0, 12], [0, 1, 1], method="DOP853", rtol=1e-13, atol=1e-15).y[-1]
+    sol = odelab.ode113(rigid, [0, 12], [0, 1, 1], rtol=1e-6, atol=1e-9, NormControl="on")
+    assert np.linalg.norm(sol.y[-1] - ref) / np.linalg.norm(ref) < 10e-6  # measured 4.4 units of rtol
+    calls = []
+
+    def out(t, y, flag):
+        calls.append(flag)
+        return flag == "" and len(calls) > 5
+
+    stopped = odelab.ode113(rigid, [0, 12], [0, 1, 1], OutputFcn=out)
+    assert calls == ["init"] + [""] * 5 + ["done"] and stopped.t.size == 6 and stopped.status == "success"
+    assert stopped.message == f"ode113 stopped at t = {stopped.t[-1]:.10g}: the output function asked to stop."
