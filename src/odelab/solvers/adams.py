@@ -253,6 +253,8 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
     g = [0.0] * 15
     g[1], g[2] = 1.0, 0.5
     k = 1
+    g_order = 0  # the order g_arr = g[1..k] was copied for (0: none)
+    g_arr = None
     klast = 0
     hlast = 0.0
     ns = 0
@@ -301,6 +303,7 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
                 if ns <= klast:
                     ns += 1
                 if k >= ns:
+                    g_order = 0  # g changes: the array copy below is stale
                     beta[ns] = 1.0
                     alpha[ns] = 1.0 / ns
                     temp1 = h * ns
@@ -338,7 +341,10 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
                     phi[ns + 1:k + 1] *= np.array(beta[ns + 1:k + 1])[:, None]
                 phi[k + 2] = phi[k + 1]
                 phi[k + 1] = 0.0
-                p = y + h * (np.array(g[1:k + 1]) @ phi[1:k + 1])
+                if g_order != k:
+                    g_arr = np.array(g[1:k + 1])
+                    g_order = k
+                p = y + h * (g_arr @ phi[1:k + 1])
                 phi[1:k + 1] = np.cumsum(phi[k:0:-1], axis=0)[::-1]
                 tlast = t
                 tnew = tfinal if done else t + h
@@ -347,12 +353,22 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
 
                 # --- errors at orders k, k-1, k-2 as if the step had been constant ---
                 phikp1 = yp - phi[1]
-                temp3 = _wnorm(phikp1, invwt, norm_control)
+                if norm_control:
+                    temp3 = _wnorm(phikp1, invwt, True)
+                    nkm1 = _wnorm(phi[k] + phikp1, invwt, True) if k >= 2 else 0.0
+                    nkm2 = _wnorm(phi[k - 1] + phikp1, invwt, True) if k >= 3 else 0.0
+                else:  # the three weighted max norms in two array operations
+                    temp3 = float(np.abs(phikp1 * invwt).max())
+                    nkm2 = nkm1 = 0.0
+                    if k >= 2:
+                        lower = np.abs((phi[max(k - 1, 1):k + 1] + phikp1) * invwt).max(axis=1)
+                        nkm1 = float(lower[-1])
+                        if k >= 3:
+                            nkm2 = float(lower[0])
                 err = absh * (g[k] - g[k + 1]) * temp3
                 erk = absh * sig[k + 1] * GSTAR[k] * temp3
-                erkm1 = absh * sig[k] * GSTAR[k - 1] * _wnorm(phi[k] + phikp1, invwt, norm_control) if k >= 2 else 0.0
-                erkm2 = (absh * sig[k - 1] * GSTAR[k - 2] * _wnorm(phi[k - 1] + phikp1, invwt, norm_control)
-                         if k >= 3 else 0.0)
+                erkm1 = absh * sig[k] * GSTAR[k - 1] * nkm1 if k >= 2 else 0.0
+                erkm2 = absh * sig[k - 1] * GSTAR[k - 2] * nkm2 if k >= 3 else 0.0
                 knew = k
                 if k == 2 and erkm1 <= 0.5 * erk:
                     knew = 1
