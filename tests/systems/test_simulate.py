@@ -142,6 +142,14 @@ class TestStepAtOne:
         r = simulate(plant, [0, 10], [0, 0], Step(1.0), refine=1, MaxStep=0.05)
         assert np.count_nonzero(r.t < 1) >= 20
 
+    def test_ode113_pieces_keep_the_whole_span_max_step(self, plant):
+        # At rest on [0, 1) ode113's first step is the whole piece (max_step 1, not 0.1).
+        r = simulate(plant, [0, 10], [0, 0], Step(1.0), method="ode113")
+        assert np.count_nonzero(r.t < 1) == 1
+        assert r.stats.nfevals == 2 + 2 * r.stats.nsteps + r.stats.nfailed  # f(t0) once per piece
+        x_exact, _ = lti_response(plant, r.t, [0, 0], Step(1.0))
+        assert tolerance_units(r.x, x_exact, 1e-3, 1e-6).max() < 1.5  # measured 0.99
+
 
 class TestOutputTimes:
     def test_vector_tspan_exactly_as_given(self, plant):

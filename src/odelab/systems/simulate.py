@@ -181,7 +181,7 @@ def simulate(
     if backward:
         cuts = cuts[::-1]
     edges = [t0, *cuts.tolist(), tf]
-    if cuts.size and kind in ("adaptive", "implicit") and not any(
+    if cuts.size and kind in ("adaptive", "implicit", "multistep") and not any(
         _is_max_step(key) and value is not None for key, value in options.items()
     ):
         options = {**options, "max_step": 0.1 * abs(tf - t0)}
