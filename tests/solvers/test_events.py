@@ -146,3 +146,38 @@ def test_an_events_function_that_raises_is_named():
     with pytest.warns(odelab.SolverWarning, match="the events function raised KeyError"):
         sol = odelab.ode45(free_fall, [0, 1], [10, 0], events=boom)
     assert sol.status == "failed" and sol.t[-1] <= 0.5
+
+
+@pytest.mark.parametrize("k", [1, 3, 8, 9, 20])
+def test_the_bracket_test_on_python_floats_is_numpys(k):
+    # Up to 8 events the bracket test runs on Python floats; zeros of both signs, infinities
+    # and NaN included, it must pick exactly the events numpy's expression picks.
+    from odelab.solvers.events import _bracketed
+
+    rng = np.random.default_rng(k)
+    values = np.array([0.0, -0.0, 1.0, -1.0, 2.5, np.inf, -np.inf, np.nan, 1e-300, -1e-300])
+    for _ in range(3000):
+        vL, vR = rng.choice(values, k), rng.choice(values, k)
+        direction = rng.choice([-1.0, 0.0, 1.0], k)
+        with np.errstate(invalid="ignore"):
+            expected = np.flatnonzero((np.sign(vL) != np.sign(vR)) & (direction * (vR - vL) >= 0))
+        np.testing.assert_array_equal(_bracketed(vL, vR, direction), expected)
+
+
+def test_isterminal_and_direction_are_read_at_every_call():
+    # MATLAB reads them from every call: a list the function changes in place (the engine keeps
+    # a copy of the last one it converted), and a list that holds an array, still count.
+    flags = [0]
+
+    def crossings(t, y):
+        if t > 5:
+            flags[0] = 1  # terminal from t = 5 on
+        return [y[0]], flags, [0]
+
+    sol = odelab.ode45(oscillator, [0, 20], [0, 1], events=crossings, rtol=1e-8, atol=1e-10)
+    np.testing.assert_allclose(sol.te[1:], [np.pi, 2 * np.pi], atol=1e-8)  # stops at the first after 5
+    assert sol.t[-1] == sol.te[-1] and "terminal event 0" in sol.message
+    rising = odelab.ode45(oscillator, [0, 20], [0, 1], rtol=1e-8, atol=1e-10,
+                          events=lambda t, y: ([y[0]], [0], [np.array(1.0) if t < 10 else -1]))
+    # rising crossings before t = 10, falling ones after: 2 pi, then 5 pi (4 pi rises)
+    np.testing.assert_allclose(rising.te[1:], [2 * np.pi, 5 * np.pi], atol=1e-8)

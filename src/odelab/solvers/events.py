@@ -44,7 +44,24 @@ class CallbackError(Exception):
         self.original = original
 
 
+_NONE = np.empty(0, dtype=np.intp)
+_NONE.setflags(write=False)
+#: Up to this many events the bracket test runs on Python floats: it runs after every step, and
+#: for a few values the numpy expression's eight calls cost more than the arithmetic.
+_FEW_EVENTS = 8
+
+
+def _sign(x: float) -> int:
+    return (x > 0) - (x < 0)
+
+
 def _bracketed(vL: np.ndarray, vR: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """Indices of the events whose value changes sign (zero is a sign of its own) between the two
+    ends in a direction they accept. (With a NaN value the direction test fails in both forms.)"""
+    if vL.size <= _FEW_EVENTS:
+        hits = [j for j, (a, b, d) in enumerate(zip(vL.tolist(), vR.tolist(), direction.tolist()))
+                if _sign(a) != _sign(b) and d * (b - a) >= 0]
+        return np.array(hits, dtype=np.intp) if hits else _NONE
     return np.flatnonzero((np.sign(vL) != np.sign(vR)) & (direction * (vR - vL) >= 0))
 
 
@@ -175,6 +192,21 @@ def _as_flags(raw, name: str, k: int, what: str) -> np.ndarray:
     return arr
 
 
+_PLAIN = (int, float, bool)
+
+
+def _plain_list(x) -> bool:
+    return type(x) is list and all(type(v) in _PLAIN for v in x)
+
+
+def _same_list(x: list, plain: list) -> bool:
+    """``x == plain`` for a list of plain numbers ``plain``, False where the comparison fails."""
+    try:
+        return bool(x == plain)
+    except (TypeError, ValueError):  # e.g. an array inside the list: converted afresh
+        return False
+
+
 def as_event_function(events, args: tuple, t0: float, y0: np.ndarray, name: str = "events"):
     """Check the user's events and return ``(events(t, y) -> (value, isterminal, direction), v0)``.
 
@@ -233,14 +265,27 @@ def as_event_function(events, args: tuple, t0: float, y0: np.ndarray, name: str 
     isterminal = _as_flags(first[1], name, k, "isterminal flags") != 0
     direction = np.sign(_as_flags(first[2], name, k, "directions"))
 
+    # MATLAB reads isterminal and direction from every call, so they may change in time; a call
+    # that returns lists of plain numbers equal to the previous call's reuses their conversion
+    # (the common case, constant flags; this runs after every step).
+    last = [None, None, None, None]  # the previous plain lists, and their arrays
+
     def ev(t, y):
         try:
             out = raw(t, y)
             if scipy_form:
                 return out[0], isterminal, direction
-            # MATLAB reads isterminal and direction from every call, so they may change in time.
-            return (np.asarray(out[0], dtype=float).reshape(k), _as_flags(out[1], name, k, "isterminal flags") != 0,
-                    np.sign(_as_flags(out[2], name, k, "directions")))
+            value = np.asarray(out[0], dtype=float).reshape(k)
+            flags, dirs = out[1], out[2]
+            if not (last[0] is not None and type(flags) is list and type(dirs) is list
+                    and _same_list(flags, last[0]) and _same_list(dirs, last[1])):
+                last[2] = _as_flags(flags, name, k, "isterminal flags") != 0
+                last[3] = np.sign(_as_flags(dirs, name, k, "directions"))
+                last[2].setflags(write=False)
+                last[3].setflags(write=False)
+                plain = _plain_list(flags) and _plain_list(dirs)
+                last[0], last[1] = (flags[:], dirs[:]) if plain else (None, None)
+            return value, last[2], last[3]
         except Exception as exc:
             raise CallbackError("events function", t, exc) from exc
 
