@@ -5,8 +5,8 @@ not pay for them. This times MATLAB's rigid body over [0, 1200] (rtol 1e-6, atol
 odelab's ode45 with no events, with an event on y1 = 0 (about 390 crossings), SciPy's RK45,
 and, with ``--before OLD/engine.py`` (e.g. ``git show 9fd3c90:src/odelab/solvers/engine.py >
 /tmp/engine_before.py``), the driver of an older commit called with the same arguments. All
-run interleaved in one process, best of ``--repeat``, so a busy machine slows them alike.
-Not a test.
+run interleaved in one process, best of ``--repeat``, so a busy machine slows them alike;
+wall and CPU time (the steadier one on a shared machine). Not a test.
 
     python bench/bench_events.py [--repeat 9] [--before /tmp/engine_before.py]
 """
@@ -69,18 +69,23 @@ def main() -> None:
         spec.loader.exec_module(before)
         runs["driver before"] = driver(before)
     best = {name: float("inf") for name in runs}
+    best_cpu = dict(best)
     steps = {}
     for _ in range(args.repeat):
         for name, run in runs.items():
-            start = time.perf_counter()
+            start, cpu = time.perf_counter(), time.process_time()
             steps[name] = run()
             best[name] = min(best[name], time.perf_counter() - start)
+            best_cpu[name] = min(best_cpu[name], time.process_time() - cpu)
     scipy_per_step = best["SciPy RK45"] / steps["SciPy RK45"]
+    scipy_cpu = best_cpu["SciPy RK45"] / steps["SciPy RK45"]
     print(f"rigid body [0, 1200], rtol {RTOL:g}, atol {ATOL:g}, best of {args.repeat}")
-    print(f"{'run':<16} {'steps':>6} {'us/step':>8} {'x SciPy/step':>13}")
+    print(f"{'run':<16} {'steps':>6} {'wall us/step':>13} {'x SciPy':>8} {'CPU us/step':>12} {'x SciPy':>8}")
     for name in runs:
         per_step = best[name] / steps[name]
-        print(f"{name:<16} {steps[name]:>6d} {per_step * 1e6:>8.2f} {per_step / scipy_per_step:>13.2f}")
+        per_cpu = best_cpu[name] / steps[name]
+        print(f"{name:<16} {steps[name]:>6d} {per_step * 1e6:>13.2f} {per_step / scipy_per_step:>8.3f} "
+              f"{per_cpu * 1e6:>12.2f} {per_cpu / scipy_cpu:>8.3f}")
 
 
 if __name__ == "__main__":
