@@ -132,14 +132,15 @@ def solve(fun, tspan, y0, method: str = "ode45", **options) -> Solution:
     fun, tspan, y0
         As for :func:`ode45`.
     method : str
-        ``"ode23"``, ``"ode45"`` (MATLAB's solvers); ``"euler"``, ``"heun"``, ``"midpoint"``,
+        ``"ode23"``, ``"ode45"``, ``"ode78"``, ``"ode89"`` and the rest of MATLAB's suite
+        (``odelab.ode15s`` and co.); ``"euler"``, ``"heun"``, ``"midpoint"``,
         ``"ralston"``, ``"rk3"``, ``"rk4"`` (fixed step ``h``); ``"RK23"``, ``"RK45"``,
         ``"DOP853"``, ``"Radau"``, ``"BDF"``, ``"LSODA"`` (SciPy). See ``odelab.METHODS``.
     **options
         ``rtol``, ``atol``, ``max_step``, ``initial_step``, ``refine``, ``norm_control``,
         ``max_steps`` (adaptive methods), ``h`` (fixed-step methods), ``args`` (all methods);
         ``events``, ``nonnegative``, ``mass``, ``mstate_dependence``, ``output_fcn``,
-        ``output_sel`` (ode23/ode45); MATLAB's names too. See :func:`ode45`.
+        ``output_sel`` (ode23/ode45/ode78/ode89); MATLAB's names too. See :func:`ode45`.
 
     Returns
     -------
@@ -164,8 +165,8 @@ def _solve(fun, tspan, y0, method: str, options: dict) -> Solution:
     tspan_arr = as_tspan(tspan)
     y0_arr = as_y0(y0, allow_complex=True)
     if np.iscomplexobj(y0_arr) and m.kind not in ("adaptive", "multistep"):
-        raise InputError(f"a complex `y0` is integrated by ode23/ode45/ode113 (as MATLAB's); {m.name} takes real y0: "
-                         "split it into real and imaginary parts.", key="y0")
+        raise InputError(f"a complex `y0` is integrated by ode23/ode45/ode78/ode89/ode113 (as MATLAB's); {m.name} "
+                         "takes real y0: split it into real and imaginary parts.", key="y0")
     given = normalize_options(options, m)
     opts = resolve_options(m, given, tspan_arr, y0_arr.size)
     user_fun = fun

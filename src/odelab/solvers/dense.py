@@ -209,8 +209,9 @@ def deval(sol, t) -> np.ndarray:
     if interpolant is None:
         method = getattr(sol, "method", "") or "this method"
         raise InputError(
-            f"this solution has no dense output: {method} does not provide one. Solve with ode23 or "
-            "ode45 (their ntrp23/ntrp45 interpolants), or with a vector tspan of the times you need.",
+            f"this solution has no dense output: {method} does not provide one. Solve with ode23, ode45 "
+            "(their ntrp23/ntrp45 interpolants), ode78 or ode89 (Verner's), or with a vector tspan of the "
+            "times you need.",
             key="sol",
         )
     return interpolant(t)
@@ -229,7 +230,7 @@ def odextend(sol, fun, tfinal: float, y0=None, **options):
     setup = getattr(sol, "setup", None)
     if setup is None:
         raise InputError(
-            "odextend needs a solution returned by ode23, ode45 or odelab.solve with one of them.", key="sol"
+            "odextend needs a solution returned by ode23, ode45, ode78, ode89 or odelab.solve with one of them.", key="sol"
         )
     if fun is None:
         fun = setup["fun"]
