@@ -8,6 +8,7 @@ import pytest
 import odelab
 from odelab.exceptions import InputError
 from odelab.solvers import engine
+from odelab.solvers.dense import basis_values
 from odelab.solvers.registry import METHODS
 from odelab.solvers.tableau import ButcherTableau, _condition_ok, _order_conditions, _tree_data, rooted_trees
 from odelab.solvers.verner import VERNER87, VERNER98
@@ -56,15 +57,33 @@ def test_every_order_condition_holds_and_the_order_is_exact(name):
 def test_the_continuous_extension_meets_its_conditions_power_by_power(name):
     tab = PAIRS[name]
     orders, gammas, phis = _tree_data(tab.full_A, 8)
-    values = tab.dense.T @ phis.T  # (powers of s, trees)
+    # in the powers of s Verner publishes: round-off relative to terms up to 1.4e6 (ode78)
+    powers = tab.dense_powers
+    values = powers.T @ phis.T  # (powers of s, trees)
     required = np.where(np.arange(1, 9)[:, None] == orders[None, :], 1 / gammas[None, :], 0.0)
-    scales = np.abs(tab.dense.T) @ np.abs(phis.T)
-    # the coefficients reach 1.4e6 (ode78) and 1.3e4 (ode89): round-off relative to the terms
-    assert (np.abs(values - required) <= 64 * np.finfo(float).eps * scales).all()
-    assert np.abs(values - required).max() < {"ode78": 3e-8, "ode89": 1e-10}[name]
-    np.testing.assert_allclose(tab.dense.sum(axis=1)[:tab.stages], tab.b, atol=1e-9)
-    assert tab.dense.shape == (tab.full_c.size, 8) and tab.dense_order == 8
+    scales = np.abs(powers.T) @ np.abs(phis.T)
+    assert (np.abs(values - required) <= np.maximum(1e-14, 64 * np.finfo(float).eps * scales)).all()
+    # in the Chebyshev form odelab evaluates: b(s) . Phi(t) = s^|t| / gamma(t) to round-off
+    s = np.linspace(0.1, 1, 10)
+    weights = tab.dense @ basis_values(s, tab.dense.shape[1], "chebyshev")  # b_j(s), (stages, 10)
+    error = np.abs(phis @ weights - s[None, :] ** orders[:, None] / gammas[:, None]).max()
+    assert error < {"ode78": 1e-13, "ode89": 1e-10}[name], error
+    np.testing.assert_allclose(tab.dense.sum(axis=1)[:tab.stages], tab.b, atol=1e-11)
+    assert tab.dense.shape == (tab.full_c.size, 9) and tab.dense_order == 8 and np.abs(tab.dense).max() < 32
     assert (tab.stages, tab.full_c.size) == {"ode78": (13, 21), "ode89": (16, 21)}[name]
+
+
+def test_the_stored_chebyshev_form_is_the_exact_conversion_of_the_published_powers():
+    from odelab.solvers import verner
+
+    np.testing.assert_array_equal(verner.chebyshev_rows(verner._D87_DIGITS, 21), VERNER87.dense)
+    robust = {j + 1: row for j, row in enumerate(verner._D98) if any(row)}
+    np.testing.assert_array_equal(verner.chebyshev_rows(robust, 21), VERNER98.dense)
+    # and it is the same polynomial: at s = 0.3, sum_m a_m s^m (40 digits) against the T_k form
+    s = 0.3
+    for stage, digits in verner._D87_DIGITS.items():
+        direct = sum(float(a) * s ** (m + 1) for m, a in enumerate(digits))
+        assert abs(VERNER87.dense[stage - 1] @ basis_values(s, 9, "chebyshev")[:, 0] - direct) < 1e-9
 
 
 def test_a_mistyped_coefficient_is_rejected_at_construction():
@@ -80,7 +99,7 @@ def test_a_mistyped_coefficient_is_rejected_at_construction():
     dense[7, 3] *= 1 + 1e-9
     with pytest.raises(ValueError, match="continuous extension"):
         ButcherTableau(name="typo", c=VERNER87.c, A=VERNER87.A, b=VERNER87.b, order=8, dense=dense, dense_order=8,
-                       extra_c=VERNER87.extra_c, extra_A=VERNER87.extra_A)
+                       extra_c=VERNER87.extra_c, extra_A=VERNER87.extra_A, dense_basis="chebyshev")
 
 
 @pytest.mark.parametrize("name, order", [("ode78", 8), ("ode89", 9)])
@@ -107,7 +126,7 @@ def test_dense_output_order_on_one_step(name):
         K = np.zeros((tab.full_c.size, 2))
         for i, ci in enumerate(tab.full_c):
             K[i] = riccati(t0 + ci * h, y0 + h * tab.full_A[i, :i] @ K[:i])
-        errors.append(max(np.abs(y0 + h * (K.T @ tab.dense) @ s ** np.arange(1, 9) - riccati_exact(t0 + s * h)).max()
+        errors.append(max(np.abs(y0 + h * (K.T @ tab.dense_powers) @ s ** np.arange(1, 9) - riccati_exact(t0 + s * h)).max()
                           for s in (0.2, 0.4, 0.6, 0.8)))
     assert (np.log2(np.array(errors[:-1]) / errors[1:]) > 9).all(), errors
 
@@ -138,7 +157,7 @@ def test_increments_keep_the_round_off_of_large_coefficients_down():
         assert np.abs(sol.y[-1] - y0).max() < 1e-11
     inc = VERNER87.increment_form
     assert inc["A"][5, 0] == VERNER87.c[5] and inc["b"][0] == 1 and inc["error_weights"][0] == 0
-    np.testing.assert_array_equal(inc["dense"][0], np.eye(8)[0])
+    np.testing.assert_array_equal(inc["dense"][0], [0.5, 0.5, 0, 0, 0, 0, 0, 0, 0])  # s in Chebyshev form
 
 
 def test_fewer_evaluations_than_ode45_at_tight_tolerances():
@@ -158,8 +177,8 @@ def test_evaluation_counts_and_refine(name, s, extra):
     assert fine.t.size == 4 * st.nsteps + 1 and np.array_equal(fine.y[::4], plain.y)
     # Refine interpolates every step: its extra stages are evaluated (and counted) once per step.
     assert fine.stats.nfevals == st.nfevals + extra * st.nsteps
-    # the same extension (the order of the sums differs: ode78's coefficients reach 1.4e6)
-    np.testing.assert_allclose(odelab.deval(plain, fine.t), fine.y, rtol=0, atol={"ode78": 1e-10, "ode89": 1e-12}[name])
+    # the same extension, to round-off (evaluated in Chebyshev form: the powers of s would lose 1e-10)
+    np.testing.assert_allclose(odelab.deval(plain, fine.t), fine.y, rtol=0, atol=1e-13)
 
 
 @pytest.mark.parametrize("name", PAIRS)
@@ -184,6 +203,9 @@ def test_events_are_located_on_the_extension(name):
     def crossing(t, y):
         return y[0], True, -1
 
+    # free fall is a quadratic: the 8th-order extension has it exactly, and so the event time
+    fall = odelab.solve(lambda t, y: [y[1], -9.81], [0, 5], [10, 0], method=name, events=crossing)
+    assert abs(fall.te[0] - np.sqrt(20 / 9.81)) < 1e-13 and fall.stats.nsteps == 9
     sol = odelab.solve(lambda t, y: [y[1], -y[0]], [0, 10], [1, 0], method=name, rtol=1e-10, atol=1e-12,
                        events=crossing)
     assert sol.ie.tolist() == [0] and abs(sol.te[0] - np.pi / 2) < 1e-10

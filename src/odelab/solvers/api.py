@@ -288,7 +288,7 @@ def _solve_adaptive(fun, tspan, y0, f0, m: Method, opts: SolverOptions, setup: d
             *steps, complete = steps
             completion = StageCompletion(fun, tab.increment_form["extra_A"], tab.extra_c, tab.stages, complete)
         interpolant = DenseOutput(*steps, coefficients=_stepping_arrays(tab)[3], y_final=y[-1].copy(),
-                                  nonnegative=nonnegative, completion=completion)
+                                  nonnegative=nonnegative, completion=completion, basis=tab.dense_basis)
     return Solution(
         t=t, y=y, stats=stats, status="failed" if status in _FAILURES else "success", message=message,
         method=m.name, warnings=opts.warnings,
@@ -310,7 +310,7 @@ def _non_fsal(tab) -> tuple:
     if tab.fsal:
         return ()
     inc = tab.increment_form
-    return (inc["b"], None if tab.extra_c is None else (inc["extra_A"], tab.extra_c))
+    return (inc["b"], None if tab.extra_c is None else (inc["extra_A"], tab.extra_c), tab.dense_basis)
 
 
 _FAILURES = (engine.STATUS_STEP_UNDERFLOW, engine.STATUS_NONFINITE, engine.STATUS_MAX_STEPS,

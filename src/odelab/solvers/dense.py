@@ -22,7 +22,7 @@ import numpy as np
 
 from odelab.exceptions import InputError
 
-__all__ = ["step_value", "step_slopes", "StageCompletion", "DenseOutput", "deval", "odextend"]
+__all__ = ["basis_values", "step_value", "step_slopes", "StageCompletion", "DenseOutput", "deval", "odextend"]
 
 
 def _clip(values: np.ndarray, nonnegative) -> np.ndarray:
@@ -32,16 +32,56 @@ def _clip(values: np.ndarray, nonnegative) -> np.ndarray:
     return values
 
 
+def basis_values(s, columns: int, basis: str = "monomial") -> np.ndarray:
+    """The functions the columns of a ``dense`` array multiply, at the fractions ``s``: (columns, k).
+
+    ``"monomial"``: s, s^2, ..., s^columns (ode23/ode45). ``"chebyshev"``: T_0, ..., T_(columns-1)
+    of ``2s - 1`` (Verner's interpolants, whose powers-of-s coefficients reach 1.4e6).
+    """
+    s = np.atleast_1d(np.asarray(s, dtype=float))
+    if basis == "monomial":
+        return np.cumprod(np.broadcast_to(s, (columns, s.size)), axis=0)
+    x = 2.0 * s - 1.0
+    out = np.empty((columns, s.size))
+    out[0] = 1.0
+    if columns > 1:
+        out[1] = x
+    for k in range(2, columns):
+        out[k] = 2.0 * x * out[k - 1] - out[k - 2]
+    return out
+
+
+def basis_slopes(s, columns: int, basis: str = "monomial") -> np.ndarray:
+    """d/ds of :func:`basis_values`, shape (columns, k)."""
+    s = np.atleast_1d(np.asarray(s, dtype=float))
+    if basis == "monomial":
+        return np.arange(1, columns + 1)[:, None] * s[None, :] ** np.arange(columns)[:, None]
+    # d/ds T_k(2s - 1) = 2 k U_(k-1)(2s - 1), with U the Chebyshev polynomials of the second kind
+    x = 2.0 * s - 1.0
+    u = np.empty((columns, s.size))
+    u[0] = 1.0
+    if columns > 1:
+        u[1] = 2.0 * x
+    for k in range(2, columns):
+        u[k] = 2.0 * x * u[k - 1] - u[k - 2]
+    out = np.zeros((columns, s.size))
+    out[1:] = 2.0 * np.arange(1, columns)[:, None] * u[:-1]
+    return out
+
+
 def step_value(tq: float, t: float, y: np.ndarray, h: float, K: np.ndarray, dense: np.ndarray,
-               nonnegative=None) -> np.ndarray:
+               nonnegative=None, basis: str = "monomial") -> np.ndarray:
     """The step's continuous extension at one time ``tq`` (MATLAB's ``ntrp45(tq, t, y, ..., h, f)``)."""
-    powers = np.cumprod(np.full(dense.shape[1], (tq - t) / h))
+    if basis == "monomial":
+        powers = np.cumprod(np.full(dense.shape[1], (tq - t) / h))
+    else:
+        powers = basis_values((tq - t) / h, dense.shape[1], basis)[:, 0]
     value = y + (K.T @ (h * dense)) @ powers
     return _clip(value, nonnegative) if nonnegative is not None else value
 
 
 def step_slopes(tq: np.ndarray, t: float, y: np.ndarray, h: float, K: np.ndarray, dense: np.ndarray,
-                nonnegative=None) -> np.ndarray:
+                nonnegative=None, basis: str = "monomial") -> np.ndarray:
     """Derivatives of the continuous extension at the times ``tq`` (k,), shape (k, n).
 
     MATLAB uses these when a terminal event shortens the last step to ``[t, te]``: the stage
@@ -51,10 +91,10 @@ def step_slopes(tq: np.ndarray, t: float, y: np.ndarray, h: float, K: np.ndarray
     s = (np.asarray(tq, dtype=float) - t) / h
     q = dense.shape[1]
     # d/ds of s^(m+1) is (m+1) s^m; divided by h for d/dt, times the h in front: cancels.
-    dpow = (np.arange(1, q + 1)[:, None] * s[None, :] ** np.arange(q)[:, None])  # (q, k)
+    dpow = basis_slopes(s, q, basis)  # (q, k)
     slopes = (K.T @ dense @ dpow).T
     if nonnegative is not None:
-        powers = np.cumprod(np.broadcast_to(s, (q, s.size)), axis=0)
+        powers = basis_values(s, q, basis)
         values = y[None, :] + (K.T @ (h * dense) @ powers).T
         part = slopes[:, nonnegative]
         slopes[:, nonnegative] = np.where(values[:, nonnegative] < 0, 0.0, part)
@@ -113,6 +153,8 @@ class DenseOutput:
     completion
         For a non-FSAL pair, the :class:`StageCompletion` that evaluates a step's interpolation
         stages the first time that step is evaluated; None otherwise.
+    basis
+        What the columns of ``coefficients`` multiply (:func:`basis_values`).
     """
 
     t: np.ndarray
@@ -123,6 +165,7 @@ class DenseOutput:
     y_final: np.ndarray
     nonnegative: np.ndarray | None = None
     completion: StageCompletion | None = None
+    basis: str = "monomial"
 
     @property
     def t_start(self) -> float:
@@ -158,7 +201,7 @@ class DenseOutput:
         h = self.h[idx]
         s = (times - self.t[idx]) / h
         q = self.coefficients.shape[1]
-        powers = np.cumprod(np.broadcast_to(s, (q, s.size)), axis=0).T  # (k, q)
+        powers = basis_values(s, q, self.basis).T  # (k, q)
         coef = np.einsum("jm,kjn->kmn", self.coefficients, self.K[idx]) * h[:, None, None]
         values = self.y[idx] + np.einsum("km,kmn->kn", powers, coef)
         values[times == self.t_end] = self.y_final
@@ -179,6 +222,7 @@ class DenseOutput:
             coefficients=self.coefficients,
             y_final=other.y_final,
             nonnegative=self.nonnegative,
+            basis=self.basis,
         )
 
 

@@ -157,6 +157,7 @@ def integrate_adaptive(
     output_fcn=None,
     b=None,
     extra=None,
+    dense_basis="monomial",
 ):
     """Integrate with an embedded Runge-Kutta pair and MATLAB's controller.
 
@@ -219,6 +220,9 @@ def integrate_adaptive(
     extra
         ``(A_extra, c_extra)``, the interpolation stages of a non-FSAL pair: stage ``s+1+j`` is
         ``f(t + c_extra[j] h, y + h A_extra[j] . K)`` over the stages before it; or None.
+    dense_basis
+        What the columns of ``dense`` multiply: ``"monomial"`` (s, s^2, ...) or ``"chebyshev"``
+        (:func:`odelab.solvers.dense.basis_values`).
     """
     s = c.size
     fsal = b is None
@@ -299,7 +303,12 @@ def integrate_adaptive(
         # Interior output at s = j/refine: the extension's weights sum_m dense[:, m] s^(m+1)
         # do not depend on the step, so they are formed once.
         fractions = np.arange(1, refine) / refine
-        weights_T = (dense @ np.cumprod(np.broadcast_to(fractions, (dense.shape[1], refine - 1)), axis=0)).T
+        if dense_basis == "monomial":
+            weights_T = (dense @ np.cumprod(np.broadcast_to(fractions, (dense.shape[1], refine - 1)), axis=0)).T
+        else:
+            from odelab.solvers.dense import basis_values
+
+            weights_T = (dense @ basis_values(fractions, dense.shape[1], dense_basis)).T
     nxt = 1  # next tspan entry to output (vector tspan)
     if not refine_output:
         # MATLAB's output at the given times only: at most one row per entry, plus a terminal
@@ -447,7 +456,7 @@ def integrate_adaptive(
                     if not completed[0]:
                         completed[1] += _complete(fun, step_t0, step_y0, step_h0, K, A_extra, hA_extra, extra_rows)
                         completed[0] = True
-                    return step_value(tq, step_t0, step_y0, step_h0, K, dense, nonnegative)
+                    return step_value(tq, step_t0, step_y0, step_h0, K, dense, nonnegative, dense_basis)
 
                 found_t, found_y, found_i, v_left, stop = locate_events(
                     interpolate, events, v_left, t, y, tnew, ynew, t0)
@@ -460,7 +469,8 @@ def integrate_adaptive(
                         # extension's slopes at its nodes, as MATLAB does, so output on the
                         # shortened step follows the same curve.
                         t_event = found_t[-1]
-                        K[1:] = step_slopes(t + (t_event - t) * all_nodes[1:], t, y, h, K, dense, nonnegative)
+                        K[1:] = step_slopes(t + (t_event - t) * all_nodes[1:], t, y, h, K, dense, nonnegative,
+                                            dense_basis)
                         if not fsal:
                             K[1:] -= K[0]
                         tnew = t_event
@@ -501,7 +511,12 @@ def integrate_adaptive(
                     if tn == tnew:
                         y_out[nout] = ynew
                     else:
-                        powers = np.cumprod(np.full(dense.shape[1], (tn - t) / h))
+                        if dense_basis == "monomial":
+                            powers = np.cumprod(np.full(dense.shape[1], (tn - t) / h))
+                        else:
+                            from odelab.solvers.dense import basis_values
+
+                            powers = basis_values((tn - t) / h, dense.shape[1], dense_basis)[:, 0]
                         yi = y + (K.T @ (h * dense)) @ powers
                         if have_nonneg:
                             yi[nonnegative] = np.maximum(yi[nonnegative], 0.0)

@@ -172,6 +172,9 @@ class ButcherTableau:
         step's first stage.
     reference
         Where the coefficients come from.
+    dense_basis
+        ``"monomial"``: column m of ``dense`` multiplies ``s**(m+1)``; ``"chebyshev"``: column k
+        multiplies ``T_k(2s - 1)`` (k = 0..q), a well-conditioned form for large coefficients.
     extra_c, extra_A
         A non-FSAL pair's interpolation stages (m of them): stage ``s+1+j`` is
         ``f(t + extra_c[j] h, y + h sum_k extra_A[j, k] K_k)`` over the s stages, the stage
@@ -192,6 +195,7 @@ class ButcherTableau:
     reference: str = ""
     extra_c: np.ndarray | None = None
     extra_A: np.ndarray | None = None
+    dense_basis: str = "monomial"
     stages: int = field(init=False)
 
     def __post_init__(self) -> None:
@@ -239,12 +243,15 @@ class ButcherTableau:
                 problems.append(f"extra_A must be ({m}, {s + 1 + m}) and explicit (stage j uses the ones before it)")
             elif not all(map(_condition_ok, self.extra_A.sum(axis=1), self.extra_c, np.abs(self.extra_A).sum(axis=1))):
                 problems.append(f"row sums of extra_A {self.extra_A.sum(axis=1)} differ from extra_c {self.extra_c}")
+        if self.dense_basis not in ("monomial", "chebyshev"):
+            problems.append(f"dense_basis is {self.dense_basis!r}: 'monomial' or 'chebyshev'")
         if self.dense is not None and not problems:
             rows = self.full_c.size
             b_full = np.concatenate([self.b, np.zeros(rows - s)])
             if self.dense.shape[0] != rows:
                 problems.append(f"dense must have one row per stage of the extended step ({rows})")
-            elif not all(map(_condition_ok, self.dense.sum(axis=1), b_full, np.abs(self.dense).sum(axis=1))):
+            # (judged against the round-off of the published powers-of-s coefficients, whatever the form)
+            elif not all(map(_condition_ok, self.dense.sum(axis=1), b_full, np.abs(self.dense_powers).sum(axis=1))):
                 problems.append("the continuous extension at s = 1 must equal the step's solution b")
             elif self.dense_order is not None:
                 problems.extend(self._dense_order_problems())
@@ -298,7 +305,10 @@ class ButcherTableau:
         if self.dense is not None:
             D = np.array(self.dense)
             D[0] = 0.0
-            D[0, 0] = 1.0
+            if self.dense_basis == "chebyshev":
+                D[0, :2] = 0.5  # s = (T_0 + T_1(2s - 1)) / 2
+            else:
+                D[0, 0] = 1.0
             out["dense"] = D
         if self.extra_A is not None:
             X = np.array(self.extra_A)
@@ -308,13 +318,35 @@ class ButcherTableau:
             arr.setflags(write=False)
         return out
 
+    @cached_property
+    def dense_powers(self) -> np.ndarray:
+        """The continuous extension as coefficients of s, s^2, ... (converted from Chebyshev form)."""
+        if self.dense_basis == "monomial":
+            return self.dense
+        q = self.dense.shape[1]
+        # row k: T_k(2s - 1) in powers s^0 .. s^(q-1), by T_(k+1) = 2 (2s - 1) T_k - T_(k-1)
+        to_powers = np.zeros((q, q))
+        to_powers[0, 0] = 1.0
+        if q > 1:
+            to_powers[1, :2] = (-1.0, 2.0)
+        for k in range(1, q - 1):
+            shifted = np.zeros(q)
+            shifted[1:] = to_powers[k, :-1]
+            to_powers[k + 1] = 2.0 * (2.0 * shifted - to_powers[k]) - to_powers[k - 1]
+        return (self.dense @ to_powers)[:, 1:]  # the s^0 column vanishes (checked below)
+
     def _dense_order_problems(self) -> list[str]:
         """The continuous extension's order conditions, one per tree and power of s."""
         orders, gammas, phis = _tree_data(self.full_A, self.dense_order)
-        powers = np.arange(1, self.dense.shape[1] + 1)
+        dense = self.dense_powers
+        if self.dense_basis == "chebyshev":
+            at_zero = self.dense @ (-1.0) ** np.arange(self.dense.shape[1])
+            if not _condition_ok(at_zero, 0.0, np.abs(dense).sum(axis=1)):
+                return ["the continuous extension must vanish at s = 0"]
+        powers = np.arange(1, dense.shape[1] + 1)
         required = np.where(powers[:, None] == orders[None, :], 1.0 / gammas[None, :], 0.0)  # (q, trees)
-        values = self.dense.T @ phis.T
-        scales = np.abs(self.dense.T) @ np.abs(phis.T)
+        values = dense.T @ phis.T
+        scales = np.abs(dense.T) @ np.abs(phis.T)
         bad = np.abs(values - required) > np.maximum(_TOL, 64 * _EPS * scales)
         if bad.any():
             m, k = np.argwhere(bad)[0]
