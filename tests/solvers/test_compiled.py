@@ -296,13 +296,49 @@ def test_every_compiled_signal_type_gives_the_python_values():
     assert out[2] == 1.0 and out[0] == 2.5
 
 
-def test_an_expression_input_stays_on_python_with_the_reason():
+def test_a_python_callable_input_stays_on_python_with_the_reason():
     from odelab import signals as sg
 
     system = CompiledSystem.linear([[0.0]], ["x"], [[1.0]], ["f"]).with_signals([sg.Function(np.cos, label="cos(t)")])
-    assert system.why_not() == "input `f`: an `expression` input is a Python function of t"
-    with pytest.raises(InputError, match="cannot run this system: input `f`: an `expression` input"):
+    assert system.why_not() == ("input `f`: a Python function of t (an experiment file's `expression` input is "
+                                "compiled; a callable is not)")
+    with pytest.raises(InputError, match="cannot run this system: input `f`: a Python function of t"):
         solve_compiled(system, [0, 1], [0.0], "ode45")
+
+
+EXPRESSION_INPUT = """
+title = "A forced oscillator, the force an expression of t"
+[parameters]
+w = 1.7
+k = 3
+[system]
+states = ["x", "v"]
+inputs = ["f"]
+[system.equations]
+x = "v"
+v = "f - 0.4*v - k*x"
+[initial]
+x = 0
+v = 0
+[time]
+stop = 8
+[inputs.f]
+type = "expression"
+expression = "0.5*sin(w*t) + k*heaviside(t - 2) - max(t - 6, 0)^2"
+[solver]
+method = "ode45"
+"""
+
+
+def test_an_expression_input_runs_compiled(tmp_path):
+    (tmp_path / "forced.toml").write_text(EXPRESSION_INPUT, encoding="utf-8")
+    case = load_experiment(tmp_path / "forced.toml").cases[0]
+    assert why_not_compiled(get_method("ode45"), case.problem.compiled, case.problem.options) is None
+    assert "(0.5 * _np.sin((_p[" in case.problem.compiled.source()  # w is run-time data, t is _tu
+    python, compiled = run_case(case, backend="python"), run_case(case, backend="compiled")
+    assert compiled.backend == "compiled" and compiled.stats == python.stats
+    np.testing.assert_allclose(compiled.t, python.t, rtol=0, atol=1e-12 * 8)
+    np.testing.assert_allclose(compiled.x, python.x, rtol=0, atol=1e-12 * np.max(np.abs(python.x)))
 
 
 LONG_INPUT = """

@@ -296,7 +296,12 @@ def build_signal(kind: str, given: dict, *, key: str, path: Path, params: dict[s
         else:
             compiled = expr().compile_expression(values["expression"], names=["t", *params],
                                                  key=f"{key}.expression")
-            signal = sg.Function(lambda t, _e=compiled, _p=params: _e(t=t, **_p), label=str(values["expression"]))
+            def expression_signal(t, _e=compiled, _p=params):
+                return _e(t=t, **_p)
+
+            # its text, key and parameters: the compiled backend generates it (solvers/compiled/inputs.py)
+            expression_signal.odelab_expression = (str(values["expression"]), f"{key}.expression", dict(params))
+            signal = sg.Function(expression_signal, label=str(values["expression"]))
     except InputError as exc:
         raise exc.located(key=key) from None
     return signal, {k: v for k, v in values.items() if v is not None}

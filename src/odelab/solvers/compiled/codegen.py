@@ -81,7 +81,7 @@ def _number(value: float) -> str:
     return repr(float(value))
 
 
-def _node(node: ast.AST, parts: list[str]) -> str:
+def _node(node: ast.AST, parts: list[str], rename: dict[str, str] | None = None) -> str:
     if isinstance(node, ast.Constant):
         try:
             return _number(float(node.value))
@@ -91,7 +91,7 @@ def _node(node: ast.AST, parts: list[str]) -> str:
         if node.id in CONSTANTS:
             return _number(CONSTANTS[node.id])
         _check_argument_name(node.id, "an argument")
-        return node.id
+        return rename.get(node.id, node.id) if rename else node.id
     if isinstance(node, ast.BinOp):
         if isinstance(node.op, ast.Pow):  # numba would fold `(-1.0) ** 0.5` to a complex constant
             return f"_np.power({parts[0]}, {parts[1]})"
@@ -116,8 +116,9 @@ def _node(node: ast.AST, parts: list[str]) -> str:
     raise AssertionError(f"unvalidated node {type(node).__name__}")  # pragma: no cover
 
 
-def expression_source(parsed: ParsedExpression) -> str:
-    """One validated expression as numba-compatible Python source (post-order, no recursion)."""
+def expression_source(parsed: ParsedExpression, rename: dict[str, str] | None = None) -> str:
+    """One validated expression as numba-compatible Python source (post-order, no recursion);
+    ``rename`` maps names to the source that stands for them (``t`` -> ``_tu``...)."""
     code: dict[int, str] = {}
     stack: list[tuple[ast.AST, bool]] = [(parsed.tree.body, False)]
     while stack:
@@ -126,7 +127,7 @@ def expression_source(parsed: ParsedExpression) -> str:
             stack.append((node, True))
             stack.extend((child, False) for child in _operands(node))
             continue
-        code[id(node)] = _node(node, [code[id(c)] for c in _operands(node)])
+        code[id(node)] = _node(node, [code[id(c)] for c in _operands(node)], rename)
     return code[id(parsed.tree.body)]
 
 
