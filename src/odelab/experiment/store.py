@@ -21,7 +21,6 @@ import os
 import platform
 import secrets
 import shutil
-import tempfile
 from datetime import datetime, timezone
 from importlib import metadata
 from pathlib import Path
@@ -30,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from odelab.analysis.errors import HEADLINE_RULE, error_columns
-from odelab.fileio import atomic_write, umask
+from odelab.fileio import atomic_write
 from odelab.experiment.loader import slug
 from odelab.experiment.result import CaseResult
 
@@ -42,7 +41,10 @@ _TMP_SUFFIX = ".tmp"
 
 @contextlib.contextmanager
 def _locked(folder: Path, *, shared: bool = False):
-    """An advisory lock on a folder itself (no lock file): exclusive to swap a case, shared to read one."""
+    """An advisory lock on a folder itself (no lock file): exclusive to swap a case, shared to read one.
+
+    Yields the folder's file descriptor (None where folders cannot be opened), so that the
+    caller can flush the folder's renames through it."""
     try:
         fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
     except OSError:  # a folder that cannot be opened (or a platform without directory fds)
@@ -55,7 +57,7 @@ def _locked(folder: Path, *, shared: bool = False):
                 fcntl.flock(fd, fcntl.LOCK_SH if shared else fcntl.LOCK_EX)
             except (ImportError, OSError):  # pragma: no cover - non-POSIX: the renames still hold
                 pass
-        yield
+        yield fd
     finally:
         if fd is not None:
             os.close(fd)
@@ -221,20 +223,13 @@ def commit_folder(folder: Path, files: dict[str, str | bytes], *, durable: bool 
     folder = Path(folder)
     parent = folder.parent
     parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(dir=parent, prefix=f".{folder.name}.", suffix=_TMP_SUFFIX))
+    tmp = _new_folder(parent, folder.name)
     old: Path | None = None
     try:
-        os.chmod(tmp, 0o777 & ~umask())
-        mode = 0o666 & ~umask()
         for name, data in files.items():
-            fd = os.open(tmp / name, os.O_WRONLY | os.O_CREAT | os.O_EXCL, mode)
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(data.encode("utf-8") if isinstance(data, str) else data)
-                if durable:
-                    fh.flush()
-                    os.fsync(fh.fileno())
-        with _locked(parent):
-            if folder.exists() or folder.is_symlink():
+            _write_file(tmp / name, data.encode("utf-8") if isinstance(data, str) else data, durable)
+        with _locked(parent) as parent_fd:
+            if _exists(folder):
                 # a fresh hidden name (random; we hold the lock): the previous case, or whatever was there
                 old = parent / f".{folder.name}.old.{secrets.token_hex(8)}{_TMP_SUFFIX}"
                 os.rename(folder, old)
@@ -247,14 +242,44 @@ def commit_folder(folder: Path, files: dict[str, str | bytes], *, durable: bool 
                 raise
             tmp = None
             if durable:
-                _fsync_folder(parent)
-            if old is not None:
-                _remove(old)
-                old = None
+                _fsync_folder(parent, parent_fd)
     finally:
-        for leftover in (tmp, old):
+        for leftover in (tmp, old):  # the replaced case (a hidden name: no reader looks for it) or a failed write
             if leftover is not None:
                 _remove(leftover)
+
+
+def _new_folder(parent: Path, name: str) -> Path:
+    """A new hidden temporary folder ``parent/.name.XXXX.tmp`` with the usual permissions (the umask's)."""
+    while True:
+        path = parent / f".{name}.{secrets.token_hex(6)}{_TMP_SUFFIX}"
+        try:
+            os.mkdir(path, 0o777)  # the umask applies, as for any folder the user makes
+            return path
+        except FileExistsError:  # pragma: no cover - 48 random bits
+            continue
+
+
+def _write_file(path: Path, data: bytes, durable: bool) -> None:
+    """A new file holding ``data`` (flushed to disk if ``durable``), written with plain system calls."""
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)  # the umask applies
+    try:
+        view = memoryview(data)
+        while view:
+            view = view[os.write(fd, view):]
+        if durable:
+            os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _exists(path: Path) -> bool:
+    """Something (a folder, a file, a symlink, even a dangling one) is at ``path``."""
+    try:
+        os.lstat(path)
+    except FileNotFoundError:
+        return False
+    return True
 
 
 def _remove(path: Path) -> None:
@@ -266,18 +291,22 @@ def _remove(path: Path) -> None:
         shutil.rmtree(path, ignore_errors=True)
 
 
-def _fsync_folder(folder: Path) -> None:
-    """Make the renames in ``folder`` durable (POSIX; a no-op where folders cannot be opened)."""
-    try:
-        fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
-    except OSError:  # pragma: no cover
-        return
+def _fsync_folder(folder: Path, fd: int | None = None) -> None:
+    """Make the renames in ``folder`` durable (POSIX; a no-op where folders cannot be opened).
+    ``fd``: the folder, already open (the lock's)."""
+    own = fd is None
+    if own:
+        try:
+            fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+        except OSError:  # pragma: no cover
+            return
     try:
         os.fsync(fd)
     except OSError:  # pragma: no cover - some filesystems refuse fsync on folders
         pass
     finally:
-        os.close(fd)
+        if own:
+            os.close(fd)
 
 
 def _resolved_toml(result: CaseResult, tomli_w) -> str:
