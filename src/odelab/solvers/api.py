@@ -358,7 +358,7 @@ def _solve_implicit(fun, tspan, y0, f0, m: Method, opts: SolverOptions) -> Solut
                   ndecomps=work.ndecomps, nsolves=work.nsolves)
     message = _status_message(status, m, t_stop, h_stop, y, y0, opts, exc, tspan)
     return Solution(t=t, y=y, stats=stats, status="success" if status == 0 else "failed", message=message,
-                    method=m.name, warnings=opts.warnings)
+                    method=m.name, warnings=opts.warnings, interpolant=work.dense)
 
 
 def fixed_grid(tspan: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:

@@ -244,3 +244,22 @@ def test_backwards_in_time(method):
     np.testing.assert_allclose(1 - back.t, forward.t, atol=1e-14)
     np.testing.assert_allclose(back.y, forward.y, rtol=1e-9)  # round-off in t differs
     assert back.y[-1, 0] == pytest.approx(1, rel=40e-6)
+
+
+@pytest.mark.parametrize("method", ["ode23t", "ode23tb"])
+def test_deval_is_the_refine_interpolant(method):
+    sol = odelab.solve(smooth, [0, 10], [1, 0], method=method, rtol=1e-6, atol=1e-9, refine=4)
+    coarse = odelab.solve(smooth, [0, 10], [1, 0], method=method, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(coarse.deval(sol.t), sol.y, rtol=1e-13, atol=1e-15)
+    np.testing.assert_array_equal(coarse(coarse.t), coarse.y)  # exact at the steps
+    assert odelab.deval(coarse, 10.0).shape == (2,)
+    with pytest.raises(ValueError, match="cannot evaluate the solution at t = 11"):
+        coarse.deval(11.0)
+
+
+def test_quadratic_through_three_points():
+    from odelab.solvers.implicit.common import quadratic_through
+
+    q = lambda s: np.array([1 + 2 * s - 3 * s**2])  # noqa: E731
+    a1, a2 = quadratic_through(-0.7, q(0), q(-0.7), q(1))
+    np.testing.assert_allclose([a1[0], a2[0]], [2, -3], rtol=1e-13)

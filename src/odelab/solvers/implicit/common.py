@@ -23,7 +23,8 @@ import math
 
 import numpy as np
 
-__all__ = ["Work", "Output", "rms_or_max", "initial_step", "clamp_step", "newton", "Newton"]
+__all__ = ["Work", "Output", "rms_or_max", "initial_step", "clamp_step", "newton", "Newton", "QuadraticSteps",
+           "quadratic_through"]
 
 EPS = float(np.finfo(float).eps)
 SQRT_EPS = math.sqrt(EPS)
@@ -53,6 +54,7 @@ class Work:
         else:
             self.mass = mass
         self.identity = self._identity()
+        self.dense = None  # a solver with dense output leaves its DenseOutput here
 
     def _identity(self):
         if self.sparse:
@@ -317,3 +319,46 @@ class Output:
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray]:
         return np.array(self.t), np.vstack(self.y)
+
+
+class QuadraticSteps:
+    """Accepted steps whose interpolant is a quadratic in ``s = (t - t_n)/h``:
+    ``y_n + s a1 + s^2 a2`` (ode23t, ode23tb). Serves :class:`Output` step by step and, at the
+    end, ``deval``/``sol(t)`` as a :class:`~odelab.solvers.dense.DenseOutput` (coefficients the
+    identity on ``K = (a1/h, a2/h)``).
+    """
+
+    def __init__(self):
+        self.t: list[float] = []
+        self.h: list[float] = []
+        self.y: list[np.ndarray] = []
+        self.K: list[np.ndarray] = []
+
+    def add(self, t: float, h: float, y: np.ndarray, a1: np.ndarray, a2: np.ndarray):
+        """Record the step and return its interpolant ``times -> states`` (len(times), n)."""
+        self.t.append(t)
+        self.h.append(h)
+        self.y.append(y)
+        self.K.append(np.stack([a1 / h, a2 / h]))
+
+        def interp(times):
+            s = (np.asarray(times, dtype=float)[:, None] - t) / h
+            return y + s * a1 + (s * s) * a2
+
+        return interp
+
+    def dense(self, y_final: np.ndarray):
+        if not self.t:
+            return None
+        from odelab.solvers.dense import DenseOutput
+
+        return DenseOutput(t=np.array(self.t), h=np.array(self.h), y=np.vstack(self.y), K=np.stack(self.K),
+                           coefficients=np.eye(2), y_final=y_final.copy())
+
+
+def quadratic_through(rho: float, y: np.ndarray, y_rho: np.ndarray, ynew: np.ndarray):
+    """``(a1, a2)`` of the quadratic ``y + s a1 + s^2 a2`` through ``y`` (s = 0), ``y_rho``
+    (s = rho) and ``ynew`` (s = 1)."""
+    d1 = ynew - y
+    a2 = ((y_rho - y) - rho * d1) / (rho * rho - rho)
+    return d1 - a2, a2

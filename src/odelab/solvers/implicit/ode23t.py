@@ -40,7 +40,8 @@ import warnings
 import numpy as np
 
 from odelab.solvers import engine
-from odelab.solvers.implicit.common import SQRT_EPS, Newton, Output, Work, clamp_step, consistent_slope, newton
+from odelab.solvers.implicit.common import (SQRT_EPS, Newton, Output, QuadraticSteps, Work, clamp_step,
+                                           consistent_slope, newton, quadratic_through)
 
 __all__ = ["integrate_ode23t", "tr_attempt", "predict", "interpolant"]
 
@@ -72,7 +73,7 @@ def predict(history, yp: np.ndarray, ypp: np.ndarray, h: float) -> tuple[np.ndar
 
 
 def interpolant(history, tnew: float, ynew: np.ndarray, z: np.ndarray, znew: np.ndarray):
-    """The step's interpolant, ``times -> states`` (len(times), n).
+    """The step's interpolant as ``(a1, a2)`` of ``y_n + s a1 + s^2 a2``, ``s = (t - t_n)/h``.
 
     On the first step the trapezoidal rule's free quadratic ``y_n + s z_n + s^2 (z_{n+1} - z_n)/2``;
     after it, the quadratic through the values ``y_{n-1}, y_n, y_{n+1}`` (as free, and as
@@ -82,22 +83,9 @@ def interpolant(history, tnew: float, ynew: np.ndarray, z: np.ndarray, znew: np.
     """
     tn, yn = history[-1]
     if len(history) == 1:
-        h = tnew - tn
-
-        def free(times):
-            s = (np.asarray(times, dtype=float)[:, None] - tn) / h
-            return yn + s * z + (0.5 * s * s) * (znew - z)
-
-        return free
+        return z, 0.5 * (znew - z)
     t1, y1 = history[-2]
-
-    def values(times):
-        t = np.asarray(times, dtype=float)[:, None]
-        return (y1 * ((t - tn) * (t - tnew) / ((t1 - tn) * (t1 - tnew)))
-                + yn * ((t - t1) * (t - tnew) / ((tn - t1) * (tn - tnew)))
-                + ynew * ((t - t1) * (t - tn) / ((tnew - t1) * (tnew - tn))))
-
-    return values
+    return quadratic_through((t1 - tn) / (tnew - tn), yn, y1, ynew)
 
 
 def tr_attempt(work: Work, lu, t: float, y: np.ndarray, yp: np.ndarray, ypred: np.ndarray, P: float, h: float,
@@ -127,6 +115,7 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
     tdir = 1.0 if tf > t0 else -1.0
     threshold = atol / rtol
     out = Output(tspan, y0, refine)
+    steps = QuadraticSteps()
     nsteps = nfailed = 0
     status, exception = engine.STATUS_SUCCESS, None
     t, y = t0, y0.copy()
@@ -206,7 +195,7 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                     break
 
                 nsteps += 1
-                out.step(t, tnew, ynew, interpolant(history, tnew, ynew, h * yp, znew))
+                out.step(t, tnew, ynew, steps.add(t, h, y, *interpolant(history, tnew, ynew, h * yp, znew)))
                 t, y, yp = tnew, ynew, znew / h
                 history = history[-2:] + [(t, y)]
                 Jcurrent = False
@@ -223,4 +212,5 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
         except Exception as exc:  # the user's right-hand side (or Jacobian) failed
             status, exception = engine.STATUS_FUN_RAISED, exc
     t_out, y_out = out.arrays()
+    work.dense = steps.dense(y)
     return t_out, y_out, nsteps, nfailed, status, t, absh, exception

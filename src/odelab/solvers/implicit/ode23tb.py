@@ -37,7 +37,8 @@ import warnings
 import numpy as np
 
 from odelab.solvers import engine
-from odelab.solvers.implicit.common import Newton, Output, Work, clamp_step, initial_step, newton
+from odelab.solvers.implicit.common import (Newton, Output, QuadraticSteps, Work, clamp_step, initial_step, newton,
+                                           quadratic_through)
 
 __all__ = ["integrate_ode23tb", "trbdf2_attempt", "GAMMA", "D", "W", "B", "BHAT"]
 
@@ -81,25 +82,13 @@ def trbdf2_attempt(work: Work, lu, t: float, y: np.ndarray, z: np.ndarray, zslop
     return ynew, yg, znew, est, True
 
 
-def quadratic_interpolant(t, h, y, yg, ynew):
-    """The quadratic through ``(t, y)``, ``(t + gamma h, y_g)``, ``(t + h, ynew)``: ``times -> states``."""
-    def interp(times):
-        s = (np.asarray(times, dtype=float)[:, None] - t) / h
-        # Lagrange basis on the nodes 0, gamma, 1
-        l0 = (s - GAMMA) * (s - 1.0) / GAMMA
-        lg = s * (s - 1.0) / (GAMMA * (GAMMA - 1.0))
-        l1 = s * (s - GAMMA) / (1.0 - GAMMA)
-        return l0 * y + lg * yg + l1 * ynew
-
-    return interp
-
-
 def integrate_ode23tb(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, max_steps):
     """Integrate with ode23tb; returns ``(t, y, nsteps, nfailed, status, t_stop, h_stop, exc)``."""
     t0, tf = float(tspan[0]), float(tspan[-1])
     tdir = 1.0 if tf > t0 else -1.0
     threshold = atol / rtol
     out = Output(tspan, y0, refine)
+    steps = QuadraticSteps()  # the quadratic through y_n, y_g, y_n+1: Refine, tspan output and deval
     nsteps = nfailed = 0
     status, exception = engine.STATUS_SUCCESS, None
     t, y = t0, y0.copy()
@@ -163,7 +152,7 @@ def integrate_ode23tb(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine,
                     break
 
                 nsteps += 1
-                out.step(t, tnew, ynew, quadratic_interpolant(t, h, y, yg, ynew))
+                out.step(t, tnew, ynew, steps.add(t, h, y, *quadratic_through(GAMMA, y, yg, ynew)))
                 ypnew = znew / h
                 ypp = (ypnew - yp) / h
                 t, y, yp = tnew, ynew, ypnew
@@ -179,4 +168,5 @@ def integrate_ode23tb(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine,
         except Exception as exc:  # the user's right-hand side (or Jacobian) failed
             status, exception = engine.STATUS_FUN_RAISED, exc
     t_out, y_out = out.arrays()
+    work.dense = steps.dense(y)
     return t_out, y_out, nsteps, nfailed, status, t, absh, exception
