@@ -89,8 +89,13 @@ class ConvergenceFit:
 
 
 def _fit(logh: np.ndarray, loge: np.ndarray) -> tuple[float, float]:
-    slope, intercept = np.polyfit(logh, loge, 1)
-    return float(slope), float(intercept)
+    """The least-squares line through the points, in closed form (np.polyfit would import numpy.ma,
+    6-16 ms on the serial end of a study run, for the same two numbers)."""
+    x = np.asarray(logh, dtype=float)
+    y = np.asarray(loge, dtype=float)
+    dx = x - x.mean()
+    slope = float(dx @ (y - y.mean()) / (dx @ dx))
+    return slope, float(y.mean() - slope * x.mean())
 
 
 def quadrature_order(b, c, *, highest: int = 16) -> int:
@@ -168,7 +173,7 @@ def convergence_order(h, error, *, nominal: float | None = None, label: str = ""
         last, prev = live[-1], live[-2]
         slope = math.log(error[prev] / error[last]) / math.log(h[prev] / h[last])
         rest = _local_slopes(h, error, live[:-1])
-        if rest.size and slope < 0.5 * float(np.median(rest)):
+        if rest.size and slope < 0.5 * _median(rest.tolist()):
             excluded[last] = ROUNDOFF
             live.pop()
         else:
@@ -203,6 +208,13 @@ def convergence_order(h, error, *, nominal: float | None = None, label: str = ""
             warnings.append(f"{label}: observed order {slope:.2f} is not the nominal {nominal:g}".lstrip(": "))
     return ConvergenceFit(label=label, h=tuple(h.tolist()), error=tuple(error.tolist()), excluded=tuple(excluded),
                           order=slope, intercept=intercept, nominal=nominal, warnings=tuple(warnings), note=note)
+
+
+def _median(values: list[float]) -> float:
+    """np.median of a few numbers, without np.median's import of numpy.ma (6-16 ms)."""
+    v = sorted(values)
+    n = len(v)
+    return float(v[n // 2]) if n % 2 else 0.5 * (v[n // 2 - 1] + v[n // 2])
 
 
 def _local_slopes(h: np.ndarray, error: np.ndarray, idx: list[int]) -> np.ndarray:
