@@ -253,9 +253,10 @@ def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, st
                     if store and keep_cases:
                         _store(result, runs, mat, err)
                     done[0] += 1
-            except (KeyboardInterrupt, _Terminated):
-                if store and exp.sweep is not None and results:  # the sweep's table of what finished
-                    _store_sweep(exp, results, runs, err)
+            except (KeyboardInterrupt, _Terminated) as exc:
+                if store:  # what finished: this experiment's cases so far, and any a pool finished out of order
+                    done[0] += _store_interrupted(loaded, exp, results, getattr(exc, "finished", ()), runs, mat,
+                                                  err)
                 raise
             if store and exp.sweep is not None and results:
                 _store_sweep(exp, results, runs, err)
@@ -280,6 +281,30 @@ def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, st
     elif stored:
         out.print(f"results stored in {_escape(str(runs))}/")
     raise typer.Exit(EXIT_INPUT if bad else EXIT_FAILED if any_failed else EXIT_OK)
+
+
+def _store_interrupted(loaded, current, results, finished, runs, mat, err) -> int:
+    """On Ctrl-C: store the sweep tables of what finished, and cases a pool finished ahead of their turn.
+
+    Returns how many of ``finished`` (cases not yet counted) were stored.
+    """
+    from odelab.experiment.executors import CaseError
+
+    extra: dict[tuple[str, str], list] = {}
+    for r in finished:
+        if not isinstance(r, CaseError):
+            extra.setdefault((str(r.case.source), r.case.experiment), []).append(r)
+    count = 0
+    for exp in loaded:
+        late = extra.get((str(exp.source), exp.name), [])
+        if exp.sweep is None or exp.sweep.store == "all":
+            for r in late:
+                _store(r, runs, mat, err)
+        mine = (list(results) if exp is current else []) + late
+        if exp.sweep is not None and mine:  # the sweep's table of what finished, in case order
+            _store_sweep(exp, sorted(mine, key=lambda r: r.case.index), runs, err)
+        count += len(late)
+    return count
 
 
 class _NoProgress:

@@ -122,3 +122,50 @@ def test_pools_hand_out_each_experiments_cases_longest_first():
     for i in schedule(list(wp)):
         by_rtol.setdefault(wp[i].problem.method, []).append(wp[i].problem.options["rtol"])
     assert all(r == sorted(r) for r in by_rtol.values())
+
+
+SLOW_SWEEP = """
+title = "van der Pol, mu = 1000, ode45 over longer and longer spans"
+[parameters]
+mu = 1000
+[system]
+states = ["x", "v"]
+[system.equations]
+x = "v"
+v = "mu*(1 - x^2)*v - x"
+[initial]
+x = 2
+v = 0
+[solver]
+method = "ode45"
+max_steps = 5000000
+[reference]
+method = "none"
+[sweep]
+"time.stop" = [0.5, 3000, 1, 2]
+store = "summary"
+"""
+
+
+def test_ctrl_c_in_a_pool_keeps_the_sweeps_finished_cases(tmp_path, monkeypatch):
+    """The long case (stop = 3000, minutes on Python) runs first; Ctrl-C once the three short ones are in."""
+    import concurrent.futures
+
+    (tmp_path / "vdp.toml").write_text(SLOW_SWEEP)
+    original = concurrent.futures.wait
+
+    def wait(pending, return_when):
+        if len(pending) == 1:  # only the long case is left: the user presses Ctrl-C
+            raise KeyboardInterrupt
+        return original(pending, return_when=return_when)
+
+    monkeypatch.setattr(concurrent.futures, "wait", wait)
+    result = CliRunner().invoke(app, ["run", str(tmp_path / "vdp.toml"), "--runs", str(tmp_path / "runs"),
+                                      "--jobs", "2", "--backend", "python"])
+    assert result.exit_code == 130, result.output
+    assert "interrupted: 3 of 4 cases finished and stored; the case that was running was not stored." in result.output
+    record = json.loads((tmp_path / "runs" / "vdp" / "sweep.json").read_text())
+    assert record["complete"] is False and record["cases_total"] == 4
+    # stop = 1 and 2 finished after stop = 3000 had started (longest first): stored too, in case order
+    assert [r["case"] for r in record["rows"]] == ["stop=0.5", "stop=1", "stop=2"]
+    assert all(r["status"] == "success" for r in record["rows"])

@@ -241,20 +241,35 @@ def _seed(cases) -> None:
 
 
 def _in_order(cases, futures, result_of, done, wait_some):
-    """Yield results in case order while reporting each completion as it happens."""
+    """Yield results in case order while reporting each completion as it happens.
+
+    If the wait is interrupted (Ctrl-C, SIGTERM), the cases that finished but could not be
+    yielded yet (a case before them is still running) travel on the exception, as its
+    ``finished`` list in case order, so that the caller can store them too.
+    """
     index_of = {f: i for i, f in enumerate(futures)}
     ready: dict[int, object] = {}
     pending = set(futures)
     nxt = 0
-    while nxt < len(cases):
-        for f in wait_some(pending):
-            pending.discard(f)
-            i = index_of[f]
-            ready[i] = _attach(cases[i], result_of(f))
-            done(ready[i])
-        while nxt in ready:
-            yield ready.pop(nxt)
-            nxt += 1
+    try:
+        while nxt < len(cases):
+            for f in wait_some(pending):
+                pending.discard(f)
+                i = index_of[f]
+                ready[i] = _attach(cases[i], result_of(f))
+                done(ready[i])
+            while nxt in ready:
+                yield ready.pop(nxt)
+                nxt += 1
+    except BaseException as exc:
+        for f in pending:  # finished while we were interrupted
+            try:
+                if f.done() and index_of[f] not in ready:
+                    ready[index_of[f]] = _attach(cases[index_of[f]], result_of(f))
+            except BaseException:  # cancelled, failed or lost with its worker: not finished
+                pass
+        exc.finished = [ready[i] for i in sorted(ready)]
+        raise
 
 
 def _run_dask(cases, jobs, scheduler, opts, done):
