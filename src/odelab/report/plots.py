@@ -66,6 +66,7 @@ METHOD_COLORS: dict[str, str] = {
     "Radau": "#6A3D9A",
     "BDF": "#B15928",
     "LSODA": "#1B9E77",
+    "ode113": "#7570B3",  # its own: the hashed colour of an unknown name coincided with ode89's
 }
 # Methods odelab does not know (a newer registry) still get a stable colour from this list.
 _EXTRA_METHOD_COLORS = ("#882255", "#44AA99", "#999933", "#AA4499", "#332288", "#117733")
@@ -101,7 +102,7 @@ class LineStyle:
 # The lab's pair differ in colour, marker *and* dash, so they stay apart in grey-scale print.
 _METHOD_MARKERS = {"ode23": "o", "ode45": "s", "rk4": "^", "euler": "v", "heun": "D", "midpoint": "P",
                    "ralston": "X", "rk3": "<", "RK23": "h", "RK45": "d", "DOP853": "*", "Radau": ">",
-                   "BDF": "p", "LSODA": "8"}
+                   "BDF": "p", "LSODA": "8", "ode113": "H"}
 _METHOD_DASHES = {"ode23": "-", "ode45": "--", "rk4": "-.", "euler": ":"}
 _EXTRA_MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "h")
 _EXTRA_DASHES = ("-", "--", "-.", ":")
