@@ -222,6 +222,7 @@ def test_solvers_lists_every_method():
     assert rows["ode15s"][:2] == ["stiff, DAE", "1-5"] and rows["ode45"][:2] == ["non-stiff", "5(4)"]
     assert rows["LSODA"][1].startswith("Adams 1-12") and rows["ode23s"][:2] == ["stiff", "2(3)"]
     assert rows["ode78"][:2] == ["non-stiff", "8(7)"] and rows["ode89"][:2] == ["non-stiff", "9(8)"]
+    assert rows["ode113"][:2] == ["non-stiff", "1-13"] and rows["ode113"][2].startswith("rtol 1e-3, atol 1e-6, refine 1")
     assert rows["ode78"][2].startswith("rtol 1e-3, atol 1e-6, refine 1")
     assert rows["ode23t"][:2] == ["stiff, DAE", "2"] and rows["ode23tb"][:2] == ["stiff", "2(3)"]
 
