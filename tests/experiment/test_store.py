@@ -255,3 +255,16 @@ def test_the_whole_block_csv_is_the_value_by_value_text_and_round_trips(tmp_path
     np.testing.assert_array_equal(back, data)  # equal doubles, NaN where NaN, the sign of -0.0 kept
     assert math.copysign(1, back[0, 1]) == -1
     assert _trajectory_csv(["t", "y"], np.empty((0, 2))) == "t,y\n"
+
+
+def test_reading_stored_runs_imports_neither_the_loader_nor_pydantic(tmp_path):
+    """The report reads runs: it needs no experiment schema (pydantic's models cost tens of ms to build)."""
+    import subprocess
+    import sys
+
+    folder = write_case(run_case(load_experiment(ROOT / "experiments" / "exercise1.toml").cases[0]), tmp_path)
+    code = ("import sys\nfrom odelab.experiment.store import list_runs, read_run\n"
+            f"assert read_run(list_runs({str(tmp_path)!r})[0])['points'] == 12\n"
+            "print(sorted(m for m in ('pydantic', 'odelab.experiment.loader') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]" and folder.name == "ode23"

@@ -30,7 +30,6 @@ import numpy as np
 
 from odelab.analysis.errors import HEADLINE_RULE, error_columns
 from odelab.fileio import atomic_write
-from odelab.experiment.loader import slug
 from odelab.experiment.result import CaseResult
 
 __all__ = ["RESULT_FORMAT", "atomic_write", "case_dir", "summary", "write_case", "read_run", "list_runs"]
@@ -65,6 +64,8 @@ def _locked(folder: Path, *, shared: bool = False):
 
 def case_dir(runs: Path, experiment: str, case: str) -> Path:
     """The folder of a case, with names made safe (they can never leave ``runs``)."""
+    from odelab.experiment.loader import slug  # here: the report reads runs without the loader (pydantic)
+
     return Path(runs) / slug(experiment) / slug(case)
 
 
@@ -321,6 +322,8 @@ def _mat_bytes(result: CaseResult) -> bytes:
 
     from scipy.io import savemat
 
+    from odelab.experiment.loader import slug as case_slug
+
     buf = io.BytesIO()
     data = {"t": result.t.reshape(-1, 1), "x": result.x}
     if result.y is not None:
@@ -328,7 +331,7 @@ def _mat_bytes(result: CaseResult) -> bytes:
     if result.u is not None:
         data["u"] = result.u
     for name, ref in result.reference.items():
-        data[f"ref_{slug(name).replace('-', '_').replace('.', '_')}"] = ref.reshape(-1, 1)
+        data[f"ref_{case_slug(name).replace('-', '_').replace('.', '_')}"] = ref.reshape(-1, 1)
     savemat(buf, data)
     return buf.getvalue()
 
