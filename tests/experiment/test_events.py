@@ -127,7 +127,8 @@ def test_nonnegative_and_mass_in_the_solver_table(tmp_path):
     (("reset = { v = ", "reset = { w = "), "`events.floor.reset.w`: 'w' is not one of the states (h, v)"),
     (("when = \"h\"", "whenn = \"h\""), "`events.floor.whenn` is not an event key (when, direction, terminal, reset, "
                                         "exact). Did you mean `when`?"),
-    (("method = \"ode45\"", "method = \"rk4\"\nh = 0.01"), "[events] are located by ode23, ode45, ode78, ode89 and ode113"),
+    (("method = \"ode45\"", "method = \"rk4\"\nh = 0.01"),
+     "[events] are located by ode23, ode45, ode78, ode89, ode113, ode15s, ode23s, ode23t and ode23tb"),
     (("[events.floor]", "[events]\nmax_events = 0\n[events.floor]"), "`events.max_events` must be a whole number >= 1"),
     (("when = \"h\"", "when = \"hh\""), "unknown name `hh`"),
 ])

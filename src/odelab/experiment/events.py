@@ -185,6 +185,7 @@ def solve_with_events(fun, tspan: np.ndarray, x0: np.ndarray, method: str, optio
     records: list[dict] = []
     occurrences = [0] * len(events.names)
     nsteps = nfailed = nfevals = 0
+    linear = None
     warnings: list[str] = []
     piece_tspan = tspan
     x = np.asarray(x0, dtype=float)
@@ -199,6 +200,9 @@ def solve_with_events(fun, tspan: np.ndarray, x0: np.ndarray, method: str, optio
             sol = solve_piece(piece_tspan, x, options)
         nsteps, nfevals = nsteps + sol.stats.nsteps, nfevals + sol.stats.nfevals
         nfailed += sol.stats.nfailed or 0
+        if sol.stats.npds is not None:  # a stiff solver's Jacobians, LU decompositions, linear solves
+            linear = [a + (b or 0) for a, b in zip(linear or (0, 0, 0),
+                                                   (sol.stats.npds, sol.stats.ndecomps, sol.stats.nsolves))]
         warnings.extend(w for w in sol.warnings if w not in warnings)
         t_piece, x_piece = sol.t, sol.y
         if vector and piece_tspan.size == 2:
@@ -275,7 +279,9 @@ def solve_with_events(fun, tspan: np.ndarray, x0: np.ndarray, method: str, optio
         restarted_by = stopped_by
         later = tspan[tdir * (tspan - te) > 0] if vector else tspan[-1:]
         piece_tspan = np.concatenate([[te], later])
-    return (np.concatenate(t_parts), np.concatenate(x_parts), Stats(nsteps=nsteps, nfailed=nfailed, nfevals=nfevals),
+    npds, ndecomps, nsolves = linear or (None, None, None)
+    return (np.concatenate(t_parts), np.concatenate(x_parts),
+            Stats(nsteps=nsteps, nfailed=nfailed, nfevals=nfevals, npds=npds, ndecomps=ndecomps, nsolves=nsolves),
             status, message, warnings, records, np.concatenate(mark_parts))
 
 

@@ -595,9 +595,9 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
     if model.events is not None:
         from odelab.experiment.events import compile_events
 
-        if method.kind not in ("adaptive", "multistep"):
-            raise ExperimentError(f"[events] are located by ode23, ode45, ode78, ode89 and ode113 (MATLAB's Events); "
-                                  f"`solver.method` is "
+        if method.kind not in ("adaptive", "multistep", "implicit"):
+            raise ExperimentError(f"[events] are located by ode23, ode45, ode78, ode89, ode113, ode15s, ode23s, ode23t "
+                                  f"and ode23tb (MATLAB's Events); `solver.method` is "
                                   f"{method.name!r}.", key="solver.method")
         if inputs or model.linearize is not None:
             raise ExperimentError("[events] work with systems without [inputs] and without [linearize]; remove one "

@@ -140,7 +140,8 @@ def solve(fun, tspan, y0, method: str = "ode45", **options) -> Solution:
         ``rtol``, ``atol``, ``max_step``, ``initial_step``, ``refine``, ``norm_control``,
         ``max_steps`` (adaptive methods), ``h`` (fixed-step methods), ``args`` (all methods);
         ``events``, ``nonnegative``, ``mass``, ``mstate_dependence``, ``output_fcn``,
-        ``output_sel`` (ode23/ode45/ode78/ode89); MATLAB's names too. See :func:`ode45`.
+        ``output_sel`` (ode23/ode45/ode78/ode89/ode113; ``events`` also ode15s/ode23s/ode23t/ode23tb);
+        MATLAB's names too. See :func:`ode45`.
 
     Returns
     -------
@@ -353,12 +354,20 @@ def _output_function(opts: SolverOptions, tspan: np.ndarray, y0: np.ndarray):
 def _solve_implicit(fun, tspan, y0, f0, m: Method, opts: SolverOptions) -> Solution:
     from odelab.solvers.implicit import solve_implicit
 
-    (t, y, nsteps, nfailed, status, t_stop, h_stop, exc), work = solve_implicit(fun, tspan, y0, f0, m, opts)
+    events = None
+    if opts.events is not None:
+        from odelab.solvers.events import as_event_function
+
+        events = as_event_function(opts.events, opts.args, float(tspan[0]), y0)
+    (t, y, nsteps, nfailed, status, t_stop, h_stop, exc), work = solve_implicit(fun, tspan, y0, f0, m, opts, events)
     stats = Stats(nsteps=nsteps, nfailed=nfailed, nfevals=work.nfevals + 1, npds=work.npds,
                   ndecomps=work.ndecomps, nsolves=work.nsolves)
-    message = _status_message(status, m, t_stop, h_stop, y, y0, opts, exc, tspan)
-    return Solution(t=t, y=y, stats=stats, status="success" if status == 0 else "failed", message=message,
-                    method=m.name, warnings=opts.warnings, interpolant=work.dense)
+    te, ye, ie = work.found
+    message = _status_message(status, m, t_stop, h_stop, y, y0, opts, exc, tspan, te, ie)
+    return Solution(t=t, y=y, stats=stats, status="failed" if status in _FAILURES else "success", message=message,
+                    method=m.name, warnings=opts.warnings, interpolant=work.dense,
+                    te=np.array(te, dtype=float), ye=np.array(ye, dtype=float).reshape(len(ye), y0.size),
+                    ie=np.array(ie, dtype=int))
 
 
 def fixed_grid(tspan: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:

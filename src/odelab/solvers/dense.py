@@ -254,8 +254,8 @@ def deval(sol, t) -> np.ndarray:
         method = getattr(sol, "method", "") or "this method"
         raise InputError(
             f"this solution has no dense output: {method} does not provide one. Solve with ode23, ode45 "
-            "(their ntrp23/ntrp45 interpolants), ode78 or ode89 (Verner's), or with a vector tspan of the "
-            "times you need.",
+            "(their ntrp23/ntrp45 interpolants), ode78 or ode89 (Verner's), ode113 (Adams), ode23t or ode23tb "
+            "(their quadratics), or with a vector tspan of the times you need.",
             key="sol",
         )
     return interpolant(t)

@@ -92,8 +92,8 @@ class Method:
         if self.kind == "fixed":
             return ("h", "args")
         if self.kind == "implicit":
-            common = ("rtol", "atol", "max_step", "initial_step", "refine", "max_steps", "jacobian", "jpattern",
-                      "vectorized", "mass", "args")
+            common = ("rtol", "atol", "max_step", "initial_step", "refine", "max_steps", "events", "jacobian",
+                      "jpattern", "vectorized", "mass", "args")
             return common + (("max_order", "bdf") if self.name == "ode15s" else ())
         return ("rtol", "atol", "max_step", "initial_step", "max_steps", "args")
 

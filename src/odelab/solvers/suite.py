@@ -1,8 +1,9 @@
 """The rest of MATLAB's ODE suite as functions: ``odelab.ode15s(fun, tspan, y0, ...)`` and co.
 
 Each takes MATLAB's arguments and ``odeset`` option names (``RelTol``, ``AbsTol``,
-``MaxStep``, ``InitialStep``, ``Refine``, and for the stiff solvers ``Jacobian``, ``JPattern``,
-``Vectorized``, ``Mass``; ``MaxOrder`` and ``BDF`` for ode15s) or odelab's snake_case names,
+``MaxStep``, ``InitialStep``, ``Refine``, ``Events``, and for the stiff solvers ``Jacobian``,
+``JPattern``, ``Vectorized``, ``Mass``; ``MaxOrder`` and ``BDF`` for ode15s) or odelab's
+snake_case names,
 and returns a :class:`~odelab.solution.Solution` whose ``stats`` count what MATLAB's
 ``Stats`` prints (for the stiff solvers also Jacobians, LU decompositions, linear solves).
 """

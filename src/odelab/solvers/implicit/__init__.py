@@ -78,8 +78,11 @@ def resolve_extras(method, opts, n: int) -> dict:
     return out
 
 
-def solve_implicit(fun, tspan, y0, f0, m, opts):
-    """Run the native stiff solver ``m`` and wrap its result as the engine's tuple plus counters."""
+def solve_implicit(fun, tspan, y0, f0, m, opts, events=None):
+    """Run the native stiff solver ``m`` and wrap its result as the engine's tuple plus counters.
+
+    ``events``: ``(ev, v0)`` from :func:`odelab.solvers.events.as_event_function`, or None; the
+    events found are in ``work.found`` afterwards."""
     from odelab.solvers.implicit.common import Work
 
     extra = opts.extra
@@ -100,22 +103,23 @@ def solve_implicit(fun, tspan, y0, f0, m, opts):
 
         dae = mass is not None and np.linalg.matrix_rank(mass.toarray() if hasattr(mass, "toarray") else mass) < n
         result = integrate_ode15s(work, tspan, y0, f0, opts.rtol, atol, opts.max_step, opts.initial_step,
-                                  opts.refine, opts.max_steps, max_order=extra["max_order"], bdf=extra["bdf"], dae=dae)
+                                  opts.refine, opts.max_steps, max_order=extra["max_order"], bdf=extra["bdf"], dae=dae,
+                                  events=events)
     elif name == "ode23s":
         from odelab.solvers.implicit.ode23s import integrate_ode23s
 
         result = integrate_ode23s(work, tspan, y0, f0, opts.rtol, atol, opts.max_step, opts.initial_step,
-                                  opts.refine, opts.max_steps)
+                                  opts.refine, opts.max_steps, events)
     elif name == "ode23t":
         from odelab.solvers.implicit.ode23t import integrate_ode23t
 
         result = integrate_ode23t(work, tspan, y0, f0, opts.rtol, atol, opts.max_step, opts.initial_step,
-                                  opts.refine, opts.max_steps)
+                                  opts.refine, opts.max_steps, events)
     elif name == "ode23tb":
         from odelab.solvers.implicit.ode23tb import integrate_ode23tb
 
         result = integrate_ode23tb(work, tspan, y0, f0, opts.rtol, atol, opts.max_step, opts.initial_step,
-                                   opts.refine, opts.max_steps)
+                                   opts.refine, opts.max_steps, events)
     else:  # pragma: no cover - the registry lists only the solvers above as implicit
         raise ValueError(name)
     return result, work

@@ -55,6 +55,7 @@ class Work:
             self.mass = mass
         self.identity = self._identity()
         self.dense = None  # a solver with dense output leaves its DenseOutput here
+        self.found = ([], [], [])  # the events located (te, ye, ie), left here by the solver
 
     def _identity(self):
         if self.sparse:
@@ -282,9 +283,16 @@ def consistent_slope(work: "Work", t: float, y: np.ndarray, f0: np.ndarray, J) -
 
 
 class Output:
-    """Collect MATLAB's output points from accepted steps and a per-step interpolant."""
+    """Collect MATLAB's output points from accepted steps and a per-step interpolant, and locate
+    events (MATLAB's ``Events``) on that interpolant with :func:`odelab.solvers.events.locate_events`.
 
-    def __init__(self, tspan: np.ndarray, y0: np.ndarray, refine: int):
+    ``events`` is ``(ev, v0)`` from :func:`~odelab.solvers.events.as_event_function` (or None).
+    A terminal event cuts the step at the event: the output ends there (``Refine`` points spread
+    over the cut step, the event's point appended, as MATLAB outputs it) and :meth:`step`
+    returns True; the solver then stops with ``t, y = out.t[-1], out.y[-1]``.
+    """
+
+    def __init__(self, tspan: np.ndarray, y0: np.ndarray, refine: int, events=None):
         self.tspan = tspan
         self.every_step = tspan.size == 2
         self.refine = refine
@@ -292,9 +300,37 @@ class Output:
         self.t = [float(tspan[0])]
         self.y = [y0.copy()]
         self.next = 1
+        self.events, self.v = events if events is not None else (None, None)
+        self.t0 = float(tspan[0])
+        self.y_left = y0.copy()  # the state at the start of the next step (event brackets)
+        self.te: list[float] = []
+        self.ye: list[np.ndarray] = []
+        self.ie: list[int] = []
 
-    def step(self, t: float, tnew: float, ynew: np.ndarray, interp) -> None:
-        """Record the step ``t -> tnew``; ``interp(times)`` returns states (len(times), n)."""
+    def step(self, t: float, tnew: float, ynew: np.ndarray, interp) -> bool:
+        """Record the step ``t -> tnew``; ``interp(times)`` returns states (len(times), n).
+
+        Returns True when a terminal event stopped the integration inside the step."""
+        stop = False
+        if self.events is not None:
+            from odelab.solvers.events import locate_events
+
+            found_t, found_y, found_i, self.v, stop = locate_events(
+                lambda tq: interp(np.array([tq]))[0], self.events, self.v, t, self.y_left, tnew, ynew, self.t0)
+            self.y_left = ynew.copy()
+            if found_t:
+                self.te.extend(found_t)
+                self.ye.extend(np.array(v, dtype=float) for v in found_y)
+                self.ie.extend(found_i)
+                if stop:
+                    tnew, ynew = found_t[-1], np.asarray(found_y[-1], dtype=float)
+        self._record(t, tnew, ynew, interp)
+        if stop and self.t[-1] != tnew:  # MATLAB outputs the terminal event's point
+            self.t.append(tnew)
+            self.y.append(ynew.copy())
+        return stop
+
+    def _record(self, t: float, tnew: float, ynew: np.ndarray, interp) -> None:
         if self.every_step:
             if self.refine > 1:
                 times = t + (tnew - t) * np.arange(1, self.refine) / self.refine
@@ -319,6 +355,10 @@ class Output:
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray]:
         return np.array(self.t), np.vstack(self.y)
+
+    def found(self) -> tuple[list[float], list[np.ndarray], list[int]]:
+        """The events located: ``(te, ye, ie)`` in the order found (0-based indices)."""
+        return self.te, self.ye, self.ie
 
 
 class QuadraticSteps:
@@ -346,6 +386,12 @@ class QuadraticSteps:
             return y + s * a1 + (s * s) * a2
 
         return interp
+
+    def cut(self, tend: float) -> None:
+        """End the last step at ``tend`` (a terminal event): the same quadratic on ``[t_n, tend]``."""
+        r = (tend - self.t[-1]) / self.h[-1]
+        self.h[-1] = tend - self.t[-1]
+        self.K[-1] = np.stack([self.K[-1][0], self.K[-1][1] * r])
 
     def dense(self, y_final: np.ndarray):
         if not self.t:

@@ -53,8 +53,11 @@ def change_differences(D: np.ndarray, order: int, factor: float) -> None:
 
 
 def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, max_steps, max_order=5, bdf=False,
-                     dae=False):
-    """Integrate with ode15s; returns the engine's tuple ``(t, y, nsteps, nfailed, status, t_stop, h_stop, exc)``."""
+                     dae=False, events=None):
+    """Integrate with ode15s; returns the engine's tuple ``(t, y, nsteps, nfailed, status, t_stop, h_stop, exc)``.
+
+    ``events``: ``(ev, v0)`` (MATLAB's Events), located on the step's backward-difference
+    interpolant; the events found are left in ``work.found``."""
     kappa = np.zeros(6) if bdf else KAPPA
     alpha = (1.0 - kappa) * GAMMA
     erconst = kappa * GAMMA + 1.0 / np.arange(1, 7)
@@ -62,7 +65,7 @@ def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
     t0, tf = float(tspan[0]), float(tspan[-1])
     tdir = 1.0 if tf > t0 else -1.0
     threshold = atol / rtol
-    out = Output(tspan, y0, refine)
+    out = Output(tspan, y0, refine, events)
     nsteps = nfailed = 0
     status, exception = engine.STATUS_SUCCESS, None
     t, y = t0, y0.copy()
@@ -233,7 +236,10 @@ def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                     x = (np.asarray(times)[:, None] - (_t - _h * np.arange(_k))) / (_h * np.arange(1, _k + 1))
                     return _D[0] + np.cumprod(x, axis=1) @ _D[1:]
 
-                out.step(t, tnew, D[0], interp)
+                if out.step(t, tnew, D[0], interp):
+                    t, y = out.t[-1], out.y[-1]
+                    status = engine.STATUS_TERMINAL_EVENT
+                    break
                 t, y = tnew, D[0].copy()
                 nconhk = min(nconhk + 1, max_order + 2)
                 if done:
@@ -263,4 +269,5 @@ def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
         except Exception as exc:  # the user's right-hand side (or Jacobian) failed
             status, exception = engine.STATUS_FUN_RAISED, exc
     t_out, y_out = out.arrays()
+    work.found = out.found()
     return t_out, y_out, nsteps, nfailed, status, t, absh, exception

@@ -37,12 +37,15 @@ E32 = 6.0 + math.sqrt(2.0)
 POWER = 1.0 / 3.0
 
 
-def integrate_ode23s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, max_steps):
-    """Integrate with ode23s; returns ``(t, y, nsteps, nfailed, status, t_stop, h_stop, exc)``."""
+def integrate_ode23s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, max_steps, events=None):
+    """Integrate with ode23s; returns ``(t, y, nsteps, nfailed, status, t_stop, h_stop, exc)``.
+
+    ``events``: ``(ev, v0)`` (MATLAB's Events), located on the step's interpolant; the events
+    found are left in ``work.found``."""
     t0, tf = float(tspan[0]), float(tspan[-1])
     tdir = 1.0 if tf > t0 else -1.0
     threshold = atol / rtol
-    out = Output(tspan, y0, refine)
+    out = Output(tspan, y0, refine, events)
     nsteps = nfailed = 0
     status, exception = engine.STATUS_SUCCESS, None
     t, y, F0 = t0, y0.copy(), f0
@@ -99,7 +102,10 @@ def integrate_ode23s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                     s = (np.asarray(times)[:, None] - _t) / _h
                     return _y + _h * ((s * (1 - s) / (1 - 2 * D)) * _k1 + (s * (s - 2 * D) / (1 - 2 * D)) * _k2)
 
-                out.step(t, tnew, ynew, interp)
+                if out.step(t, tnew, ynew, interp):
+                    t = out.t[-1]
+                    status = engine.STATUS_TERMINAL_EVENT
+                    break
                 if done:
                     t = tnew
                     break
@@ -114,4 +120,5 @@ def integrate_ode23s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
         except Exception as exc:
             status, exception = engine.STATUS_FUN_RAISED, exc
     t_out, y_out = out.arrays()
+    work.found = out.found()
     return t_out, y_out, nsteps, nfailed, status, t, absh, exception

@@ -109,12 +109,16 @@ def tr_attempt(work: Work, lu, t: float, y: np.ndarray, yp: np.ndarray, ypred: n
     return ynew, znew, est, converged
 
 
-def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, max_steps):
-    """Integrate with ode23t; returns ``(t, y, nsteps, nfailed, status, t_stop, h_stop, exc)``."""
+def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, max_steps, events=None):
+    """Integrate with ode23t; returns ``(t, y, nsteps, nfailed, status, t_stop, h_stop, exc)``.
+
+    ``events``: ``(ev, v0)`` (MATLAB's Events), located on the step's quadratic interpolant (a
+    terminal event cuts the step and its interpolant there); the events found are left in
+    ``work.found``."""
     t0, tf = float(tspan[0]), float(tspan[-1])
     tdir = 1.0 if tf > t0 else -1.0
     threshold = atol / rtol
-    out = Output(tspan, y0, refine)
+    out = Output(tspan, y0, refine, events)
     steps = QuadraticSteps()
     nsteps = nfailed = 0
     status, exception = engine.STATUS_SUCCESS, None
@@ -195,7 +199,11 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                     break
 
                 nsteps += 1
-                out.step(t, tnew, ynew, steps.add(t, h, y, *interpolant(history, tnew, ynew, h * yp, znew)))
+                if out.step(t, tnew, ynew, steps.add(t, h, y, *interpolant(history, tnew, ynew, h * yp, znew))):
+                    t, y = out.t[-1], out.y[-1]
+                    steps.cut(t)
+                    status = engine.STATUS_TERMINAL_EVENT
+                    break
                 t, y, yp = tnew, ynew, znew / h
                 history = history[-2:] + [(t, y)]
                 Jcurrent = False
@@ -212,5 +220,6 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
         except Exception as exc:  # the user's right-hand side (or Jacobian) failed
             status, exception = engine.STATUS_FUN_RAISED, exc
     t_out, y_out = out.arrays()
+    work.found = out.found()
     work.dense = steps.dense(y)
     return t_out, y_out, nsteps, nfailed, status, t, absh, exception
