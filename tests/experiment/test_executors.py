@@ -169,3 +169,25 @@ def test_ctrl_c_in_a_pool_keeps_the_sweeps_finished_cases(tmp_path, monkeypatch)
     # stop = 1 and 2 finished after stop = 3000 had started (longest first): stored too, in case order
     assert [r["case"] for r in record["rows"]] == ["stop=0.5", "stop=1", "stop=2"]
     assert all(r["status"] == "success" for r in record["rows"])
+
+
+def test_default_jobs_keep_small_runs_in_one_process(experiment, monkeypatch):
+    """Forking a pool for four sub-millisecond cases costs more than it saves; --jobs 2 still pools."""
+    from odelab.experiment import executors
+
+    costs = [executors.case_cost(c) for c in experiment.cases]
+    assert 0 < sum(costs) < executors.POOL_WORTHWHILE  # about evaluations: a few hundred each
+    assert executors.small_work(experiment.cases)
+    started = []
+    real_pool = executors._run_pool
+    monkeypatch.setattr(executors, "_run_pool", lambda *a: started.append(a[1]) or real_pool(*a))
+    monkeypatch.setattr(executors, "default_jobs", lambda: 2)
+    assert _plain(run_cases(experiment.cases, executor="process")) == _plain(run_cases(experiment.cases,
+                                                                                     executor="serial"))
+    assert started == []
+    list(run_cases(experiment.cases, executor="process", jobs=2))
+    assert started == [2]
+    # the same cases at a fine fixed step are worth a pool
+    fine = [c for c in experiment.cases]
+    monkeypatch.setattr(executors, "case_cost", lambda case: executors.POOL_WORTHWHILE / 2)
+    assert not executors.small_work(fine)

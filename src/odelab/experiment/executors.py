@@ -29,7 +29,7 @@ from typing import Callable, Iterable, Iterator
 
 from odelab.exceptions import InputError
 
-__all__ = ["EXECUTORS", "CaseError", "case_cost", "default_jobs", "run_cases", "schedule"]
+__all__ = ["EXECUTORS", "CaseError", "POOL_WORTHWHILE", "case_cost", "default_jobs", "run_cases", "schedule", "small_work"]
 
 EXECUTORS = ("serial", "process", "dask")
 
@@ -76,6 +76,23 @@ def case_cost(case) -> float:
         return stages * max(span, 1e-300) * rtol ** (-1.0 / order)
     except (TypeError, ValueError, KeyError, AttributeError, ZeroDivisionError, OverflowError):
         return 1.0
+
+
+#: Below this much estimated work (:func:`case_cost`'s units, about right-hand-side evaluations
+#: of the Python engine, a few microseconds each), a run with the default ``jobs`` stays in one
+#: process: forking a pool and sending every result back costs 0.1-0.2 s, more than it saves.
+POOL_WORTHWHILE = 50_000
+
+
+def small_work(cases: list) -> bool:
+    """Whether ``cases`` together are too little work to be worth a process pool."""
+    total = 0.0
+    for case in cases:
+        cost = case_cost(case)
+        total += cost if math.isfinite(cost) else POOL_WORTHWHILE
+        if total >= POOL_WORTHWHILE:
+            return False
+    return True
 
 
 def schedule(cases: list) -> list[int]:
@@ -161,8 +178,9 @@ def run_cases(cases: Iterable, *, executor: str = "serial", jobs: int | None = N
     cases = list(cases)
     if executor not in EXECUTORS:
         raise InputError(f"`executor` is {executor!r}; it must be one of {', '.join(EXECUTORS)}.", key="executor")
+    asked = jobs is not None
     jobs = jobs or default_jobs()
-    if executor == "process" and (jobs < 2 or len(cases) < 2):
+    if executor == "process" and (jobs < 2 or len(cases) < 2 or (not asked and small_work(cases))):
         executor = "serial"
     counts = [0, 0]
 
