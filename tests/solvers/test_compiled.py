@@ -417,7 +417,7 @@ def test_events_are_located_as_the_python_engine_does(y0, tspan, options):
 
 
 def test_events_need_an_adaptive_method():
-    with pytest.raises(InputError, match=r"\[events\] are located by ode23 and ode45"):
+    with pytest.raises(InputError, match=r"the compiled backend locates \[events\] with ode23 and ode45 only"):
         solve_compiled(BALL, [0, 1], [10.0, 0.0], "rk4", h=0.1)
 
 

@@ -316,7 +316,8 @@ def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dic
         return api._failed_at_start(m, tspan_arr, y0_arr, opts, f"the derivative at t = {t0:g} is not finite "
                                     f"({api._fmt_vec(f0)}): check the right-hand side at the initial state")
     if system.events and m.kind != "adaptive":
-        raise InputError(f"[events] are located by ode23 and ode45 (MATLAB's Events); the method is {m.name}.",
+        raise InputError(f"the compiled backend locates [events] with ode23 and ode45 only; the method is {m.name} "
+                         "(backend \"python\" locates them with ode78, ode89, ode113 and the stiff solvers too).",
                          key="method")
     if m.kind == "fixed":
         grid, keep = api.fixed_grid(tspan_arr, opts.h)
