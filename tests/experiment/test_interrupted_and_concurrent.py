@@ -36,8 +36,15 @@ backend = "python"
 """
 
 
+def _default_sigint():
+    # A shell without job control starts background commands with SIGINT ignored, and Python
+    # then installs no KeyboardInterrupt handler: the child would never see the Ctrl-C this
+    # test sends when the suite itself runs in the background (`.ci/run &`).
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def odelab(*args, cwd):
-    return subprocess.Popen([sys.executable, "-m", "odelab.cli", *map(str, args)], cwd=cwd,
+    return subprocess.Popen([sys.executable, "-m", "odelab.cli", *map(str, args)], cwd=cwd, preexec_fn=_default_sigint,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
