@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from odelab.exceptions import InputError
+from odelab.solvers.dense import clip_nonnegative, query_times
 from odelab.solvers.engine import (
     STATUS_FUN_RAISED,
     STATUS_MAX_STEPS,
@@ -159,20 +159,7 @@ class AdamsDenseOutput:
 
     def __call__(self, tq) -> np.ndarray:
         """States at the times ``tq``: shape (n,) for a scalar, (m, n) for a sequence."""
-        tq_arr = np.asarray(tq)
-        scalar = tq_arr.ndim == 0
-        if np.iscomplexobj(tq_arr) or not np.issubdtype(tq_arr.dtype, np.number) or tq_arr.dtype == bool:
-            raise InputError(f"`t` must be a time or a sequence of times; got {tq!r}.", key="t")
-        times = np.atleast_1d(tq_arr).astype(float).ravel()
-        lo, hi = sorted((self.t_start, self.t_stop))
-        outside = (times < lo) | (times > hi) | ~np.isfinite(times)
-        if outside.any():
-            bad = float(times[int(np.argmax(outside))])
-            raise InputError(
-                f"cannot evaluate the solution at t = {bad:g}: it covers [{lo:g}, {hi:g}] only "
-                "(MATLAB's deval refuses to extrapolate too). Use odextend to continue the solution.",
-                key="t",
-            )
+        times, scalar = query_times(tq, self.t_start, self.t_stop)
         tdir = 1.0 if self.t_end[0] > self.t[0] else -1.0
         # Step i covers (t_i, t_end_i]: a time on a boundary takes the step that ends there.
         idx = np.clip(np.searchsorted(tdir * self.t_end, tdir * times, side="left"), 0, self.t.size - 1)
@@ -191,9 +178,7 @@ class AdamsDenseOutput:
             g, _ = _interpolation_coefficients(hi_all[sel], self.psi[idx[sel]], int(ki))
             values[sel] = self.y_ref[idx[sel]] + hi_all[sel, None] * np.einsum("mj,mjn->mn", g, phi[sel, :ki])
         values[times == self.t_stop] = self.y_final
-        if self.nonnegative is not None:
-            part = values[:, self.nonnegative]
-            values[:, self.nonnegative] = np.where(part < 0, 0.0, part)
+        clip_nonnegative(values, self.nonnegative)
         return values[0] if scalar else values
 
     def extended(self, other: "AdamsDenseOutput") -> "AdamsDenseOutput":

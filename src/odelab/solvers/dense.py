@@ -22,10 +22,33 @@ import numpy as np
 
 from odelab.exceptions import InputError
 
-__all__ = ["basis_values", "step_value", "step_slopes", "StageCompletion", "DenseOutput", "deval", "odextend"]
+__all__ = ["basis_values", "clip_nonnegative", "query_times", "step_value", "step_slopes", "StageCompletion", "DenseOutput", "deval", "odextend"]
 
 
-def _clip(values: np.ndarray, nonnegative) -> np.ndarray:
+def query_times(tq, start: float, stop: float) -> tuple[np.ndarray, bool]:
+    """``deval``'s times as a flat float array, and whether a scalar was given.
+
+    Refuses anything but real numbers, and times outside [start, stop] (MATLAB's deval does not
+    extrapolate), with the message users see.
+    """
+    tq_arr = np.asarray(tq)
+    if np.iscomplexobj(tq_arr) or not np.issubdtype(tq_arr.dtype, np.number) or tq_arr.dtype == bool:
+        raise InputError(f"`t` must be a time or a sequence of times; got {tq!r}.", key="t")
+    times = np.atleast_1d(tq_arr).astype(float).ravel()
+    lo, hi = sorted((start, stop))
+    outside = (times < lo) | (times > hi) | ~np.isfinite(times)
+    if outside.any():
+        bad = float(times[int(np.argmax(outside))])
+        raise InputError(
+            f"cannot evaluate the solution at t = {bad:g}: it covers [{lo:g}, {hi:g}] only "
+            "(MATLAB's deval refuses to extrapolate too). Use odextend to continue the solution.",
+            key="t",
+        )
+    return times, tq_arr.ndim == 0
+
+
+def clip_nonnegative(values: np.ndarray, nonnegative) -> np.ndarray:
+    """Set the ``nonnegative`` components of ``values`` below zero to zero, in place (MATLAB's NonNegative)."""
     if nonnegative is not None:
         part = values[..., nonnegative]
         values[..., nonnegative] = np.where(part < 0, 0.0, part)
@@ -77,7 +100,7 @@ def step_value(tq: float, t: float, y: np.ndarray, h: float, K: np.ndarray, dens
     else:
         powers = basis_values((tq - t) / h, dense.shape[1], basis)[:, 0]
     value = y + (K.T @ (h * dense)) @ powers
-    return _clip(value, nonnegative) if nonnegative is not None else value
+    return clip_nonnegative(value, nonnegative) if nonnegative is not None else value
 
 
 def step_slopes(tq: np.ndarray, t: float, y: np.ndarray, h: float, K: np.ndarray, dense: np.ndarray,
@@ -177,20 +200,7 @@ class DenseOutput:
 
     def __call__(self, tq) -> np.ndarray:
         """States at the times ``tq``: shape (n,) for a scalar, (k, n) for a sequence."""
-        tq_arr = np.asarray(tq)
-        scalar = tq_arr.ndim == 0
-        if np.iscomplexobj(tq_arr) or not np.issubdtype(tq_arr.dtype, np.number) or tq_arr.dtype == bool:
-            raise InputError(f"`t` must be a time or a sequence of times; got {tq!r}.", key="t")
-        times = np.atleast_1d(tq_arr).astype(float).ravel()
-        lo, hi = sorted((self.t_start, self.t_end))
-        outside = (times < lo) | (times > hi) | ~np.isfinite(times)
-        if outside.any():
-            bad = float(times[int(np.argmax(outside))])
-            raise InputError(
-                f"cannot evaluate the solution at t = {bad:g}: it covers [{lo:g}, {hi:g}] only "
-                "(MATLAB's deval refuses to extrapolate too). Use odextend to continue the solution.",
-                key="t",
-            )
+        times, scalar = query_times(tq, self.t_start, self.t_end)
         tdir = 1.0 if self.h[0] > 0 else -1.0
         # Step i covers [t_i, t_i + h_i); a time on a step boundary takes the later step at s = 0,
         # which is that step's stored start state exactly.
@@ -206,7 +216,7 @@ class DenseOutput:
         values = self.y[idx] + np.einsum("km,kmn->kn", powers, coef)
         values[times == self.t_end] = self.y_final
         if self.nonnegative is not None:
-            _clip(values, self.nonnegative)
+            clip_nonnegative(values, self.nonnegative)
         return values[0] if scalar else values
 
     def extended(self, other: "DenseOutput") -> "DenseOutput":
