@@ -505,6 +505,31 @@ def solvers() -> None:
     out.print(table)
 
 
+@app.command(cls=_Command)
+def explain(
+    key: Annotated[Optional[str], typer.Argument(help="A key of experiment files, e.g. inputs.pulse or solver.rtol.",
+                                                 show_default=False, metavar="[KEY]")] = None,
+) -> None:
+    """Print the reference entry of an experiment-file key: type, default, choices, MATLAB names."""
+    import textwrap
+
+    from odelab.experiment.keyref import entries, explain as entry_text
+    from odelab.terminal import visible
+
+    _, err = _consoles()
+    if key is None:
+        tops = [e for e in entries() if "." not in e.path]
+        for e in tops:
+            typer.echo(f"{e.path:<12} {textwrap.shorten(e.text, 66, placeholder=' ...')}")
+        typer.echo("\nodelab explain TABLE.KEY for one key (e.g. odelab explain inputs.pulse).")
+        return
+    try:
+        typer.echo(entry_text(key))
+    except LookupError as exc:
+        err.print(f"[bold red]error:[/] {_escape(visible(str(exc.args[0])))}")
+        raise typer.Exit(EXIT_INPUT) from None
+
+
 def main() -> None:  # pragma: no cover - the console-script entry point
     app()
 

@@ -1,0 +1,543 @@
+"""The key reference of experiment files, generated from the schema so that it cannot drift.
+
+Every key the pydantic schema (:mod:`odelab.experiment.schema`) accepts is listed with its
+type, default and choices read from the model itself; the free-form tables that other modules
+check (``[sweep]``, ``[study]``, ``[events]``, ``[[case]]``, ``[[problem]]``) and each input
+signal type's keys (from :data:`odelab.experiment.build.SIGNAL_KEYS`) are added from the
+modules that check them. A sentence per key comes from :data:`NOTES`; a key without one is
+still listed, with its type and default. ``odelab explain KEY`` and the documentation's key
+reference page both read :func:`entries`.
+"""
+
+from __future__ import annotations
+
+import difflib
+import types
+import typing
+from dataclasses import dataclass, field
+
+__all__ = ["KeyEntry", "NOTES", "entries", "explain", "find", "markdown"]
+
+
+@dataclass(frozen=True)
+class KeyEntry:
+    """One key of an experiment file: ``solver.rtol``, ``inputs.<name>.type``, ``inputs.pulse.width``."""
+
+    path: str
+    type: str
+    default: str | None = None
+    choices: tuple[str, ...] = ()
+    text: str = ""
+    matlab: tuple[str, ...] = ()  # MATLAB's spellings that the file also accepts
+    children: tuple[str, ...] = field(default=(), compare=False)
+
+    @property
+    def table(self) -> str:
+        return self.path.rsplit(".", 1)[0] if "." in self.path else ""
+
+
+# One sentence (or two) per key: what it means, its unit, what MATLAB calls it.
+NOTES: dict[str, str] = {
+    "name": "The experiment's name (default: the file's name without .toml); runs are stored under runs/<name>/.",
+    "title": "A one-line title, shown in the terminal and as the report's section heading.",
+    "description": "A paragraph for the report, under the title.",
+    "parameters": "Named numbers or expressions of other parameters (`k = \"m*w^2\"`), usable in every expression "
+                  "of the file, as MATLAB workspace variables. A parameter may shadow a constant such as `e`.",
+    "parameters.<name>": "A number, or an expression of other parameters.",
+    "system": "What is integrated: equations, a state-space model, a block diagram or a Python function.",
+    "system.kind": "The kind of system: `ode` (states and [system.equations]), `state-space` (A, B, C, D), "
+                   "`diagram` ([blocks]).",
+    "system.states": "The state names, in order (the order of y in MATLAB).",
+    "system.equations": "d(state)/dt for each state, in the expression language.",
+    "system.equations.<name>": "The right-hand side of d(<name>)/dt: an expression of t, the states, the inputs "
+                               "and the parameters.",
+    "system.function": "A Python function `def f(t, y)`, written \"file.py:name\" relative to the experiment file, "
+                       "as a MATLAB function file (runs code: refused by `odelab grade` unless allowed).",
+    "system.inputs": "The input names (u); each needs an [inputs.<name>] signal.",
+    "system.outputs": "Outputs: a table of expressions (`y = \"q*x\"`), the names of state-space outputs, or, for "
+                      "a diagram, output name = block name.",
+    "system.A": "State matrix of x' = Ax + Bu: TOML rows or a MATLAB matrix string \"[0 1; -k/m -b/m]\".",
+    "system.B": "Input matrix of x' = Ax + Bu.",
+    "system.C": "Output matrix of y = Cx + Du.",
+    "system.D": "Feedthrough matrix of y = Cx + Du (default zeros).",
+    "system.jacobian": "An analytic Jacobian of [system.equations] (row i: the derivatives of equation i), checked "
+                       "against the equations at the initial state; by default odelab derives it exactly.",
+    "initial": "Initial values of the states (default 0), numbers or expressions of the parameters.",
+    "initial.<name>": "The initial value of state <name>.",
+    "time": "The time span and output times (MATLAB's tspan).",
+    "time.start": "The start of the span (t0).",
+    "time.stop": "The end of the span (tf); a number or an expression such as \"pi\".",
+    "time.output": "Output times: a list, or a MATLAB range string \"0:0.1:15\" (MATLAB's vector tspan).",
+    "time.points": "A number of equally spaced output times over the span (linspace).",
+    "exact": "The analytical solution, per state or output, for error tables.",
+    "exact.<name>": "An expression of t and the parameters: the exact value of <name>.",
+    "solver": "The method and its options (MATLAB's odeset names work too).",
+    "solver.method": "The method: MATLAB's ode45, ode23, ode113, ode78, ode89, ode15s, ode23s, ode23t, ode23tb; "
+                     "fixed-step euler, heun, midpoint, rk3, rk4; SciPy's RK23, RK45, DOP853, Radau, BDF, LSODA "
+                     "(`odelab solvers` lists them).",
+    "solver.rtol": "Relative tolerance (MATLAB's RelTol; default 1e-3 for MATLAB's methods).",
+    "solver.atol": "Absolute tolerance, a number or one per state (MATLAB's AbsTol; default 1e-6).",
+    "solver.max_step": "The largest step (MATLAB's MaxStep; default a tenth of the span).",
+    "solver.initial_step": "The first step to try (MATLAB's InitialStep).",
+    "solver.refine": "Output points per step (MATLAB's Refine; ode45's default 4).",
+    "solver.norm_control": "Control the error in norm rather than per component (MATLAB's NormControl).",
+    "solver.h": "The step of a fixed-step method (euler, heun, midpoint, rk3, rk4), in the units of t.",
+    "solver.max_steps": "The largest number of steps before the case stops as failed; the run's own budget "
+                        "(--max-steps) caps it.",
+    "solver.max_order": "ode15s's highest order, 1 to 5 (MATLAB's MaxOrder).",
+    "solver.bdf": "ode15s with backward differentiation formulas instead of NDFs (MATLAB's BDF).",
+    "solver.vectorized": "The equations accept many states at once (MATLAB's Vectorized), for the stiff "
+                         "solvers' Jacobian.",
+    "solver.nonnegative": "States kept nonnegative (MATLAB's NonNegative), by name.",
+    "solver.mass": "A mass matrix M in M y' = f, of expressions of t, the states and parameters (MATLAB's Mass); "
+                   "singular with ode15s or ode23t for an index-1 DAE.",
+    "solver.mstate_dependence": "How the mass matrix depends on the state (MATLAB's MStateDependence).",
+    "solver.backend": "Which engine runs an expression system: `auto` (compiled only when the run is long), "
+                      "`python` or `compiled` (numba).",
+    "reference": "What the errors are measured against.",
+    "reference.method": "`auto` (the exact solution if given, the exact LTI response of a linear system, else a "
+                        "high-accuracy solve), `exact`, `lti`, `high-accuracy` or `none`.",
+    "reference.solver": "The method of the high-accuracy reference (default DOP853; a stiff problem needs a stiff "
+                        "method such as Radau or ode15s).",
+    "reference.rtol": "The high-accuracy reference's relative tolerance.",
+    "reference.atol": "The high-accuracy reference's absolute tolerance.",
+    "inputs": "The input signals u(t), one table per input name.",
+    "inputs.<name>": "The signal of input <name>: a `type` and that type's keys.",
+    "inputs.<name>.type": "The signal type; each type's keys are listed under inputs.<type>.",
+    "inputs.step": "u = initial before `time`, final from `time` on (Simulink's Step block, whose default time is 1; "
+                   "odelab's is 0).",
+    "inputs.step.time": "The step time, in the units of t.",
+    "inputs.step.initial": "The value before the step.",
+    "inputs.step.final": "The value from the step on.",
+    "inputs.ramp": "u = initial + slope (t - start) from `start` on, `initial` before (Simulink's Ramp).",
+    "inputs.ramp.slope": "The slope, in units of u per unit of t.",
+    "inputs.ramp.start": "The time the ramp starts.",
+    "inputs.ramp.initial": "The value before the ramp starts.",
+    "inputs.sine": "u = amplitude sin(frequency t + phase) + bias (Simulink's Sine Wave).",
+    "inputs.sine.amplitude": "The amplitude.",
+    "inputs.sine.frequency": "The angular frequency in rad/s (sin(0.2 t) is frequency = 0.2).",
+    "inputs.sine.phase": "The phase in rad.",
+    "inputs.sine.bias": "A constant added to the sine.",
+    "inputs.pulse": "A rectangular pulse train of `amplitude`, on for `width` of each `period`, starting at "
+                    "`delay` (Simulink's Pulse Generator, time based).",
+    "inputs.pulse.amplitude": "The value while the pulse is on (0 while off).",
+    "inputs.pulse.period": "The period, in the units of t.",
+    "inputs.pulse.width": "The fraction of the period the pulse is on, between 0 and 1 (Simulink's Pulse width "
+                          "is a percentage: 50 % is width = 0.5).",
+    "inputs.pulse.delay": "The time of the first rising edge (Simulink's Phase delay).",
+    "inputs.table": "Values read from a CSV file with a header row: time in the first column, u in the second, "
+                    "interpolated linearly between rows and held at the last value after the end.",
+    "inputs.table.file": "The CSV file, relative to the experiment file.",
+    "inputs.expression": "u = an expression of t and the parameters.",
+    "inputs.expression.expression": "The expression, e.g. \"t^2\" or \"sin(t)*exp(-t)\".",
+    "inputs.constant": "u = a constant value.",
+    "inputs.constant.value": "The value.",
+    "linearize": "Linearisation about an operating point and the linear-against-nonlinear comparison.",
+    "linearize.start": "`operating-point` (both models start at rest at the operating point) or `initial` "
+                       "(both start from [initial]).",
+    "linearize.drive": "The input whose steps are compared (default the first input).",
+    "linearize.input": "The operating input (f̄ = 1 is `input = { f = 1 }`); the state x̄ solves f(x̄, f̄) = 0.",
+    "linearize.state": "The operating state, when it is known instead of found.",
+    "linearize.guess": "A starting guess for the operating state's search.",
+    "linearize.fixed": "States held at given values while the operating point is found.",
+    "linearize.amplitudes": "Step amplitudes on top of the operating input for the amplitude study.",
+    "linearize.threshold": "The largest linearisation error, relative to the peak incremental response, that "
+                           "counts as valid.",
+    "linearize.quantity": "The state or output compared (default the first output, else the first state).",
+    "linearize.step_time": "When the step on top of the operating input starts.",
+    "analysis": "Control analysis of the linear (or linearised) system: stepinfo, Bode, poles.",
+    "analysis.step_info": "MATLAB's stepinfo on the exact step response.",
+    "analysis.bode": "A Bode plot: true, or a frequency range in rad/s.",
+    "analysis.bode.from": "The lowest frequency, rad/s.",
+    "analysis.bode.to": "The highest frequency, rad/s.",
+    "analysis.bode.points": "The number of frequencies (log spaced).",
+    "analysis.poles": "Poles with natural frequency and damping ratio, zeros and DC gains.",
+    "analysis.input": "A nonlinear system's operating input for the linearisation (default 0).",
+    "analysis.loop": "Diagrams: the block at whose input the loop is opened for gain and phase margins.",
+    "blocks": "The blocks of a diagram (kind = \"diagram\"), each a table with a `type` and its keys.",
+    "blocks.<name>": "One block: `type`, `input` or `inputs`, and the type's keys.",
+    "units": "A unit per time, state, input, output or parameter, shown on the report's axes (`x = \"m\"`).",
+    "units.<name>": "The unit of <name>, as text (\"m/s\"), shown as \"x (m)\".",
+    "events": "Zero-crossing events (MATLAB's Events), one table per event, and `max_events`.",
+    "events.max_events": "End the case cleanly after this many events (a Zeno guard; default 100).",
+    "events.<name>": "One event: `when`, `direction`, `terminal`, `reset`, `exact`.",
+    "events.<name>.when": "The event is a zero of this expression of t, the states and the parameters.",
+    "events.<name>.direction": "`rising`, `falling` or `both` (MATLAB's 1, -1, 0 also work).",
+    "events.<name>.terminal": "Stop (or, with a reset, restart) at the event: MATLAB's isterminal.",
+    "events.<name>.reset": "States changed at the event, e.g. `{ v = \"-cr*v\" }`: the case restarts from them.",
+    "events.<name>.exact": "The exact time of occurrence k = 0, 1, ..., to measure the event-time error.",
+    "case": "[[case]] tables: variants of the experiment, each deep-merged over the base, each with a `name`.",
+    "case.name": "The case's name, shown in tables and used as its folder under runs/<experiment>/.",
+    "problem": "[[problem]] tables: several systems run through the same cases, sweep and study; each has a "
+               "`name` and replaces the base's tables of the same names.",
+    "problem.name": "The problem's name; the experiment becomes <file>_<name>.",
+    "sweep": "Run variants over lists or ranges of values: dotted keys (`\"solver.h\"`, `\"parameters.k\"`) with "
+             "lists or ranges, plus `mode` and `store`.",
+    "sweep.<key>": "A list of values, or a range: { from, to, count } (linspace), with log = true (logspace), or "
+                   "{ from, to, step } (MATLAB's from:step:to).",
+    "sweep.mode": "`product` (every combination, the default) or `zip` (the lists side by side).",
+    "sweep.store": "`summary` (one table for the sweep, the default) or `all` (also every case's folder).",
+    "study": "A study over a sweep: observed convergence order or work-precision.",
+    "study.kind": "`convergence` (error against step size or tolerance, with the fitted order) or "
+                  "`work-precision` (error against cost).",
+    "study.over": "The swept key on the x axis (default solver.h, else solver.rtol).",
+    "study.error": "`max` (the largest error over the span) or `end` (the error at the final time).",
+    "study.quantity": "The state or output whose error is studied (default the first output, else the first "
+                      "state).",
+}
+
+# MATLAB's odeset spellings of [solver] keys (see odelab.solvers.options).
+_MATLAB = {
+    "solver.rtol": ("RelTol",), "solver.atol": ("AbsTol",), "solver.max_step": ("MaxStep",),
+    "solver.initial_step": ("InitialStep",), "solver.refine": ("Refine",), "solver.norm_control": ("NormControl",),
+    "solver.max_order": ("MaxOrder",), "solver.bdf": ("BDF",), "solver.vectorized": ("Vectorized",),
+    "solver.nonnegative": ("NonNegative",), "solver.mass": ("Mass",),
+    "solver.mstate_dependence": ("MStateDependence",), "solver.max_steps": ("MaxSteps",),
+}
+
+# Tables the schema keeps free-form because another module checks them.
+_FREE_FORM = {
+    "case": ("table array", ("name",)),
+    "problem": ("table array", ("name",)),
+    "sweep": ("table", ("<key>", "mode", "store")),
+    "study": ("table", ("kind", "over", "error", "quantity")),
+    "events": ("table", ("max_events", "<name>")),
+    "events.<name>": ("table", ("when", "direction", "terminal", "reset", "exact")),
+}
+_FREE_TYPES = {
+    "case.name": "string", "problem.name": "string", "sweep.<key>": "list or range table",
+    "sweep.mode": "string", "sweep.store": "string", "study.kind": "string", "study.over": "string",
+    "study.error": "string", "study.quantity": "string", "events.max_events": "integer",
+    "events.<name>.when": "expression", "events.<name>.direction": "string or -1, 0, 1",
+    "events.<name>.terminal": "boolean", "events.<name>.reset": "table of expressions",
+    "events.<name>.exact": "expression",
+}
+_FREE_CHOICES = {
+    "sweep.mode": ("product", "zip"), "sweep.store": ("summary", "all"),
+    "study.kind": ("convergence", "work-precision"), "study.error": ("max", "end"),
+    "events.<name>.direction": ("rising", "falling", "both"),
+}
+_FREE_DEFAULTS = {"sweep.mode": "product", "sweep.store": "summary", "events.max_events": "100"}
+
+
+def _type_text(annotation) -> tuple[str, tuple[str, ...], object | None]:
+    """(readable type, Literal choices, nested model) of a pydantic annotation."""
+    from pydantic import BaseModel
+
+    from odelab.experiment import schema
+
+    if annotation == schema.Value:
+        return "number or expression", (), None
+    if annotation == schema.Matrix or (typing.get_origin(annotation) in (typing.Union, types.UnionType)
+                                       and set(typing.get_args(annotation)) - {type(None)}
+                                       == set(typing.get_args(schema.Matrix))):
+        return "matrix (TOML rows of numbers or expressions, or a MATLAB string \"[0 1; -2 -3]\")", (), None
+    origin = typing.get_origin(annotation)
+    args = typing.get_args(annotation)
+    if origin is typing.Annotated:
+        return _type_text(args[0])
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return "table", (), annotation
+    if origin is typing.Literal:
+        kinds = {type(a).__name__ for a in args}
+        return ("string" if kinds == {"str"} else "value"), tuple(str(a) for a in args), None
+    if origin in (typing.Union, types.UnionType):
+        parts, choices, nested = [], [], None
+        for a in args:
+            if a is type(None):
+                continue
+            text, ch, model = _type_text(a)
+            nested = nested or model
+            choices.extend(ch)
+            if text not in parts:
+                parts.append(text)
+        if {"integer", "number"} <= set(parts):
+            parts.remove("integer")
+        if set(parts) >= {"number", "string"}:
+            parts = ["number or expression" if p == "number" else p for p in parts if p != "string"]
+        return " or ".join(parts), tuple(choices), nested
+    if origin is list:
+        inner, _, _ = _type_text(args[0]) if args else ("value", (), None)
+        return f"list of {inner}s" if not inner.startswith("list") else f"list of {inner}", (), None
+    if origin is dict:
+        inner, _, model = _type_text(args[1]) if len(args) == 2 else ("value", (), None)
+        return ("table of tables" if model is not None else f"table ({inner} each)"), (), model
+    name = getattr(annotation, "__name__", str(annotation))
+    mapped = {"StrictInt": "integer", "int": "integer", "StrictFloat": "number", "float": "number",
+              "StrictStr": "string", "str": "string", "StrictBool": "boolean", "bool": "boolean",
+              "Any": "value"}
+    if name in mapped:
+        return mapped[name], (), None
+    if annotation is typing.Any:
+        return "value", (), None
+    # pydantic's Strict types are Annotated[int, Strict()] etc.
+    meta = getattr(annotation, "__origin__", None)
+    if meta is not None:
+        return _type_text(meta)
+    return name, (), None
+
+
+def _default_text(info) -> str | None:
+    from pydantic_core import PydanticUndefined
+
+    if info.is_required():
+        return "required"
+    if info.default_factory is not None:
+        return None
+    value = info.default
+    if value is None or value is PydanticUndefined:
+        return None
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return f'"{value}"'
+    return repr(value)
+
+
+def _walk(model, prefix: str, out: list[KeyEntry]) -> None:
+    for name, info in model.model_fields.items():
+        key = info.alias or name
+        path = f"{prefix}.{key}" if prefix else key
+        text, choices, nested = _type_text(info.annotation)
+        origin = typing.get_origin(info.annotation)
+        is_dict = origin is dict or any(typing.get_origin(a) is dict for a in typing.get_args(info.annotation))
+        children: tuple[str, ...] = ()
+        if nested is not None and not is_dict:
+            children = tuple(f.alias or n for n, f in nested.model_fields.items())
+        elif is_dict:
+            children = ("<name>",)
+        out.append(KeyEntry(path, text, _default_text(info), choices, NOTES.get(path, ""), _MATLAB.get(path, ()),
+                            children))
+        if path in _FREE_FORM or path == "inputs":
+            continue
+        if is_dict:
+            member = f"{path}.<name>"
+            if nested is not None:
+                out.append(KeyEntry(member, "table", None, (), NOTES.get(member, ""),
+                                    children=tuple(f.alias or n for n, f in nested.model_fields.items())))
+                _walk(nested, member, out)
+            else:
+                inner = text.removeprefix("table (").removesuffix(" each)")
+                out.append(KeyEntry(member, inner, None, (), NOTES.get(member, "")))
+        elif nested is not None:
+            _walk(nested, path, out)
+
+
+def _inputs(out: list[KeyEntry]) -> None:
+    from odelab.experiment import schema
+    from odelab.experiment.build import SIGNAL_KEYS
+
+    kinds = tuple(SIGNAL_KEYS)
+    out.append(KeyEntry("inputs.<name>", "table", None, (), NOTES.get("inputs.<name>", ""),
+                        children=("type", *sorted({k for keys in SIGNAL_KEYS.values() for k in keys}))))
+    type_field = schema.InputSignal.model_fields["type"]
+    _, choices, _ = _type_text(type_field.annotation)
+    out.append(KeyEntry("inputs.<name>.type", "string", "required", choices or kinds,
+                        NOTES.get("inputs.<name>.type", "")))
+    fields = schema.InputSignal.model_fields
+    for kind, keys in SIGNAL_KEYS.items():
+        out.append(KeyEntry(f"inputs.{kind}", "signal type", None, (), NOTES.get(f"inputs.{kind}", ""),
+                            children=tuple(keys)))
+        for key, default in keys.items():
+            text = _type_text(fields[key].annotation)[0] if key in fields else "value"
+            shown = None if default is None else repr(default)
+            path = f"inputs.{kind}.{key}"
+            out.append(KeyEntry(path, text, "required" if default is None else shown, (), NOTES.get(path, "")))
+
+
+def _blocks(out: list[KeyEntry]) -> None:
+    """Each block type of the diagram registry, with its keys, defaults and meanings."""
+    from odelab.experiment.build import SIGNAL_KEYS
+    from odelab.systems.diagram.blocks import BLOCKS, REQUIRED
+
+    out.append(KeyEntry("blocks.<name>.type", "string", "required", (*SIGNAL_KEYS, *BLOCKS),
+                        "The block type: a source (any input signal type, with that type's keys) or one of the "
+                        "diagram blocks listed under blocks.<type>."))
+    out.append(KeyEntry("blocks.<name>.input", "string", None, (),
+                        "The block (or `block.port`) that feeds this block's single input."))
+    out.append(KeyEntry("blocks.<name>.inputs", "list of strings", None, (),
+                        "The blocks (or `block.port`s) that feed this block's inputs, in order."))
+    for name, cls in BLOCKS.items():
+        doc = " ".join((cls.__doc__ or "").strip().split("\n\n")[0].split()).replace("``", "`")
+        out.append(KeyEntry(f"blocks.{name}", "block type", None, (), doc, children=tuple(cls.KEYS)))
+        for key, spec in cls.KEYS.items():
+            default = None if spec.default is REQUIRED else ("none" if spec.default is None else repr(spec.default))
+            out.append(KeyEntry(f"blocks.{name}.{key}", spec.kind, default, (), spec.doc))
+
+
+def _free_form(out: list[KeyEntry]) -> None:
+    known = {e.path for e in out}
+    for path, (kind, children) in _FREE_FORM.items():
+        if path not in known:
+            out.append(KeyEntry(path, kind, None, (), NOTES.get(path, ""), children=children))
+        else:  # the schema lists it as a free table: give it its children
+            out[:] = [KeyEntry(e.path, kind if e.path == path else e.type, e.default, e.choices, e.text, e.matlab,
+                               children if e.path == path else e.children) for e in out]
+        for child in children:
+            cpath = f"{path}.{child}"
+            if cpath in _FREE_FORM:
+                continue
+            out.append(KeyEntry(cpath, _FREE_TYPES.get(cpath, "value"), _FREE_DEFAULTS.get(cpath),
+                                _FREE_CHOICES.get(cpath, ()), NOTES.get(cpath, "")))
+
+
+_CACHE: list[tuple[KeyEntry, ...]] = []
+
+
+def entries() -> tuple[KeyEntry, ...]:
+    """Every key of an experiment file, in the schema's order, then the free-form tables."""
+    if not _CACHE:
+        from odelab.experiment import schema
+
+        out: list[KeyEntry] = []
+        _walk(schema.Experiment, "", out)
+        _inputs(out)
+        _blocks(out)
+        _free_form(out)
+        seen: dict[str, KeyEntry] = {}
+        for e in out:
+            seen.setdefault(e.path, e)
+        _CACHE.append(tuple(seen.values()))
+    return _CACHE[0]
+
+
+def find(key: str) -> KeyEntry | None:
+    """The entry for ``key``; concrete names match their placeholder (``inputs.f.type`` -> ``inputs.<name>.type``)."""
+    table = {e.path: e for e in entries()}
+    key = key.strip().strip("[]").strip()
+    if key in table:
+        return table[key]
+    for path, spellings in _MATLAB.items():  # solver.RelTol -> solver.rtol
+        if key.lower() in {f"{path.split('.')[0]}.{m}".lower() for m in spellings}:
+            return table[path]
+    parts = key.split(".")
+    # inputs.f.type, system.equations.x, events.floor.when, sweep."solver.h"...
+    for i in range(len(parts)):
+        for placeholder in ("<name>", "<key>"):
+            trial = ".".join([*parts[:i], placeholder, *parts[i + 1:]])
+            if trial in table:
+                return table[trial]
+    if parts[0] == "sweep" and len(parts) > 1 and parts[1] not in ("mode", "store"):
+        return table.get("sweep.<key>")
+    return None
+
+
+def _suggest(key: str) -> list[str]:
+    paths = [e.path for e in entries()]
+    if "." in key:
+        parent = find(key.rsplit(".", 1)[0])
+        if parent is not None and parent.children:
+            close = difflib.get_close_matches(key.rsplit(".", 1)[1], parent.children, n=3, cutoff=0.6)
+            return [f"{parent.path}.{c}" for c in close]
+    close = difflib.get_close_matches(key, paths, n=3, cutoff=0.6)
+    if not close:
+        last = key.rsplit(".", 1)[-1]
+        close = [p for p in paths if p.rsplit(".", 1)[-1] == last][:3]
+    return close
+
+
+def describe(entry: KeyEntry, width: int = 78) -> str:
+    """The reference entry as plain text (what ``odelab explain`` prints)."""
+    import textwrap
+
+    lines = [f"{entry.path}  ({entry.type})"]
+    if entry.text:
+        lines.append(textwrap.fill(entry.text, width, initial_indent="  ", subsequent_indent="  "))
+    if entry.default is not None:
+        lines.append(f"  default: {entry.default}")
+    if entry.choices:
+        lines.append(f"  choices: {', '.join(entry.choices)}")
+    if entry.matlab:
+        lines.append(f"  MATLAB: {', '.join(entry.matlab)} (also accepted)")
+    if entry.children:
+        lines.append(textwrap.fill(f"keys: {', '.join(entry.children)}", width, initial_indent="  ",
+                                   subsequent_indent="        "))
+    return "\n".join(lines)
+
+
+def explain(key: str) -> str:
+    """The reference entry of ``key``, or a :class:`LookupError` listing the nearest keys."""
+    entry = find(key)
+    if entry is None:
+        close = _suggest(key)
+        hint = f" Did you mean {', '.join(f'`{c}`' for c in close)}?" if close else ""
+        parent = find(key.rsplit(".", 1)[0]) if "." in key else None
+        if parent is not None and parent.children:
+            raise LookupError(f"no key `{key}` in experiment files.{hint} The keys of `{parent.path}` are: "
+                              f"{', '.join(parent.children)}.")
+        tables = sorted({e.path.split(".")[0] for e in entries()})
+        raise LookupError(f"no key `{key}` in experiment files.{hint} Top-level keys and tables: "
+                          f"{', '.join(tables)}.")
+    return describe(entry)
+
+
+def _md_text(text: str) -> str:
+    """Prose for Markdown: `<name>` and other angle brackets outside code spans shown, not read as HTML."""
+    parts = text.split("`")
+    return "`".join(p if i % 2 else p.replace("<", "&lt;").replace(">", "&gt;") for i, p in enumerate(parts))
+
+
+def _md_entry(e: KeyEntry) -> list[str]:
+    facts = [f"*{_md_text(e.type)}*"]
+    if e.default is not None:
+        facts.append(f"default `{e.default}`")
+    if e.choices:
+        facts.append("choices " + ", ".join(f"`{c}`" for c in e.choices))
+    if e.matlab:
+        facts.append("MATLAB " + ", ".join(f"`{m}`" for m in e.matlab))
+    lines = ["; ".join(facts) + "."]
+    if e.text:
+        lines += ["", _md_text(e.text)]
+    if e.children:
+        lines += ["", "Keys: " + ", ".join(f"`{c}`" for c in e.children) + "."]
+    return lines + [""]
+
+
+def markdown() -> str:
+    """The key reference as a Markdown page (the documentation's reference/keys.md)."""
+    lines = ["# Experiment file keys", "",
+             "Generated from odelab's schema (`odelab.experiment.keyref`): every key an experiment file "
+             "accepts, with its type, default and choices. `odelab explain KEY` prints the same entry in the "
+             "terminal. `<name>` stands for a name you choose (a state, an input, an event); `inputs.<type>` "
+             "and `blocks.<type>` list the keys of each signal and block type.", ""]
+    groups: dict[str, list[KeyEntry]] = {}
+    for e in entries():
+        groups.setdefault(e.path.split(".")[0], []).append(e)
+    for top, members in groups.items():
+        lines += [f"## `{top}`", ""]
+        for e in members:
+            if e.path != top:
+                lines += [f"### `{e.path}`", ""]
+            lines += _md_entry(e)
+    return "\n".join(lines)
+
+
+def unknown_keys(data: dict, prefix: str = "") -> list[str]:
+    """Key paths of a parsed experiment file (or a fragment of one) that the reference does not know.
+
+    A signal's or block's keys are looked up under its ``type`` (``inputs.f.time`` is
+    ``inputs.step.time`` for a step), so a key that its type does not take is reported.
+    """
+    out: list[str] = []
+    for key, value in data.items():
+        path = f"{prefix}.{key}" if prefix else str(key)
+        parts = path.split(".")
+        if len(parts) == 3 and parts[0] in ("inputs", "blocks") and parts[2] not in ("type", "input", "inputs"):
+            kind = data.get("type")
+            if isinstance(kind, str):
+                if find(f"inputs.{kind}.{parts[2]}") is None and find(f"blocks.{kind}.{parts[2]}") is None:
+                    out.append(f"{path} (for type {kind!r})")
+                continue
+        entry = find(path)
+        if entry is None:
+            out.append(path)
+            continue
+        if path in ("case", "problem") and isinstance(value, list):
+            for item in value:
+                if isinstance(item, dict):
+                    out += [k for k in unknown_keys({k: v for k, v in item.items() if k != "name"})]
+            continue
+        typed = len(parts) == 2 and parts[0] in ("inputs", "blocks")  # its keys depend on its type
+        if isinstance(value, dict) and (entry.children or typed) and not path.startswith("sweep"):
+            out += unknown_keys(value, path)
+    return out
