@@ -223,9 +223,34 @@ def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, st
         if state["progress"] is not None:
             state["progress"].update(state["task"], completed=finished, failed=failed)
 
+    # Each case is stored the moment it finishes, whichever process ran it, so that a killed run
+    # keeps what it finished: its folder, or (a sweep storing only its table) the sweep's table
+    # of the cases finished so far, rewritten at a pace that keeps its cost small.
+    from odelab.experiment.store import Pace
+
+    by_key = {(str(e.source), e.name): e for e in loaded}
+    partial: dict[tuple, list] = {}
+    pace = Pace()
+    stored_now: set[tuple] = set()
+
+    def on_result(result):
+        if isinstance(result, CaseError):
+            return
+        key = (str(result.case.source), result.case.experiment)
+        exp = by_key[key]
+        if store and (exp.sweep is None or exp.sweep.store == "all"):
+            _store(result, runs, mat, err)
+        elif store:
+            partial.setdefault(key, []).append(result)
+            if pace.due(key) and len(partial[key]) < len(exp.cases):  # the last: written in full below
+                with pace.timed(key):
+                    _store_sweep(exp, sorted(partial[key], key=lambda r: r.case.index), runs, err)
+        stored_now.add(_case_key(result.case))
+        done[0] += 1
+
     try:  # a process pool forks its workers here, before the progress bar starts its thread
         stream = run_cases(cases, executor=executor, jobs=jobs, scheduler=scheduler, max_steps=max_steps or None,
-                           on_done=on_done, backend=backend)
+                           on_done=on_done, backend=backend, on_result=on_result)
         iterator = iter(stream)
     except InputError as exc:
         err.print(f"[bold red]error:[/] {_escape(_error_text(exc))}")
@@ -235,7 +260,6 @@ def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, st
         for exp in loaded:
             progress.update(state["task"], description=_escape(exp.name))
             results = []
-            keep_cases = exp.sweep is None or exp.sweep.store == "all"
             try:
                 for case in exp.cases:
                     try:
@@ -250,13 +274,10 @@ def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, st
                         continue
                     results.append(result)
                     any_failed |= result.status != "success"
-                    if store and keep_cases:
-                        _store(result, runs, mat, err)
-                    done[0] += 1
             except (KeyboardInterrupt, _Terminated) as exc:
                 if store:  # what finished: this experiment's cases so far, and any a pool finished out of order
                     done[0] += _store_interrupted(loaded, exp, results, getattr(exc, "finished", ()), runs, mat,
-                                                  err)
+                                                  err, stored_now)
                 raise
             if store and exp.sweep is not None and results:
                 _store_sweep(exp, results, runs, err)
@@ -283,10 +304,11 @@ def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, st
     raise typer.Exit(EXIT_INPUT if bad else EXIT_FAILED if any_failed else EXIT_OK)
 
 
-def _store_interrupted(loaded, current, results, finished, runs, mat, err) -> int:
-    """On Ctrl-C: store the sweep tables of what finished, and cases a pool finished ahead of their turn.
+def _store_interrupted(loaded, current, results, finished, runs, mat, err, stored_now=frozenset()) -> int:
+    """On Ctrl-C: store the sweep tables of what finished, and cases that finished while interrupted.
 
-    Returns how many of ``finished`` (cases not yet counted) were stored.
+    ``finished``: the cases that finished but were not yet yielded in case order; those in
+    ``stored_now`` (by :func:`_case_key`) are stored already. Returns how many cases were stored here.
     """
     from odelab.experiment.executors import CaseError
 
@@ -297,14 +319,19 @@ def _store_interrupted(loaded, current, results, finished, runs, mat, err) -> in
     count = 0
     for exp in loaded:
         late = extra.get((str(exp.source), exp.name), [])
+        fresh = [r for r in late if _case_key(r.case) not in stored_now]
         if exp.sweep is None or exp.sweep.store == "all":
-            for r in late:
+            for r in fresh:
                 _store(r, runs, mat, err)
         mine = (list(results) if exp is current else []) + late
         if exp.sweep is not None and mine:  # the sweep's table of what finished, in case order
             _store_sweep(exp, sorted(mine, key=lambda r: r.case.index), runs, err)
-        count += len(late)
+        count += len(fresh)
     return count
+
+
+def _case_key(case) -> tuple:
+    return str(case.source), case.experiment, case.index
 
 
 class _NoProgress:

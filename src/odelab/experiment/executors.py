@@ -15,8 +15,11 @@ one grows as its tolerance tightens), so that the last case to finish is a short
 worker idles while another runs a long tail. The experiments themselves keep their order, so
 that the first one's results can be stored and printed while the next one runs.
 
-``on_done(done, failed)`` is called in the calling thread each time a case finishes, for a
-progress bar; nothing here prints.
+``on_result(item)`` and then ``on_done(done, failed)`` are called in the calling thread the
+moment each case finishes, in the order they finish, whichever process ran it: the caller
+stores a case there (a killed run keeps every case it finished) and updates a progress bar;
+nothing here prints. Pool workers, and the workers of a local Dask cluster, exit when the
+process that started them dies (:mod:`odelab.experiment.lifeline`).
 """
 
 from __future__ import annotations
@@ -152,17 +155,21 @@ def _failed(item) -> bool:
     return isinstance(item, CaseError) or item.status != "success"
 
 
-def _ignore_sigint() -> None:
-    """Pool workers leave Ctrl-C to the parent, which stops the pool and reports what finished."""
+def _init_worker(parent: int) -> None:
+    """A pool worker exits with its parent, and leaves Ctrl-C to it (the parent stops the pool
+    and reports what finished)."""
     import signal
 
+    from odelab.experiment.lifeline import exit_with_parent
+
+    exit_with_parent(parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def run_cases(cases: Iterable, *, executor: str = "serial", jobs: int | None = None, scheduler: str | None = None,
               max_steps: int | None = None, on_done: Callable[[int, int], None] | None = None,
-              backend: str | None = None) -> Iterator:
+              backend: str | None = None, on_result: Callable[[object], None] | None = None) -> Iterator:
     """Run ``cases``; returns an iterator of each one's :class:`CaseResult` (or :class:`CaseError`), in case order.
 
     A process pool is started (its workers forked) before this returns; the cases run as the
@@ -174,6 +181,9 @@ def run_cases(cases: Iterable, *, executor: str = "serial", jobs: int | None = N
         ``"serial"`` (this process), ``"process"`` (a pool of ``jobs`` forked processes) or
         ``"dask"`` (a ``distributed`` cluster at ``scheduler``; without one, a local cluster
         of ``jobs`` worker processes is started for the run).
+    on_result
+        Called with each case's result (or :class:`CaseError`) as soon as it finishes, before
+        ``on_done`` and before the iterator yields it in case order: the place to store it.
     """
     cases = list(cases)
     if executor not in EXECUTORS:
@@ -185,6 +195,8 @@ def run_cases(cases: Iterable, *, executor: str = "serial", jobs: int | None = N
     counts = [0, 0]
 
     def done(item):
+        if on_result is not None:
+            on_result(item)
         counts[0] += 1
         counts[1] += _failed(item)
         if on_done is not None:
@@ -220,7 +232,7 @@ def _run_pool(cases, jobs, opts, done):
     # The workers are forked here, before the caller starts any thread (a progress bar's), so
     # that no lock can be inherited held.
     pool = ProcessPoolExecutor(max_workers=min(jobs, len(cases)), mp_context=multiprocessing.get_context("fork"),
-                               initializer=_ignore_sigint)
+                               initializer=_init_worker, initargs=(os.getpid(),))
     futures = [None] * len(cases)
     for i in schedule(cases):
         futures[i] = pool.submit(_run_remote, *_submit_args(cases[i], opts))
@@ -300,18 +312,17 @@ def _run_dask(cases, jobs, scheduler, opts, done):
     return _dask_results(cases, jobs, scheduler, opts, done, Client, LocalCluster, wait)
 
 
+#: How long to wait for a Dask scheduler to answer, and for it to have a worker.
+DASK_CONNECT_SECONDS = 10.0
+DASK_WORKERS_SECONDS = 30.0
+
+
 def _dask_results(cases, jobs, scheduler, opts, done, Client, LocalCluster, wait):
     cluster = None
     if scheduler:
-        try:
-            client = Client(scheduler, timeout="10s")
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise InputError(f"cannot reach the Dask scheduler at {scheduler!r}: {exc}. Check the address "
-                             "(tcp://host:8786) and that `dask scheduler` is running there.",
-                             key="scheduler") from None
+        client = _dask_client(scheduler, Client)
     else:
-        cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None)
-        client = Client(cluster)
+        cluster, client = _local_cluster(jobs, Client, LocalCluster)
     try:
         futures = [None] * len(cases)
         order = schedule(cases)
@@ -327,3 +338,66 @@ def _dask_results(cases, jobs, scheduler, opts, done, Client, LocalCluster, wait
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _dask_client(scheduler: str, Client):
+    """A client of the scheduler at ``scheduler`` that has at least one worker, or an InputError
+    within :data:`DASK_CONNECT_SECONDS` + :data:`DASK_WORKERS_SECONDS`.
+
+    distributed's own connect timeout does not cover the handshake: an address that accepts
+    the connection and never answers would hang it for ever. So the handshake is tried first,
+    under a deadline of our own.
+    """
+    import asyncio
+
+    where = f"the Dask scheduler at {scheduler!r}"
+    fix = "Check the address (tcp://host:8786) and that `dask scheduler` is running there."
+
+    async def handshake():
+        from distributed.comm import connect
+
+        comm = await asyncio.wait_for(connect(scheduler, timeout=DASK_CONNECT_SECONDS), DASK_CONNECT_SECONDS)
+        await comm.close()
+
+    try:
+        asyncio.run(handshake())
+        client = Client(scheduler, timeout=DASK_CONNECT_SECONDS)
+    except (OSError, TimeoutError, asyncio.TimeoutError, ValueError, TypeError) as exc:
+        why = str(exc) or f"no answer within {DASK_CONNECT_SECONDS:g} s"
+        raise InputError(f"cannot reach {where}: {why}. {fix}", key="scheduler") from None
+    try:
+        client.wait_for_workers(1, timeout=DASK_WORKERS_SECONDS)
+    except (OSError, TimeoutError, asyncio.TimeoutError) as exc:
+        client.close()
+        raise InputError(f"{where} has no workers (none joined within {DASK_WORKERS_SECONDS:g} s): start some "
+                         f"with `dask worker {scheduler}`, or leave out --scheduler for a local cluster.",
+                         key="scheduler") from None
+    return client
+
+
+def _local_cluster(jobs: int, Client, LocalCluster):
+    """A local cluster of ``jobs`` worker processes that die with this process, and its client."""
+    from odelab.experiment.lifeline import exit_with_parent
+
+    import logging
+
+    spec_log = logging.getLogger("distributed.deploy.spec")  # "Cluster closed without starting up"
+    level = spec_log.level
+    spec_log.setLevel(logging.ERROR)
+    try:
+        cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None)
+    except Exception as exc:  # noqa: BLE001 - distributed wraps whatever stopped it in a RuntimeError
+        cause = exc.__cause__ or exc
+        raise InputError(f"could not start a local Dask cluster: {cause}. Its workers need a folder they can "
+                         "create: point DASK_TEMPORARY_DIRECTORY (or TMPDIR) at a folder you can write, or run "
+                         "with --executor process.", key="executor") from None
+    finally:
+        spec_log.setLevel(level)
+    client = Client(cluster)
+    try:  # the workers are children of this process (their nannies run here)
+        client.run(exit_with_parent, os.getpid())
+    except BaseException:
+        client.close()
+        cluster.close()
+        raise
+    return cluster, client

@@ -32,7 +32,7 @@ from odelab.analysis.errors import HEADLINE_RULE, error_columns
 from odelab.fileio import atomic_write
 from odelab.experiment.result import CaseResult
 
-__all__ = ["RESULT_FORMAT", "atomic_write", "case_dir", "summary", "write_case", "read_run", "list_runs"]
+__all__ = ["RESULT_FORMAT", "Pace", "atomic_write", "case_dir", "summary", "write_case", "read_run", "list_runs"]
 
 RESULT_FORMAT = "odelab-result/1"
 _TMP_SUFFIX = ".tmp"
@@ -60,6 +60,32 @@ def _locked(folder: Path, *, shared: bool = False):
     finally:
         if fd is not None:
             os.close(fd)
+
+
+class Pace:
+    """When to rewrite a file that grows with a run (a sweep's table after each case): at once,
+    unless the last write of it ended less than ``ratio`` times its duration ago. The rewrites
+    then cost at most 1/``ratio`` of the run, and a small table is always current."""
+
+    def __init__(self, ratio: float = 10.0):
+        self.ratio = ratio
+        self._next: dict[Any, float] = {}
+
+    def due(self, key) -> bool:
+        import time
+
+        return time.monotonic() >= self._next.get(key, -math.inf)
+
+    @contextlib.contextmanager
+    def timed(self, key):
+        import time
+
+        start = time.monotonic()
+        try:
+            yield
+        finally:
+            end = time.monotonic()
+            self._next[key] = end + self.ratio * (end - start)
 
 
 def case_dir(runs: Path, experiment: str, case: str) -> Path:
