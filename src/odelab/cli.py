@@ -516,6 +516,65 @@ def new(
     typer.echo(f"run it with: odelab run {visible(str(file))}")
 
 
+@app.command(cls=_Command)
+def grade(
+    rubric: Annotated[Path, typer.Argument(help="The rubric file (rubric.toml).", show_default=False,
+                                           metavar="RUBRIC")],
+    submissions: Annotated[Optional[Path], typer.Argument(
+        help="One folder per student (default: the rubric's `submissions`).", show_default=False,
+        metavar="SUBMISSIONS")] = None,
+    out: Annotated[Path, typer.Option("--out", help="The grades folder to write.", metavar="FOLDER")] = Path("grades"),
+    json_out: Annotated[bool, typer.Option("--json", help="Print results.json (Gradescope's format) instead of "
+                                                          "the table.")] = False,
+    jobs: Annotated[Optional[int], typer.Option("--jobs", "-j", min=1, show_default="the number of cores",
+                                                metavar="N", help="Students' cases run at once (a process pool).")] = None,
+    max_steps: Annotated[int, typer.Option("--max-steps", min=0, help=MAX_STEPS_HELP, metavar="N")] = 1_000_000,
+    limit: Annotated[Optional[list[str]], typer.Option("--limit", help=LIMIT_HELP, show_default=False,
+                                                       metavar="NAME=N")] = None,
+    allow_python: Annotated[bool, typer.Option("--allow-python", help="Run submissions whose system is a Python "
+                                               "`function` (it runs the students' code).")] = False,
+    backend: Annotated[str, typer.Option("--backend", metavar="NAME", help="python (the same numbers on every "
+                                         "machine and run), auto or compiled.")] = "python",
+) -> None:
+    """Grade a class's experiment files against a reference: summary.csv, feedback, results.json."""
+    import warnings
+
+    from odelab.exceptions import InputError
+
+    warnings.simplefilter("ignore")
+    out_console, err = _consoles()
+    limits = _limits(max_steps, limit, err)
+    if backend not in ("auto", "python", "compiled"):
+        err.print(f"[bold red]error:[/] `--backend` is {_escape(repr(backend))}; use python, auto or compiled.")
+        raise typer.Exit(EXIT_INPUT)
+    from odelab.grading import class_document, grade_class, write_grades
+
+    try:
+        grades = grade_class(rubric, submissions, limits=limits, max_steps=max_steps, jobs=jobs, backend=backend,
+                             allow_python=allow_python)
+        written = write_grades(grades, out)
+    except InputError as exc:
+        err.print(f"[bold red]error:[/] {_escape(_error_text(exc))}")
+        raise typer.Exit(EXIT_INPUT) from None
+    except OSError as exc:
+        err.print(f"[bold red]error:[/] cannot write the grades to {_escape(str(out))}: {_escape(str(exc))}")
+        raise typer.Exit(EXIT_INPUT) from None
+    except KeyboardInterrupt:
+        err.print("[bold red]interrupted:[/] nothing was written.")
+        raise typer.Exit(130) from None
+    if json_out:
+        import json
+
+        sys.stdout.write(json.dumps(class_document(grades), indent=2, ensure_ascii=False, allow_nan=False) + "\n")
+        return
+    from odelab.grading.display import print_grades
+
+    print_grades(out_console, grades)
+    out_console.print(f"wrote {_escape(str(written[0]))}, results.json, summary.html and "
+                      f"{len(grades.students)} feedback file{'s' if len(grades.students) != 1 else ''} in "
+                      f"{_escape(str(out))}/")
+
+
 @app.command()
 def solvers() -> None:
     """List the integration methods: what they are for (non-stiff, stiff, DAE), order, defaults."""
