@@ -60,6 +60,10 @@ def _value(kind: str, value, key: str, params: dict[str, float]):
         if not isinstance(value, str):
             raise ExperimentError(f"`{key}` must be a string; got {_got(value)}.", key=key)
         return value
+    if kind == "bool":
+        if not isinstance(value, bool):
+            raise ExperimentError(f"`{key}` must be true or false; got {_got(value)}.", key=key)
+        return value
     if kind == "count":
         if isinstance(value, bool) or not isinstance(value, int):
             raise ExperimentError(f"`{key}` must be a whole number; got {_got(value)}.", key=key)
@@ -172,7 +176,13 @@ def build_diagram(model: schema.Experiment, params: dict[str, float], path: Path
                             else _block(name, spec, params))
         except InputError as exc:
             raise exc.located(key=key) from None
-    compiled = CompiledDiagram(wire(blocks, outputs), states=system.states, t0=t0)  # DiagramError: keyed
+    compiled = CompiledDiagram(wire(blocks, outputs), states=system.states, t0=t0,
+                               zero_crossing=model.solver.zero_crossing)  # DiagramError: keyed
+    if compiled.hybrid and model.events is not None:
+        raise ExperimentError("[events] with a diagram's switching or discrete blocks are not supported: the hybrid "
+                              "driver that locates the blocks' zero crossings and sample hits does not take [events] "
+                              f"yet ({compiled.hybrid_reason()}); set zero_crossing = false on the blocks (or under "
+                              "[solver]), or model the event with blocks.", key="events")
     sys_obj = compiled.system
     resolved = {"kind": "diagram", "outputs": outputs}
     if system.states is not None:
@@ -198,3 +208,23 @@ def build_diagram(model: schema.Experiment, params: dict[str, float], path: Path
     return Built(states=compiled.states, inputs=compiled.inputs, outputs=compiled.outputs, fun=fun,
                  output_fn=output_fn, resolved=resolved, linear=compiled.linear, system=sys_obj,
                  x0=compiled.x0, signals=compiled.signals, diagram=compiled, compiled=fast)
+
+
+def run_hybrid(problem, tspan, method: str, options: dict, backend: str):
+    """Run a diagram with switching or discrete blocks on the hybrid driver
+    (:func:`odelab.systems.diagram.hybrid.simulate_hybrid`, the Python engine); returns the
+    runner's ``(t, x, u, stats, status, message, warnings, backend)``. With ``backend = "auto"``
+    the message says which block kept the compiled engine out."""
+    from odelab.systems.diagram.hybrid import simulate_hybrid
+
+    d = problem.diagram
+    r = simulate_hybrid(d, tspan, problem.x0, method=method, zero_crossing=d.zero_crossing, **options)
+    from odelab.solvers.compiled import AUTO_STEPS
+
+    message = r.message
+    notes = [n for n in r.notes if n not in r.warnings]
+    if backend == "auto" and r.stats.nsteps > AUTO_STEPS:  # long enough that auto would have compiled it
+        notes.append(f"ran on the Python engine, not the compiled one: {d.hybrid_reason()}")
+        message += f" Ran on the Python engine: {d.hybrid_reason()}."
+    u = r.u if d.inputs else None
+    return r.t, r.x, u, r.stats, r.status, message, (*r.warnings, *notes), "python"

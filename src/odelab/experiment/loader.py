@@ -577,7 +577,8 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
     from odelab.solvers.registry import get_method
 
     method = get_method(model.solver.method, key="solver.method")
-    options = {k: v for k, v in model.solver.model_dump().items() if k not in ("method", "backend") and v is not None}
+    options = {k: v for k, v in model.solver.model_dump().items()
+               if k not in ("method", "backend", "zero_crossing") and v is not None}
     backend = model.solver.backend
     runtime_options = _state_options(options, states, params, dae=method.name in ("ode15s", "ode23t"))
     try:

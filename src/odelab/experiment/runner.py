@@ -31,6 +31,10 @@ def _integrate(problem, tspan, method, options, backend="python"):
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SolverWarning)
+        if problem.diagram is not None and problem.diagram.hybrid:
+            from odelab.experiment.diagram import run_hybrid
+
+            return run_hybrid(problem, tspan, method, options, backend)
         if problem.events is not None:
             from odelab.experiment.backend import solve_events_problem
 

@@ -22,7 +22,7 @@ __all__ = ["Experiment", "SOLVER_KEYS"]
 # [solver] keys, after MATLAB's names are mapped to odelab's (see odelab.solvers.options).
 SOLVER_KEYS = ("method", "rtol", "atol", "max_step", "initial_step", "refine", "norm_control", "h", "max_steps",
                "max_order", "bdf", "vectorized",
-               "nonnegative", "mass", "mstate_dependence", "backend")
+               "nonnegative", "mass", "mstate_dependence", "backend", "zero_crossing")
 
 
 class _Section(BaseModel):
@@ -73,6 +73,7 @@ class Solver(_Section):
     mass: Matrix | None = None  # expressions of t, the states and the parameters
     mstate_dependence: Literal["none", "weak", "strong"] | None = None
     backend: Literal["auto", "python", "compiled"] = "auto"  # see odelab.solvers.compiled
+    zero_crossing: StrictBool = True  # diagrams: locate switching blocks' crossings (odelab.systems.diagram.zerocross)
 
 
 class Reference(_Section):

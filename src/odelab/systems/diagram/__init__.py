@@ -64,6 +64,8 @@ class Diagram:
         self.blocks[name] = block
         return self
 
-    def compile(self, *, t0: float = 0.0) -> CompiledDiagram:
-        """Check the wiring (raises DiagramError) and compile to a system."""
-        return CompiledDiagram(wire(self.blocks, self.outputs), states=self.states, t0=t0)
+    def compile(self, *, t0: float = 0.0, zero_crossing: bool = True) -> CompiledDiagram:
+        """Check the wiring (raises DiagramError) and compile to a system; ``zero_crossing=False``
+        turns zero-crossing detection off for every block (as ``[solver] zero_crossing``)."""
+        return CompiledDiagram(wire(self.blocks, self.outputs), states=self.states, t0=t0,
+                               zero_crossing=zero_crossing)

@@ -50,6 +50,16 @@ def _real(v):
     return v.real if np.iscomplexobj(v) else v
 
 
+#: the key every block with switching functions takes
+ZC_KEY = Key("bool", True, "locate the instants the output's formula changes (Simulink's zero-crossing "
+                           "detection); false steps over them")
+
+
+def _column(mode, v):
+    """A per-element mode shaped to broadcast against a signal ``v`` of shape (w,) or (w, N)."""
+    return np.reshape(mode, (-1,) + (1,) * (np.ndim(v) - 1))
+
+
 class Block:
     """Base class: a block with named inputs (references to other blocks' outputs)."""
 
@@ -59,6 +69,16 @@ class Block:
     LINEAR: ClassVar[bool] = True
     SOURCE: ClassVar[bool] = False
     DOC: ClassVar[str] = ""
+    SHAPE: ClassVar[str] = "box"  # Graphviz node shape of the drawing
+    #: the block has switching functions (zero crossings, :mod:`~odelab.systems.diagram.zerocross`)
+    ZC: ClassVar[bool] = False
+    #: the block's states are discrete (updated at its sample hits, held between them)
+    DISCRETE: ClassVar[bool] = False
+    #: the block needs the hybrid driver even with zero-crossing detection off (a relay's memory)
+    STATEFUL_MODE: ClassVar[bool] = False
+
+    #: the block's mode, held during a step by the hybrid driver; None: decided from the inputs
+    mode = None
 
     def __init__(self, *, input: str | None = None, inputs: Sequence[str] | None = None, **values: Any):
         if input is not None and inputs is not None:
@@ -132,6 +152,34 @@ class Block:
     def describe(self) -> str:
         """A short label for drawings and reports, e.g. ``gain 1/m``."""
         return self.TYPE
+
+    def label(self, name: str) -> str:
+        """The text of the block's node in the drawing (lines separated by newlines)."""
+        return f"{name}\n{self.describe()}"
+
+    # -- zero crossings (blocks with ZC = True) ---------------------------------------------------
+
+    @property
+    def zero_crossing(self) -> bool:
+        """Whether this block's switching instants are located (its ``zero_crossing`` key)."""
+        return bool(self.ZC and self.params.get("zero_crossing", True))
+
+    def zc_values(self, x, u) -> np.ndarray:
+        """The block's switching functions at one point (a fixed number of them)."""
+        raise NotImplementedError
+
+    def zc_mode(self, signs: np.ndarray, x, u):
+        """The mode the signs of the switching functions (each +1 or -1) select."""
+        raise NotImplementedError
+
+    def zc_directions(self, mode) -> np.ndarray:
+        """Per switching function: the direction of a crossing that leaves ``mode`` (+1 rising,
+        -1 falling, 0 either) or NaN where the function cannot leave it (not watched)."""
+        raise NotImplementedError
+
+    def zc_reset(self, x, mode):
+        """The block's state on entering ``mode`` (e.g. an integrator put exactly at its limit)."""
+        return x
 
     def __repr__(self) -> str:
         inputs = f", inputs={list(self.inputs)}" if self.inputs else ""
@@ -300,13 +348,12 @@ class Product(Block):
         return "product " + self.ops
 
 
-class Saturation(Block):
-    """y = min(max(u, lower), upper), as Simulink's Saturation (defaults -0.5 and 0.5)."""
+class _Limits(Block):
+    """Shared by saturation and dead zone: two thresholds, three modes per element (0 below
+    ``lower``, 1 between, 2 above ``upper``); the switching functions are u - upper and u - lower."""
 
-    TYPE = "saturation"
     LINEAR = False
-    KEYS = {"lower": Key("number", -0.5, "the lower limit"), "upper": Key("number", 0.5, "the upper limit")}
-    DOC = "y = u limited to [lower, upper]"
+    ZC = True
 
     def check(self):
         self.lo, self.hi = _scalar(self, "lower"), _scalar(self, "upper")
@@ -316,33 +363,66 @@ class Saturation(Block):
     def setup(self, widths):
         return [widths[0]]
 
+    def _modes(self, v):
+        """The mode of each element of v: held by the driver, else read off v."""
+        if self.mode is not None:
+            return _column(self.mode, v)
+        r = _real(v)
+        return np.where(r > self.hi, 2, np.where(r < self.lo, 0, 1))
+
+    def zc_values(self, x, u):
+        v = np.asarray(u[0], dtype=float).reshape(-1)
+        return np.concatenate([v - self.hi, v - self.lo])
+
+    def zc_mode(self, signs, x, u):
+        w = signs.size // 2
+        return np.where(signs[:w] > 0, 2, np.where(signs[w:] < 0, 0, 1))
+
+    def zc_directions(self, mode):
+        mode = np.asarray(mode)
+        up = np.where(mode == 1, 1.0, np.where(mode == 2, -1.0, np.nan))  # u - upper
+        down = np.where(mode == 1, -1.0, np.where(mode == 0, 1.0, np.nan))  # u - lower
+        return np.concatenate([up, down])
+
+
+class Saturation(_Limits):
+    """y = min(max(u, lower), upper), as Simulink's Saturation (defaults -0.5 and 0.5)."""
+
+    TYPE = "saturation"
+    KEYS = {"lower": Key("number", -0.5, "the lower limit"), "upper": Key("number", 0.5, "the upper limit"),
+            "zero_crossing": ZC_KEY}
+    DOC = "y = u limited to [lower, upper]"
+
     def outputs(self, t, x, u, cplx=False):
         v = u[0]
-        r = _real(v)
-        return [np.where(r > self.hi, self.hi, np.where(r < self.lo, self.lo, v))]
+        m = self._modes(v)
+        return [np.where(m == 2, self.hi, np.where(m == 0, self.lo, v))]
 
     def describe(self):
         return f"saturation [{self.lo:g}, {self.hi:g}]"
 
+    def label(self, name):
+        return f"{name}\nsat [{self.lo:g}, {self.hi:g}]"
 
-class DeadZone(Block):
+
+class DeadZone(_Limits):
     """y = 0 inside [lower, upper], u - upper above, u - lower below (Simulink's Dead Zone)."""
 
     TYPE = "dead-zone"
-    LINEAR = False
-    KEYS = {"lower": Key("number", -0.5, "start of the dead zone"), "upper": Key("number", 0.5, "end of the dead zone")}
+    KEYS = {"lower": Key("number", -0.5, "start of the dead zone"), "upper": Key("number", 0.5, "end of the dead zone"),
+            "zero_crossing": ZC_KEY}
     DOC = "y = 0 inside [lower, upper], shifted u outside"
-
-    check = Saturation.check
-    setup = Saturation.setup
 
     def outputs(self, t, x, u, cplx=False):
         v = u[0]
-        r = _real(v)
-        return [np.where(r > self.hi, v - self.hi, np.where(r < self.lo, v - self.lo, 0.0 * v))]
+        m = self._modes(v)
+        return [np.where(m == 2, v - self.hi, np.where(m == 0, v - self.lo, 0.0 * v))]
 
     def describe(self):
         return f"dead zone [{self.lo:g}, {self.hi:g}]"
+
+    def label(self, name):
+        return f"{name}\ndead zone [{self.lo:g}, {self.hi:g}]"
 
 
 class Fcn(Block):
@@ -430,13 +510,19 @@ class Demux(Block):
 
 class Integrator(Block):
     """x' = u, y = x; with ``lower``/``upper`` the state stays within them, as Simulink's
-    saturating integrator (the derivative is zero at a limit while u pushes outward)."""
+    saturating integrator (the derivative is zero at a limit while u pushes outward).
+
+    With zero-crossing detection (a limited integrator's default) the instant the state reaches
+    a limit, and the instant u turns back, are located: the modes are 0 (held at ``lower``),
+    1 (free) and 2 (held at ``upper``), per element."""
 
     TYPE = "integrator"
     KEYS = {"initial": Key("numbers", 0.0, "the initial state, a number or a list"),
             "lower": Key("number", None, "lower limit of the state"),
-            "upper": Key("number", None, "upper limit of the state")}
+            "upper": Key("number", None, "upper limit of the state"),
+            "zero_crossing": ZC_KEY}
     DOC = "x' = u, y = x (optionally limited)"
+    SHAPE = "box"
 
     def check(self):
         x0 = np.atleast_1d(np.asarray(self.params["initial"], dtype=float))
@@ -456,6 +542,10 @@ class Integrator(Block):
     @property
     def limited(self) -> bool:
         return bool(np.isfinite(self.lo) or np.isfinite(self.hi))
+
+    @property
+    def ZC(self):  # noqa: N802 - only a limited integrator switches
+        return self.limited
 
     @property
     def linear(self):
@@ -481,19 +571,52 @@ class Integrator(Block):
         if not self.limited:
             return [x]
         r = _real(x)
-        return [np.where(r > self.hi, self.hi, np.where(r < self.lo, self.lo, x))]
+        clamped = np.where(r > self.hi, self.hi, np.where(r < self.lo, self.lo, x))
+        if self.mode is None:
+            return [clamped]
+        m = _column(self.mode, x)
+        return [np.where(m == 2, self.hi, np.where(m == 0, self.lo, clamped))]
+
+    def _input(self, u):
+        return u[0] if u[0].shape[0] == self.nstates else np.broadcast_to(u[0], (self.nstates,) + u[0].shape[1:])
 
     def derivative(self, t, x, u):
-        v = u[0] if u[0].shape[0] == self.nstates else np.broadcast_to(u[0], (self.nstates,) + u[0].shape[1:])
+        v = self._input(u)
         if not self.limited:
             return v
+        if self.mode is not None:
+            m = _column(self.mode, v)
+            return np.where(m == 1, v, 0.0 * v)
         r, s = _real(x), _real(v)
         held = ((r >= self.hi) & (s > 0)) | ((r <= self.lo) & (s < 0))
         return np.where(held, 0.0 * v, v)
 
+    def zc_values(self, x, u):
+        v = np.asarray(self._input(u), dtype=float).reshape(-1)
+        x = np.asarray(x, dtype=float).reshape(-1)
+        return np.concatenate([x - self.hi, x - self.lo, v])
+
+    def zc_mode(self, signs, x, u):
+        n = self.nstates
+        at_hi, at_lo, push = signs[:n] > 0, signs[n:2 * n] < 0, signs[2 * n:]
+        return np.where(at_hi & (push > 0), 2, np.where(at_lo & (push < 0), 0, 1))
+
+    def zc_directions(self, mode):
+        mode = np.asarray(mode)
+        free = mode == 1
+        return np.concatenate([np.where(free, 1.0, np.nan), np.where(free, -1.0, np.nan),
+                               np.where(mode == 2, -1.0, np.where(mode == 0, 1.0, np.nan))])
+
+    def zc_reset(self, x, mode):
+        mode = np.asarray(mode)
+        return np.where(mode == 2, self.hi, np.where(mode == 0, self.lo, x))
+
     def describe(self):
         limits = f" [{self.lo:g}, {self.hi:g}]" if self.limited else ""
         return f"integrator 1/s{limits}"
+
+    def label(self, name):
+        return f"{name}\n1/s" + (f"\n[{self.lo:g}, {self.hi:g}]" if self.limited else "")
 
 
 class _Linear(Block):
@@ -634,5 +757,18 @@ BLOCKS: dict[str, type[Block]] = {cls.TYPE: cls for cls in (
     Clock, Gain, Sum, Product, Integrator, StateSpaceBlock, TransferFcn, Saturation, DeadZone, Fcn, Mux, Demux)}
 
 
+def register(cls: type[Block]) -> type[Block]:
+    """Add a block class to :data:`BLOCKS` under its TYPE (the other block modules use it)."""
+    BLOCKS[cls.TYPE] = cls
+    return cls
+
+
 def block_class(type_name: str) -> type[Block]:
     return BLOCKS[type_name]
+
+
+# The blocks defined in their own modules join the registry here (after everything they import).
+from odelab.systems.diagram import switching as _switching  # noqa: E402
+
+for _cls in (_switching.Abs, _switching.Sign, _switching.Switch, _switching.Relay, _switching.MinMax):
+    register(_cls)

@@ -30,6 +30,9 @@ _SCALAR = (bk.Gain, bk.Sum, bk.Product, bk.Saturation, bk.DeadZone, bk.Integrato
 def why_not(diagram) -> str | None:
     """Why the compiled backend cannot generate this diagram (None if it can)."""
     w = diagram.wiring
+    reason = diagram.hybrid_reason()
+    if reason:
+        return reason
     for name in w.order:
         b = w.blocks[name]
         if b.SOURCE:

@@ -29,15 +29,16 @@ __all__ = ["CompiledDiagram"]
 class CompiledDiagram:
     """A diagram ready to evaluate: states, inputs (sources), outputs, x0 and the system."""
 
-    def __init__(self, wiring: Wiring, *, states: list[str] | None = None, t0: float = 0.0):
+    def __init__(self, wiring: Wiring, *, states: list[str] | None = None, t0: float = 0.0,
+                 zero_crossing: bool = True):
         from odelab import signals as sg
 
         self.wiring = wiring
         blocks = wiring.blocks
         holders = [n for n, b in blocks.items() if b.nstates]
         if not holders:
-            raise DiagramError("the diagram has no block with state (integrator, state-space, transfer-fcn): there "
-                               "is nothing to integrate.", key="blocks")
+            raise DiagramError("the diagram has no block with state (integrator, state-space, transfer-fcn, a "
+                               "discrete block): there is nothing to integrate.", key="blocks")
         if states is not None:
             for i, name in enumerate(states):
                 if name not in blocks or not blocks[name].nstates:
@@ -67,6 +68,7 @@ class CompiledDiagram:
                              else blocks[n].signal for n in self.inputs)
         self.outputs = tuple(wiring.outputs)
         self.linear = all(b.linear for b in blocks.values())
+        self.zero_crossing = bool(zero_crossing)  # [solver] zero_crossing: off for every block
         self._order = [n for n in wiring.order if not blocks[n].SOURCE]
         self._system = None
 
@@ -117,6 +119,25 @@ class CompiledDiagram:
         vals = self._ports(t, np.asarray(x, dtype=float).T, u.T, False)
         return np.column_stack([np.broadcast_to(vals[p][0], t.shape) for p in self.wiring.outputs.values()]) \
             if self.outputs else np.zeros((t.size, 0))
+
+    @property
+    def hybrid(self) -> bool:
+        """Whether the diagram runs on the hybrid driver (:mod:`~odelab.systems.diagram.hybrid`):
+        it has switching blocks with zero-crossing detection on, a relay, or discrete blocks."""
+        from odelab.systems.diagram.hybrid import needs_hybrid
+
+        return needs_hybrid(self, self.zero_crossing)
+
+    def hybrid_reason(self) -> str | None:
+        """Which block makes the diagram hybrid, as a sentence (None if it is not)."""
+        for name in self.wiring.order:
+            b = self.wiring.blocks[name]
+            if b.DISCRETE:
+                return f"its block `{name}` ({b.TYPE}) is discrete (sample time {b.sample}), run by the Python driver"
+            if b.STATEFUL_MODE or (self.zero_crossing and b.zero_crossing):
+                return (f"its block `{name}` ({b.TYPE}) has zero crossings located by the Python driver "
+                        "(zero_crossing = false on it compiles it)")
+        return None
 
     # -- the system ----------------------------------------------------------------------------
 
@@ -202,6 +223,11 @@ class CompiledDiagram:
 
     def simulate(self, tspan, *, method: str = "ode45", x0=None, **options):
         """Simulate the diagram from its blocks' initial states (or ``x0``) with its sources."""
+        if self.hybrid:
+            from odelab.systems.diagram.hybrid import simulate_hybrid
+
+            return simulate_hybrid(self, tspan, self.x0 if x0 is None else x0, method=method,
+                                   zero_crossing=self.zero_crossing, **options)
         from odelab.systems.simulate import simulate
 
         return simulate(self.system, tspan, self.x0 if x0 is None else x0, u=list(self.signals) or None,
