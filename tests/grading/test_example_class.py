@@ -51,7 +51,7 @@ def test_feedback_names_each_mistake(graded):
     _, grades, out = graded
     assert "**Score: 8 / 8**" in feedback(out, "correct")
     assert "failed" not in feedback(out, "correct")
-    assert "exercise2: by its title: lab5_exercise2.toml" in feedback(out, "correct")
+    assert "exercise2: found by its title: lab5_exercise2.toml" in feedback(out, "correct")
 
     text = feedback(out, "wrong-tolerance")
     assert "solver.rtol is 1e-06 where the lab asks for rtol = 0.001" in text
@@ -66,6 +66,7 @@ def test_feedback_names_each_mistake(graded):
     text = feedback(out, "broken-toml")
     assert "exercise2.toml: TOML syntax error" in text and "line 10" in text
     assert "Exercise 1a: ode23's maximum relative error: passed (2 / 2)" in text  # its other file still counts
+    assert "exercise2: found by its name: exercise2.toml, which could not be used (TOML syntax error)" in text
 
     text = feedback(out, "python-function")
     assert "`system.function` is 'eq1.py:eq1', a Python function; grading never runs a submission's code" in text

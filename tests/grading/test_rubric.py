@@ -112,3 +112,12 @@ def test_cli_bad_rubric_is_exit_2_with_one_message(tmp_path):
     assert result.exit_code == 2
     assert "error:" in result.stderr and "rubric.toml" in result.stderr and "check[0].kind" in result.stderr
     assert "Traceback" not in result.output
+
+
+def test_cli_missing_submissions_folder_is_exit_2(make_class, tmp_path):
+    from odelab.cli import app
+
+    rubric = make_class({"alice": {"exercise1.toml": EXERCISE1}})
+    result = CliRunner().invoke(app, ["grade", str(rubric), str(tmp_path / "nowhere"), "--out", str(tmp_path / "g")])
+    assert result.exit_code == 2 and "the submissions folder does not exist" in result.stderr
+    assert not (tmp_path / "g").exists()  # nothing written

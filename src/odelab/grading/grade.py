@@ -39,7 +39,7 @@ class StudentGrade:
     name: str
     outcomes: list[Outcome]
     notes: list[str] = field(default_factory=list)  # about the submission as a whole
-    matched: dict[str, str] = field(default_factory=dict)  # reference experiment -> how it was found
+    matched: dict[str, str] = field(default_factory=dict)  # reference experiment -> how it was found, or why not
 
     @property
     def score(self) -> float:
@@ -212,7 +212,11 @@ def grade_class(rubric: Rubric | str | Path, submissions: str | Path | None = No
         for e in wanted:
             m = matches[e]
             if m.experiment is not None:
-                grade.matched[e] = m.how
+                grade.matched[e] = f"found {m.how}"
+            elif m.error is not None:
+                grade.matched[e] = f"found {m.how}, which could not be used ({m.category})"
+            else:
+                grade.matched[e] = "not found"
         for check in rubric.checks:
             ref_exp, ref_case = targets[check.index]
             m = matches[check.experiment]

@@ -86,7 +86,7 @@ def _tests(student: StudentGrade, prefix: str = "") -> list[dict]:
 
 def _student_output(grades: ClassGrade, student: StudentGrade) -> str:
     lines = [f"{grades.rubric.title}: {score_text(student.score)} / {score_text(student.max_score)}"]
-    lines.extend(f"{e} found {how}" for e, how in student.matched.items())
+    lines.extend(f"{e}: {how}" for e, how in student.matched.items())
     lines.extend(student.notes)
     return visible("\n".join(lines), lines=True)
 
@@ -126,7 +126,7 @@ def feedback_md(grades: ClassGrade, student: StudentGrade) -> str:
     for note in student.notes:
         out += [f"- {_md(note)}"]
     if student.matched:
-        out += ["Your experiments, as found:", ""]
+        out += ["Your experiments:", ""]
         out += [f"- {_md(e)}: {_md(how)}" for e, how in student.matched.items()]
     out.append("")
     for o in student.outcomes:
