@@ -195,7 +195,7 @@ def grade_class(rubric: Rubric | str | Path, submissions: str | Path | None = No
     targets = {c.index: _reference_case(c, experiments, rubric) for c in rubric.checks}
     for check in rubric.checks:
         _check_quantity(check, targets[check.index][1], rubric)
-    ref_results = _run_reference(rubric, targets, jobs=jobs, max_steps=max_steps, backend=backend, executor=executor)
+    ref_results = _run_reference(rubric, targets, max_steps=max_steps, backend=backend)
 
     students = find_students(Path(submissions))
     single = len(students) == 1 and students[0].folder == Path(submissions)
@@ -281,7 +281,7 @@ def _guarded(check: CheckSpec, fn) -> Outcome:
         return failed(check, why, "could not be evaluated")
 
 
-def _run_reference(rubric: Rubric, targets: dict, *, jobs, max_steps, backend, executor) -> dict:
+def _run_reference(rubric: Rubric, targets: dict, *, max_steps, backend) -> dict:
     needed = []
     seen = set()
     for check in rubric.checks:
@@ -290,7 +290,9 @@ def _run_reference(rubric: Rubric, targets: dict, *, jobs, max_steps, backend, e
             seen.add((exp.name, case.name))
             needed.append(case)
     results = {}
-    for i, item in _run(needed, jobs=jobs, max_steps=max_steps, backend=backend, executor=executor):
+    # In this process: a few cases, and what they import (python-control for [analysis], scipy's
+    # expm) is then inherited by the pool's forked workers instead of imported by each of them.
+    for i, item in _run(needed, jobs=1, max_steps=max_steps, backend=backend, executor="serial"):
         case = needed[i]
         where = f"the reference's case {case.name!r} of {case.experiment!r}"
         if isinstance(item, str) or not hasattr(item, "status"):
