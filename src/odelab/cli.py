@@ -115,6 +115,9 @@ def run(
                                                              "dask.")] = "process",
     scheduler: Annotated[Optional[str], typer.Option("--scheduler", metavar="ADDRESS", help="Dask scheduler address (tcp://host:8786) "
                                                      "for --executor dask; none: a local Dask cluster.")] = None,
+    validate_with: Annotated[Optional[Path], typer.Option(
+        "--validate-with", metavar="CSV", help="Check each [fit]'s fitted model against a second data set (read as "
+        "[data] reads its file).", show_default=False)] = None,
 ) -> None:
     """Run experiments: solve every case, print the error tables and store the results."""
     import warnings
@@ -149,6 +152,8 @@ def run(
     for exp, exc in check_experiment_names(loaded):  # two files that would share a results folder
         loaded.remove(exp)
         bad.append(_error_text(exc))
+    if any(e.fit is not None for e in loaded) or validate_with is not None:
+        loaded = _fit_all(loaded, bad, validate_with)
     for line in bad:
         err.print(f"[bold red]error:[/] {_escape(line)}")
 
@@ -157,6 +162,26 @@ def run(
         return _run_all(loaded, bad, out, err, runs=runs, json_out=json_out, table=table or trajectories, mat=mat,
                         max_steps=max_steps, store=store, total=total, done=done, backend=backend, jobs=jobs,
                         executor=executor, scheduler=scheduler)
+
+
+def _fit_all(loaded, bad, validate_with):
+    """Estimate each experiment's [fit] before its cases run (they then run at the estimates)."""
+    from odelab.exceptions import InputError
+    from odelab.experiment.fit import fit_experiment
+
+    if validate_with is not None and not any(e.fit is not None for e in loaded):
+        bad.append(f"--validate-with {validate_with}: it checks a fitted model, and no experiment has a [fit].")
+        return loaded
+    out = []
+    for exp in loaded:
+        if exp.fit is None:
+            out.append(exp)
+            continue
+        try:
+            out.append(fit_experiment(exp, validate_with=str(validate_with) if validate_with else None))
+        except InputError as exc:
+            bad.append(_error_text(exc.located(source=str(exp.source))))
+    return out
 
 
 MAX_STEPS_HELP = ("Budget of steps per solve: an adaptive solve stops there, a fixed-step one over it is refused "
@@ -273,7 +298,7 @@ def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, st
                         err.print(f"[bold red]error:[/] {_escape(message)} (case {_escape(repr(case.name))})")
                         continue
                     results.append(result)
-                    any_failed |= result.status != "success"
+                    any_failed |= result.status != "success" or result.extra.get("fit", {}).get("status") == "failed"
             except (KeyboardInterrupt, _Terminated) as exc:
                 if store:  # what finished: this experiment's cases so far, and any a pool finished out of order
                     done[0] += _store_interrupted(loaded, exp, results, getattr(exc, "finished", ()), runs, mat,

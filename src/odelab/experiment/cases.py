@@ -41,6 +41,8 @@ class Problem:
     backend: str = "auto"  # [solver] backend: "auto", "python" or "compiled"
     compiled: Any = None  # an odelab.solvers.compiled.CompiledSystem where the system allows one
     analysis: Any = None  # the resolved [analysis] section: {"step_info", "bode", "poles", "input"}
+    data: Any = None  # [data]: an experiment.data.MeasuredData, the case's reference
+    fit: Any = None  # the summary of the experiment's [fit] (a plain dict), once it has been fitted
 
 
 @dataclass(frozen=True, eq=False)
@@ -67,6 +69,7 @@ class LoadedExperiment:
     cases: tuple[Case, ...]
     sweep: Any = None  # an odelab.experiment.sweep.Sweep, for a file with [sweep]
     study: Any = None  # an odelab.experiment.study.StudySpec, for a file with [study]
+    fit: Any = None  # an odelab.experiment.fit.FitSpec, for a file with [fit]
 
 
 @dataclass(frozen=True, eq=False)

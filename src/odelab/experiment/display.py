@@ -78,7 +78,7 @@ def print_experiment(console: Console, exp, results, *, table: bool = False) -> 
     if kinds:
         names = {"linearization": "the linearised model (x̄ added back): errors are nonlinear minus linear",
                  "exact": "the exact solution in \\[exact]", "lti": "the exact LTI response (matrix exponential)",
-                 "high-accuracy": "a high-accuracy solve"}
+                 "high-accuracy": "a high-accuracy solve", "data": "the measurements in \\[data] (at their times)"}
         console.print("[dim]errors against " + "; ".join(names.get(k, k) for k in sorted(kinds)) + ". "
                       + (HEADLINE_NOTE if peak else POINTWISE_NOTE) + "[/]")
     undefined = []
@@ -101,6 +101,11 @@ def print_experiment(console: Console, exp, results, *, table: bool = False) -> 
                                         and info["D"] == a["D"] for a in printed):
             print_analysis(console, r.case.name if printed or len(results) == 1 else None, info)
             printed.append(info)
+    fit = next((r.extra["fit"] for r in results if isinstance(r.extra.get("fit"), dict)), None)
+    if fit is not None:
+        from odelab.experiment.fit_display import print_fit
+
+        print_fit(console, fit)
     for r in results:
         if r.events:
             print_events(console, r)

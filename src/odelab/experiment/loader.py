@@ -301,6 +301,8 @@ def load_experiments(path: str | Path, *, limits: Limits = DEFAULT_LIMITS) -> li
 
 def _load(path: Path, data: dict, file_hash: str, name, limits: Limits) -> LoadedExperiment:
     src = str(path)
+    fit_raw = data.pop("fit", None)
+    original = copy.deepcopy(data) if fit_raw is not None else None  # [fit] rebuilds the file with its estimates
     cases_raw = data.pop("case", None)
     if cases_raw is None:
         cases_raw = [None]
@@ -333,7 +335,13 @@ def _load(path: Path, data: dict, file_hash: str, name, limits: Limits) -> Loade
     except InputError as exc:
         raise exc.located(source=src) from None
     _check_case_names(cases_raw, src)  # before any case is compiled
+    for index, override in enumerate(cases_raw):
+        if override is not None and "fit" in override:
+            raise ExperimentError("[fit] belongs to the whole file (outside [[case]]): one [fit] estimates one set "
+                                  "of parameters from the [data] of every case, jointly.", source=src,
+                                  key=f"case[{index}].fit")
     cases = []
+    models = []  # each case's validated model, for [fit]
     shared: dict = {}
     base_sections = _validated_sections(data) if len(cases_raw) > 1 else {}
     for index, override in enumerate(cases_raw):
@@ -355,6 +363,8 @@ def _load(path: Path, data: dict, file_hash: str, name, limits: Limits) -> Loade
             raise _in_case(exc.located(source=src), override, case_name) from None
         if case_name is None:
             case_name = problem.method
+        if fit_raw is not None:
+            models.append(model)
         config = {"name": name, **resolved, "case": [{"name": case_name}]}
         cases.append(Case(experiment=name, name=case_name, title=model.title or name, source=path,
                           file_hash=file_hash, config=config, problem=problem, index=index, swept=swept[index]))
@@ -367,8 +377,17 @@ def _load(path: Path, data: dict, file_hash: str, name, limits: Limits) -> Loade
             study = parse_study(study_raw, sweep, cases)
         except InputError as exc:
             raise exc.located(source=src) from None
+    fit = None
+    if fit_raw is not None:
+        from odelab.experiment.fit import parse_fit
+
+        try:
+            fit = parse_fit(fit_raw, cases, models, original, path=path, file_hash=file_hash, name=name,
+                            limits=limits, sweep=sweep)
+        except InputError as exc:
+            raise exc.located(source=src) from None
     return LoadedExperiment(name=name, title=title, source=path, file_hash=file_hash, cases=tuple(cases),
-                            sweep=sweep, study=study)
+                            sweep=sweep, study=study, fit=fit)
 
 
 def _sweep_cases(cases_raw: list, points: list) -> tuple[list, list]:
@@ -608,6 +627,17 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
                                   "is \"exact\" (from [exact]) or \"none\"; event times can have exact values with "
                                   "`exact` in the event's table.", key="reference.method")
         events, resolved["events"] = compile_events(model.events, states, params)
+    data = None
+    if model.data is not None:
+        from odelab.experiment.data import check_span, read_data
+
+        if events is not None or model.linearize is not None:
+            raise ExperimentError("[data] is the reference of a plain simulation; a case with [events] or "
+                                  "[linearize] cannot be compared with measurements yet: remove one of them.",
+                                  key="data")
+        data = read_data(model.data, path, tuple(states) + tuple(outputs))
+        check_span(data, tspan)
+        resolved["data"] = data.as_dict()
     fast = built.compiled  # the compiled backend's system, its inputs driven by the signals
     if fast is not None and fast.inputs:
         fast = fast.with_signals(signals)
@@ -645,6 +675,8 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
         resolved["exact"] = {k: v for k, v in model.exact.items()}
     ref = model.reference
     kind = ref.method
+    if kind == "auto" and data is not None:
+        kind = "data"  # measurements are the reference of every case
     if kind == "auto":
         kind = "exact" if exact_fn else ("lti" if built.linear and _all_exact(signals) and events is None else "none")
     if kind == "exact" and exact_fn is None:
@@ -676,7 +708,7 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
         options=options, output_fn=built.output_fn, input_fn=input_fn, exact_fn=exact_fn, reference=kind,
         reference_solver=(ref.solver, float(ref.rtol), float(ref.atol)), system=built.system, signals=signals,
         linearize=model.linearize, parameters=params, diagram=built.diagram, events=events, backend=backend,
-        compiled=fast, analysis=analysis,
+        compiled=fast, analysis=analysis, data=data,
     )
     return problem, resolved
 

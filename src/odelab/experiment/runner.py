@@ -98,6 +98,8 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
     y = p.output_fn(t, x, u) if p.output_fn is not None else None
     result = CaseResult(case=case, status=status, message=message, stats=stats, elapsed=elapsed, t=t, x=x, u=u,
                         y=y, warnings=list(warnings), events=events, event_marks=marks, backend=ran)
+    if p.fit is not None:  # the experiment's [fit], estimated before its cases ran (experiment/fit.py)
+        result.extra["fit"] = p.fit
     _reference(result)
     if p.diagram is not None:
         result.extra["diagram"] = diagram_record(p)
@@ -167,6 +169,11 @@ def _reference(result: CaseResult) -> None:
     t = result.t
     kind = p.reference
     ref: dict[str, np.ndarray] = {}
+    if kind == "data":
+        from odelab.experiment.data import data_reference
+
+        data_reference(result, _integrate)
+        return
     if kind == "none" or t.size < 2:
         return
     if kind == "exact":

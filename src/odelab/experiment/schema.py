@@ -145,6 +145,35 @@ class Analysis(_Section):
     loop: StrictStr | None = None  # diagrams: the block at whose input the loop is opened for margins
 
 
+class Data(_Section):
+    """[data]: measured data, a CSV file with a header row (checked by experiment/data.py)."""
+
+    file: StrictStr
+    time: StrictStr = "t"
+    columns: dict[str, StrictStr] | None = None  # model quantity = CSV column (default: same names)
+    sigma: dict[str, Number] | None = None  # measurement noise per quantity
+
+
+class FitParameter(_Section):
+    """One entry of [fit] parameters: k = { initial = 2, lower = 0, upper = 10 }."""
+
+    initial: Value | None = None  # default: the value in [parameters]
+    lower: Number | None = None
+    upper: Number | None = None
+
+
+class Fit(_Section):
+    """[fit]: which parameters to estimate from [data] (checked and run by experiment/fit.py)."""
+
+    parameters: dict[str, FitParameter]
+    quantities: list[StrictStr] | None = None  # default: every quantity [data] maps
+    validate_: StrictStr | None = Field(None, alias="validate")  # a second data set to check the fitted model against
+    method: StrictStr = "ode78"  # the solver of states and sensitivities
+    rtol: Number = 1e-10
+    atol: Number | None = None  # default: rtol times each measured quantity's scale
+    max_solves: StrictInt = 500
+
+
 class Experiment(_Section):
     """A whole experiment file, or one case after merging it over the base."""
 
@@ -164,3 +193,4 @@ class Experiment(_Section):
     blocks: dict[str, dict[str, Any]] | None = None  # kind = "diagram"; checked by experiment/diagram.py
     units: dict[str, StrictStr] | None = None  # [units]: x = "m", f = "N", t = "s": axis labels
     events: dict[str, Any] | None = None  # checked and compiled by experiment/events.py
+    data: Data | None = None  # [data]: measurements, the reference of every case (experiment/data.py)
