@@ -3,10 +3,12 @@
 Certified values from NIST's Statistical Reference Datasets
 (https://www.itl.nist.gov/div898/strd/nls/nls_main.shtml): Misra1a (lower difficulty) and
 Misra1b (average), both on the data of Misra, D., NIST (1978), embedded in
-tests/assets/fit/misra1a.csv. The models are solutions of ODEs, so the fit goes through the
-solver and the forward sensitivities, not through the closed form: Misra1a's
-y = b1 (1 - exp(-b2 x)) solves y' = b2 (b1 - y), Misra1b's y = b1 (1 - (1 + b2 x/2)^-2)
-solves y' = b2 (b1 - y)^(3/2) / sqrt(b1), both from y(0) = 0.
+tests/assets/fit/misra1a.csv, and Lanczos3 (lower difficulty, tests/assets/fit/lanczos3.csv).
+The models are solutions of ODEs, so the fit goes through the solver and the forward
+sensitivities, not through the closed form: Misra1a's y = b1 (1 - exp(-b2 x)) solves
+y' = b2 (b1 - y), Misra1b's y = b1 (1 - (1 + b2 x/2)^-2) solves y' = b2 (b1 - y)^(3/2) / sqrt(b1),
+both from y(0) = 0; Lanczos3's three exponentials are three decaying states whose initial
+values are three of the six parameters (sensitivities started at dx0/dp).
 """
 
 from pathlib import Path
@@ -19,31 +21,39 @@ from odelab.experiment.loader import load_experiment
 
 ASSETS = Path(__file__).parent.parent / "assets" / "fit"
 
-# name: (certified b1, b2), (certified standard errors), certified residual sum of squares
+# name: (certified b1, b2, ...), (certified standard errors), certified residual sum of squares, NIST's Start 1
 CERTIFIED = {
-    "misra1a": ((2.3894212918e02, 5.5015643181e-04), (2.7070075241e00, 7.2668688436e-06), 1.2455138894e-01),
-    "misra1b": ((3.3799746163e02, 3.9039091287e-04), (3.1643950207e00, 4.2547321834e-06), 7.5464681533e-02),
+    "misra1a": ((2.3894212918e02, 5.5015643181e-04), (2.7070075241e00, 7.2668688436e-06), 1.2455138894e-01,
+                (500, 1e-4)),
+    "misra1b": ((3.3799746163e02, 3.9039091287e-04), (3.1643950207e00, 4.2547321834e-06), 7.5464681533e-02,
+                (500, 1e-4)),
+    "lanczos3": ((8.6816414977e-02, 9.5498101505e-01, 8.4400777463e-01, 2.9515951832e00, 1.5825685901e00,
+                  4.9863565084e00),
+                 (1.7197908859e-02, 9.7041624475e-02, 4.1488663282e-02, 1.0766312506e-01, 5.8371576281e-02,
+                  3.4436403035e-02), 1.6117193594e-08, (1.2, 0.3, 5.6, 5.5, 6.5, 7.6)),
 }
 
 
 @pytest.mark.parametrize("name", sorted(CERTIFIED))
 def test_certified_estimates_and_standard_errors(name):
     exp = load_experiment(ASSETS / f"{name}.toml")
-    assert list(exp.fit.initial) == [500.0, 1e-4]  # NIST's Start 1
+    values, errors, rss, start = CERTIFIED[name]
+    assert list(exp.fit.initial) == list(start)  # NIST's Start 1
     fit = fit_experiment(exp).cases[0].problem.fit
     assert fit["status"] == "converged"
-    values, errors, rss = CERTIFIED[name]
-    for pname, certified, se in zip(("b1", "b2"), values, errors):
+    names = [f"b{i + 1}" for i in range(len(values))]
+    assert fit["names"] == names
+    for pname, certified, se in zip(names, values, errors):
         p = fit["parameters"][pname]
         # at least 6 significant digits of the estimates, 3 of the standard errors
         assert abs(p["estimate"] / certified - 1) < 5e-7, (pname, p["estimate"], certified)
         assert abs(p["standard_error"] / se - 1) < 5e-4, (pname, p["standard_error"], se)
     assert abs(fit["rss"] / rss - 1) < 1e-6
-    assert fit["dof"] == 12 and fit["n"] == 14
     assert fit["identifiability"] is None
-    # 95 % intervals: estimate +- t(0.975, 12) se; Student's t table: t(0.975, 12) = 2.179
+    assert fit["dof"] == fit["n"] - len(values)
+    # 95 % intervals: estimate +- t(0.975, dof) se; Student's t table: t(0.975, 12) = 2.179, t(0.975, 18) = 2.101
     b1 = fit["parameters"]["b1"]
-    assert fit["t_quantile"] == pytest.approx(2.179, abs=5e-4)
+    assert fit["t_quantile"] == pytest.approx({12: 2.179, 18: 2.101}[fit["dof"]], abs=5e-4)
     assert b1["ci95"][1] - b1["estimate"] == pytest.approx(fit["t_quantile"] * b1["standard_error"], rel=1e-12)
 
 

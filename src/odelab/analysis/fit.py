@@ -234,12 +234,15 @@ def fit_least_squares(evaluate: Callable[[np.ndarray], tuple[np.ndarray, np.ndar
         res = least_squares(lambda p: get(p)[0], p0, jac=lambda p: get(p)[1], bounds=(lo, hi), method="trf",
                             x_scale="jac", xtol=xtol, ftol=ftol, gtol=gtol, max_nfev=max_solves)
     except _Budget:
-        return failed(f"the fit did not converge within {max_solves} model solves")
+        return failed(f"the fit did not converge within {max_solves} model solves (raise max_solves, or start closer)")
     except FitEvaluationError as exc:
         return failed(f"the model could not be evaluated: {exc}")
-    if res.status <= 0:
+    if res.status == 0:
         state["last"] = np.asarray(res.x, dtype=float)
-        return failed(f"the fit did not converge: {res.message} ({res.nfev} evaluations)")
+        return failed(f"the fit did not converge within {max_solves} model solves (raise max_solves, or start closer)")
+    if res.status < 0:
+        state["last"] = np.asarray(res.x, dtype=float)
+        return failed(f"the fit stopped: {res.message}")
     p = np.asarray(res.x, dtype=float)
     r, J = get(p)
     info = uncertainties(J, r, p, names, sigma_known=sigma_known, limit=limit)

@@ -23,9 +23,10 @@ the complex-capable functions from an experiment file.
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from typing import Callable
 
 import numpy as np
 
@@ -39,11 +40,12 @@ STEP = 1e-200
 class ParametricModel:
     """``x' = rhs(t, X, P)``, ``x(t0) = initial(P)``, with complex, broadcasting arguments.
 
-    ``rhs(t, X, P)`` takes a real time, states ``X`` of shape ``(n, m)`` and parameters ``P``
-    of shape ``(np, m)`` (m evaluation points at once, complex) and returns ``(n, m)``;
-    ``initial(P)`` takes ``(np, m)`` and returns ``(n, m)``. ``breakpoints`` are times where
-    the right-hand side jumps (input steps): the integration restarts there, as
-    :func:`odelab.simulate` does.
+    ``rhs(t, X, P, piece)`` takes a real time, states ``X`` of shape ``(n, m)`` and parameters
+    ``P`` of shape ``(np, m)`` (m evaluation points at once, complex) and returns ``(n, m)``;
+    ``piece = (lo, hi)`` is the window of times the inputs are read in, so that at a
+    breakpoint they keep the value of the piece being integrated (as :func:`odelab.simulate`
+    reads them). ``initial(P)`` takes ``(np, m)`` and returns ``(n, m)``. ``breakpoints`` are
+    times where the right-hand side jumps (input steps): the integration restarts there.
     """
 
     states: tuple[str, ...]
@@ -80,7 +82,7 @@ def initial_sensitivities(model: ParametricModel, p) -> tuple[np.ndarray, np.nda
     return out.real[:, 0].copy(), out.imag / STEP
 
 
-def augmented_rhs(model: ParametricModel, p) -> Callable:
+def augmented_rhs(model: ParametricModel, p, piece: tuple[float, float] = (-math.inf, math.inf)) -> Callable:
     """The right-hand side of ``(x, vec(S))``: the states and the variational equations."""
     p = np.asarray(p, dtype=float)
     n, m = len(model.states), p.size
@@ -89,7 +91,7 @@ def augmented_rhs(model: ParametricModel, p) -> Callable:
     def fun(t, z):
         x = z[:n]
         S = z[n:].reshape(n, m)
-        F = np.asarray(model.rhs(t, x[:, None] + 1j * STEP * S, P), dtype=complex)
+        F = np.asarray(model.rhs(t, x[:, None] + 1j * STEP * S, P, piece), dtype=complex)
         F = np.broadcast_to(F, (n, m))
         out = np.empty(n + n * m)
         out[:n] = F.real[:, 0]
@@ -118,7 +120,6 @@ def solve_sensitivities(model: ParametricModel, p, times, *, t0: float, tf: floa
         raise ValueError(f"sensitivities are asked for at t = {times[0]:g}..{times[-1]:g}, outside the span "
                          f"[{t0:g}, {tf:g}]; they are never extrapolated")
     x0, S0 = initial_sensitivities(model, p)
-    fun = augmented_rhs(model, p)
     cuts = sorted(c for c in set(model.breakpoints) if t0 < c < tf)
     edges = [t0, *cuts, tf]
     z = np.concatenate([x0, S0.ravel()])
@@ -134,6 +135,9 @@ def solve_sensitivities(model: ParametricModel, p, times, *, t0: float, tf: floa
         # a time on a breakpoint is read from the piece after it (the inputs' value from there on)
         inside = (times >= a) & ((times <= b) if last else (times < b))
         grid = np.unique(np.concatenate([[a], times[inside], [b]]))
+        # the inputs on this piece's side of its breakpoints (never the next piece's value at b)
+        fun = augmented_rhs(model, p, (a if i > 0 else -math.inf, float(np.nextafter(b, -math.inf)) if not last
+                                       else math.inf))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", SolverWarning)
             sol = solve(fun, grid if grid.size > 2 else np.array([a, b]), z, method=method, **options)

@@ -110,6 +110,9 @@ def parse_fit(raw: Any, cases, models, original: dict, *, path: Path, file_hash:
     if sweep is not None:
         raise _error("[fit] and [sweep] cannot be combined yet: fit first, then sweep with the estimates in "
                      "[parameters].", "fit")
+    if spec.parameters is None:
+        raise _error("`fit.parameters` is required: name the parameters to estimate, e.g. parameters = { k = "
+                     "{ initial = 2, lower = 0 } }.", "fit.parameters")
     if not spec.parameters:
         raise _error("`fit.parameters` is empty: name the parameters to estimate, e.g. parameters = { k = "
                      "{ initial = 2, lower = 0 } }.", "fit.parameters")
@@ -334,7 +337,7 @@ def _fit_case(case, model: schema.Experiment, names: tuple[str, ...], quantities
                 tt = np.asarray(t, dtype=float)
                 if piece is not None:
                     tt = np.clip(tt, piece[0], piece[1])
-                out.append(np.asarray(fn(tt), dtype=float))
+                out.append(np.asarray(fn(tt.ravel()), dtype=float).reshape(tt.shape))
         return out
 
     # initial state

@@ -21,7 +21,7 @@ def print_fit(console: Console, fit: dict) -> None:
 
     ok = fit["status"] == "converged"
     head = "[bold]fit[/]" if ok else "[bold red]fit FAILED[/]"
-    noise = "sigma from [data]" if fit["sigma_known"] else "noise estimated from the residuals"
+    noise = "sigma given in \\[data]" if fit["sigma_known"] else "noise estimated from the residuals"
     console.print(f"{head}: {len(fit['names'])} parameters from {fit['n']} measurements "
                   f"({', '.join(shown(q) for q in fit['quantities'])}; {noise}), {fit['iterations']} iterations, "
                   f"{fit['solves']} solves of states and sensitivities ({shown(fit['method'])}, rtol "

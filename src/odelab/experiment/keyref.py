@@ -166,6 +166,29 @@ NOTES: dict[str, str] = {
     "events.<name>.terminal": "Stop (or, with a reset, restart) at the event: MATLAB's isterminal.",
     "events.<name>.reset": "States changed at the event, e.g. `{ v = \"-cr*v\" }`: the case restarts from them.",
     "events.<name>.exact": "The exact time of occurrence k = 0, 1, ..., to measure the event-time error.",
+    "data": "Measured data (docs/fitting.md): a CSV file with a header row, the reference of every case (errors at "
+            "the measured times).",
+    "data.file": "The CSV file, relative to the experiment file and inside its folder.",
+    "data.time": "The CSV column of the measured times (default \"t\").",
+    "data.columns": "Model quantity (a state or output) = CSV column, e.g. { x = \"position\" } (default: the "
+                    "columns named like a state or output).",
+    "data.columns.<name>": "The CSV column measuring the state or output <name>.",
+    "data.sigma": "The measurement noise (standard deviation, in the quantity's units) per quantity; [fit] then "
+                  "weighs by 1/sigma and uses it for the uncertainties.",
+    "data.sigma.<name>": "The standard deviation of the measurements of <name>.",
+    "fit": "Estimate parameters from [data] by weighted least squares with exact sensitivities (docs/fitting.md); "
+           "every case with [data] is fitted jointly.",
+    "fit.parameters": "The parameters to estimate, e.g. { k = { initial = 2, lower = 0, upper = 10 } }.",
+    "fit.parameters.<name>": "One fitted parameter of [parameters]: `initial`, `lower`, `upper`.",
+    "fit.parameters.<name>.initial": "Where the fit starts (default: the value in [parameters]).",
+    "fit.parameters.<name>.lower": "Lower bound (default none).",
+    "fit.parameters.<name>.upper": "Upper bound (default none).",
+    "fit.quantities": "The measured quantities to fit (default: every quantity [data] maps).",
+    "fit.validate": "A second data set (CSV, read like [data]) to check the fitted model against.",
+    "fit.method": "The solver of the states and sensitivities: an adaptive explicit method (default ode78).",
+    "fit.rtol": "Its relative tolerance (default 1e-10: far below any data's relative noise).",
+    "fit.atol": "Its absolute tolerance (default rtol times each case's largest measured value).",
+    "fit.max_solves": "A fit that needs more model solves than this fails with its last iterate (default 500).",
     "case": "[[case]] tables: variants of the experiment, each deep-merged over the base, each with a `name`.",
     "case.name": "The case's name, shown in tables and used as its folder under runs/<experiment>/.",
     "problem": "[[problem]] tables: several systems run through the same cases, sweep and study; each has a "

@@ -165,7 +165,7 @@ class FitParameter(_Section):
 class Fit(_Section):
     """[fit]: which parameters to estimate from [data] (checked and run by experiment/fit.py)."""
 
-    parameters: dict[str, FitParameter]
+    parameters: dict[str, FitParameter] | None = None  # required: checked by experiment/fit.py with its message
     quantities: list[StrictStr] | None = None  # default: every quantity [data] maps
     validate_: StrictStr | None = Field(None, alias="validate")  # a second data set to check the fitted model against
     method: StrictStr = "ode78"  # the solver of states and sensitivities
@@ -194,3 +194,4 @@ class Experiment(_Section):
     units: dict[str, StrictStr] | None = None  # [units]: x = "m", f = "N", t = "s": axis labels
     events: dict[str, Any] | None = None  # checked and compiled by experiment/events.py
     data: Data | None = None  # [data]: measurements, the reference of every case (experiment/data.py)
+    fit: Fit | None = None  # [fit]: taken out of the file by the loader and checked by experiment/fit.py

@@ -224,6 +224,9 @@ def build_report(
             if section.stiffness.figure is not None:
                 figures.append(section.stiffness.figure)
         figures.extend(_draw_control(section.control, section.anchor, draw))
+        if section.fit is not None:
+            section.fit.figures = [draw(spec) for spec in section.fit.figures]
+            figures.extend(f for f in section.fit.figures if f is not None)
         figures.extend(f for f in (section.solution_figure, section.error_figure) if f is not None)
         figures.extend(f for view in section.linearisations for f in view.figures)
     for study in studies:

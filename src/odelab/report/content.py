@@ -61,6 +61,7 @@ REFERENCE_TEXT = {
     "lti": "the exact response of the linear system (matrix exponential)",
     "high-accuracy": "a high-accuracy solve",
     "linearization": "the linearised model (the error is the linearisation error)",
+    "data": "the measurements in [data], at the measured times",
     "none": "no reference",
 }
 
@@ -206,6 +207,7 @@ class Section:
     stiffness: Any = None  # a StiffnessView when stiff and non-stiff methods meet (report/stiffness.py)
     layout: str = ""  # "by-quantity", "by-setup" or "states": how the figures are laid out
     control: Any = None  # report.control.ControlView: the diagram and [analysis] parts, if any
+    fit: Any = None  # report.fit.FitView: the model over [data], the [fit] estimates and residuals, if any
 
     @property
     def summary_rows(self) -> int:
@@ -528,6 +530,9 @@ def build_sections(groups: list[ExperimentRuns]) -> tuple[list[Section], list[st
         from odelab.report.control import control_view
 
         section.control = control_view(anchor, runs, every)
+        from odelab.report.fit import fit_view
+
+        section.fit = fit_view(anchor, runs, units)
         if group.name in ("exercise1", "exercise1_2pi") and lab_note is not None and not any(
                 s.lab_note for s in sections):
             section.lab_note = lab_note

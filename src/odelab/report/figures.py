@@ -54,6 +54,7 @@ AGAINST = {
     "lti": "the exact LTI response (thin black line, on top)",
     "high-accuracy": "a high-accuracy reference (thin black line, on top)",
     "linearization": "the linearised model (purple, dashed)",
+    "data": "each other (the measurements are drawn with the model in the data section below)",
     "none": "each other",
 }
 MARKERS_NOTE = "Hollow markers are the solver's output points (left out where a line has too many to tell apart)."
