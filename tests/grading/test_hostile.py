@@ -215,3 +215,20 @@ def test_one_case_that_breaks_odelab_costs_that_case_only(make_class, monkeypatc
     eve = grades["eve"].outcomes
     assert eve[0].score == 0 and "odelab could not run this case: ZeroDivisionError" in eve[0].summary
     assert eve[1].passed  # the solver check reads the file, it needs no run
+
+
+def test_a_student_name_is_never_a_spreadsheet_formula(make_class, tmp_path):
+    import csv
+
+    rubric = make_class({'=HYPERLINK("x")': {"exercise1.toml": EXERCISE1}, "ann": {}})
+    write_grades(grade_class(rubric), tmp_path / "grades")
+    rows = list(csv.reader((tmp_path / "grades" / "summary.csv").open()))
+    assert [r[0] for r in rows[1:]] == ["'=HYPERLINK(\"x\")", "ann"]
+    assert (tmp_path / "grades" / "HYPERLINK-x" / "feedback.md").is_file()  # a folder name that stays put
+
+
+def test_a_stray_experiment_file_beside_the_students_folders_is_not_a_student(make_class, tmp_path):
+    rubric = make_class({"alice": {"exercise1.toml": EXERCISE1}, "bob": {"exercise1.toml": EXERCISE1}})
+    (tmp_path / "submissions" / "exercise1.toml").write_text(EXERCISE1)
+    (tmp_path / "submissions" / "notes.txt").symlink_to(tmp_path / "rubric.toml")
+    assert sorted(by_name(grade_class(rubric))) == ["alice", "bob"]

@@ -225,3 +225,18 @@ def test_a_headline_of_the_headline_rubric_on_exercise1_2pi(make_class):
                                             reference={"exercise1_2pi.toml": two_pi}, rubric=rubric)))
     headline = grades["alice"].outcomes[0]
     assert headline.passed and float(headline.reference) == pytest.approx(6.907e-4, rel=1e-3)
+
+
+def test_a_trajectory_with_fewer_output_points_still_passes(make_class):
+    """Refine = 1 (ode45's steps only): the spline through them is within 1e-3 of the reference's Refine = 4."""
+    from grading_support import write_class  # noqa: F401
+
+    sparse = EXERCISE2.replace('name = "step-ode45"\n', 'name = "step-ode45"\nsolver.Refine = 1\n')
+    assert sparse != EXERCISE2
+    rubric = EX2_RUBRIC.split('[[check]]\nname = "settling time"')[0]
+    grades = by_name(grade_class(make_class({"sparse": {"exercise2.toml": sparse}, "same": {"exercise2.toml": EXERCISE2}},
+                                            reference={"exercise2.toml": EXERCISE2}, rubric=rubric)))
+    assert grades["same"].outcomes[0].student == "0"  # the same points: the spline passes through them
+    sparse_outcome = grades["sparse"].outcomes[0]
+    assert sparse_outcome.passed, sparse_outcome.summary
+    assert 0 < float(sparse_outcome.student) < 1e-3

@@ -59,19 +59,20 @@ class Student:
 def find_students(submissions: Path) -> list[Student]:
     """The students of a submissions folder, sorted by name.
 
-    Each sub-folder is a student. A folder with experiment files directly in it (Gradescope's
-    ``/autograder/submission``) is one student's submission, named after the folder.
+    Each sub-folder is a student. A folder with experiment files directly in it and no
+    sub-folder that has any (Gradescope's ``/autograder/submission``) is one student's
+    submission, named after the folder.
     """
     submissions = Path(submissions)
     if not submissions.is_dir():
         raise InputError(f"{submissions}: the submissions folder does not exist; give the folder that holds one "
                          "folder per student.", key="submissions")
     entries = sorted(os.scandir(submissions), key=lambda e: e.name)
-    if any(e.name.endswith(".toml") and e.is_file(follow_symlinks=False) for e in entries):
+    subfolders = [e for e in entries if not e.name.startswith(".") and e.is_dir()]  # symbolic links too: refused
+    if any(_is_toml(e) for e in entries) and not any(_has_toml(e) for e in subfolders):
         folders = [(submissions.resolve().name or "student", submissions)]
     else:
-        folders = [(e.name, Path(e.path)) for e in entries
-                   if not e.name.startswith(".") and (e.is_dir(follow_symlinks=False) or e.is_symlink())]
+        folders = [(e.name, Path(e.path)) for e in subfolders]
     students = []
     for name, folder in folders:
         student = Student(name=name, folder=folder)
@@ -82,6 +83,19 @@ def find_students(submissions: Path) -> list[Student]:
             _collect(student)
         students.append(student)
     return students
+
+
+def _is_toml(entry) -> bool:
+    return entry.name.endswith(".toml") and not entry.name.startswith(".") and entry.is_file(follow_symlinks=False)
+
+
+def _has_toml(entry) -> bool:
+    if entry.is_symlink():
+        return True  # a student's folder (refused as a link), not files of one submission
+    try:
+        return any(_is_toml(e) for e in os.scandir(entry.path))
+    except OSError:
+        return False
 
 
 def _collect(student: Student) -> None:

@@ -65,9 +65,15 @@ def summary_csv(grades: ClassGrade) -> str:
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(["student", *(c.name for c in grades.rubric.checks), "total"])
     for student in grades.students:
-        writer.writerow([visible(student.name), *(score_text(o.score) for o in student.outcomes),
+        writer.writerow([_cell(visible(student.name)), *(score_text(o.score) for o in student.outcomes),
                          score_text(student.score)])
     return buf.getvalue()
+
+
+def _cell(text: str) -> str:
+    """A name as a spreadsheet cell: one starting with = + - @ would be read as a formula (OWASP's CSV
+    injection), so it gets a leading apostrophe, which spreadsheets show as text."""
+    return "'" + text if text[:1] in ("=", "+", "-", "@") else text
 
 
 def _test_output(outcome) -> str:
