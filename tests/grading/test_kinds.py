@@ -240,3 +240,16 @@ def test_a_trajectory_with_fewer_output_points_still_passes(make_class):
     sparse_outcome = grades["sparse"].outcomes[0]
     assert sparse_outcome.passed, sparse_outcome.summary
     assert 0 < float(sparse_outcome.student) < 1e-3
+
+
+def test_a_case_renamed_is_graded_by_position_and_said_so(make_class):
+    renamed = EXERCISE1.replace('name = "ode23"', 'name = "first"').replace('name = "ode45"', 'name = "second"')
+    grades = by_name(grade_class(make_class({"alice": {"exercise1.toml": renamed},
+                                             "bob": {"exercise1.toml": renamed.replace('[[case]]\nname = "second"\n'
+                                                                                       'solver.method = "ode45"', "")}})))
+    alice = grades["alice"]
+    assert alice.score == 3
+    assert alice.notes == ["exercise1 has no case named 'ode23': your case 1, named 'first', was graded in its place."]
+    bob = grades["bob"]  # one case where the reference has two: no guessing
+    assert bob.score == 0
+    assert bob.outcomes[0].summary == "not found: expected case 'ode23' in exercise1 (your cases: first)"

@@ -203,7 +203,8 @@ def grade_class(rubric: Rubric | str | Path, submissions: str | Path | None = No
     outcomes: dict[tuple[int, int], Outcome] = {}
     grades: list[StudentGrade] = []
     to_run: list = []
-    run_keys: list[tuple[int, str, str]] = []
+    run_keys: list[tuple[int, str, str]] = []  # (student, experiment, reference case) of each case to run
+    queued: set[tuple[int, str, str]] = set()
     contexts: dict[tuple[int, str, str], tuple] = {}  # (student, experiment, ref case) -> (case, names, diffs)
     for s, student in enumerate(students):
         grade = StudentGrade(student.name, [], notes=list(student.notes))
@@ -237,6 +238,9 @@ def grade_class(rubric: Rubric | str | Path, submissions: str | Path | None = No
                     except Exception as exc:  # never let a comparison cost more than its words
                         diffs = [f"(the files could not be compared: {type(exc).__name__})"]
                     contexts[key] = (stu_case, names, diffs, how)
+                    if how.startswith("by its position"):
+                        grade.notes.append(f"{check.experiment} has no case named {ref_case.name!r}: your "
+                                           f"{how[len('by its position ('):-1]}, was graded in its place.")
             stu_case, names, diffs, how = contexts[key]
             if stu_case is None:
                 outcomes[(s, check.index)] = failed(check, how, f"not found: case {ref_case.name}")
@@ -245,7 +249,8 @@ def grade_class(rubric: Rubric | str | Path, submissions: str | Path | None = No
             elif check.kind == "matrix":
                 outcomes[(s, check.index)] = _guarded(check, lambda: evaluate_matrix(
                     check, ref_case, stu_case, names, diffs))
-            elif key not in run_keys:
+            elif key not in queued:
+                queued.add(key)
                 run_keys.append(key)
                 to_run.append(stu_case)
     by_key: dict[tuple[int, str, str], list[CheckSpec]] = {}
