@@ -7,6 +7,8 @@ import pytest
 
 import odelab
 from odelab.solvers import engine
+from odelab.solvers.dense import refine_weights
+from odelab.solvers.ordered import backwards
 from odelab.solvers.registry import get_method
 
 
@@ -23,7 +25,10 @@ def test_refine_rows_interpolated_after_the_loop_are_the_per_step_products(refin
     n_steps = sol.stats.nsteps
     assert n_steps > 1900 and sol.t.size == refine * n_steps + 1 and d.K.shape == (n_steps, 7, 3)
     fractions = np.arange(1, refine) / refine
-    weights_T = (d.coefficients @ np.cumprod(np.broadcast_to(fractions, (4, refine - 1)), axis=0)).T
+    weights = refine_weights(fractions, d.coefficients)
+    weights_T = [backwards(w) for w in weights]
+    np.testing.assert_allclose(weights, (d.coefficients @ np.cumprod(np.broadcast_to(fractions, (4, refine - 1)),
+                                                                      axis=0)).T, rtol=0, atol=1e-15)
     rows = sol.y[1:].reshape(n_steps, refine, 3)
     times = sol.t[1:].reshape(n_steps, refine)
     for k in range(n_steps):

@@ -57,12 +57,14 @@ def test_every_order_condition_holds_and_the_order_is_exact(name):
 def test_the_continuous_extension_meets_its_conditions_power_by_power(name):
     tab = PAIRS[name]
     orders, gammas, phis = _tree_data(tab.full_A, 8)
-    # in the powers of s Verner publishes: round-off relative to terms up to 1.4e6 (ode78)
+    # in the powers of s Verner publishes: round-off relative to terms up to 1.4e6 (ode78), the
+    # bound the tableau checks itself with (eps times the roundings times the terms' size)
+    assert tab._dense_order_problems() == []
     powers = tab.dense_powers
     values = powers.T @ phis.T  # (powers of s, trees)
     required = np.where(np.arange(1, 9)[:, None] == orders[None, :], 1 / gammas[None, :], 0.0)
-    scales = np.abs(powers.T) @ np.abs(phis.T)
-    assert (np.abs(values - required) <= np.maximum(1e-14, 64 * np.finfo(float).eps * scales)).all()
+    magnitudes = np.abs(tab._dense_magnitudes.T) @ _tree_data(np.abs(tab.full_A), 8)[2].T
+    assert (np.abs(values - required) <= 1e-12 * magnitudes).all()  # any summation order (BLAS here)
     # in the Chebyshev form odelab evaluates: b(s) . Phi(t) = s^|t| / gamma(t) to round-off
     s = np.linspace(0.1, 1, 10)
     weights = tab.dense @ basis_values(s, tab.dense.shape[1], "chebyshev")  # b_j(s), (stages, 10)
@@ -241,3 +243,40 @@ def test_odextend_nonnegative_and_mass_through_the_same_driver():
     assert sink.success and sink.y[:, 0].min() == 0.0 and abs(sink.y[-1, 0]) == 0.0
     heavy = odelab.ode78(lambda t, y: [-y[0]], [0, 1], [1.0], Mass=[[2.0]], RelTol=1e-10, AbsTol=1e-12)
     assert abs(heavy.y[-1, 0] - np.exp(-0.5)) < 1e-11
+
+
+def _rebuild(tab, **changes):
+    fields = dict(name=tab.name, c=tab.c, A=tab.A, b=tab.b, order=tab.order, error_weights=tab.error_weights,
+                  error_order=tab.error_order, dense=tab.dense, dense_order=tab.dense_order, fsal=False,
+                  extra_c=tab.extra_c, extra_A=tab.extra_A, dense_basis=tab.dense_basis)
+    fields.update(changes)
+    return ButcherTableau(**fields)
+
+
+@pytest.mark.parametrize("name", PAIRS)
+def test_the_self_check_catches_a_coefficient_wrong_in_its_twelfth_digit(name):
+    """The import-time check's tolerance is the coefficients' own round-off (eps times the
+    terms' size), not a fixed bound: a correct tableau passes under every BLAS kernel (it calls
+    no BLAS), and a coefficient off by one part in 1e11 (the row sums kept, so that only the
+    order conditions can see it) still fails."""
+    tab = PAIRS[name]
+    assert _rebuild(tab).order == tab.order  # the published data passes
+    big = np.unravel_index(np.argmax(np.abs(tab.A)), tab.A.shape)
+    A = np.array(tab.A)
+    delta = A[big] * 1e-11
+    A[big] += delta
+    A[big[0], 0] -= delta  # same row sum: the nodes c still match
+    with pytest.raises(ValueError, match=r"order-\d condition"):
+        _rebuild(tab, A=A)
+    b = np.array(tab.b)
+    j = int(np.argmax(np.abs(b)))
+    b[j] += b[j] * 1e-11
+    b[0] -= b[j] * 1e-11 / (1 + 1e-11)
+    with pytest.raises(ValueError, match=r"order-\d condition"):
+        _rebuild(tab, b=b, error_weights=tab.error_weights + (b - tab.b))
+    dense = np.array(tab.dense)
+    k = np.unravel_index(np.argmax(np.abs(dense[:, 2:])), dense[:, 2:].shape)
+    k = (k[0], k[1] + 2)
+    dense[k] += dense[k] * 1e-11
+    with pytest.raises(ValueError, match="continuous extension"):
+        _rebuild(tab, dense=dense)

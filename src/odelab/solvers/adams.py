@@ -41,6 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from odelab.solvers.dense import clip_nonnegative, query_times
+from odelab.solvers.ordered import combine
 from odelab.solvers.engine import (
     STATUS_FUN_RAISED,
     STATUS_MAX_STEPS,
@@ -157,8 +158,9 @@ class AdamsDenseOutput:
     def t_stop(self) -> float:
         return float(self.t_end[-1])
 
-    def __call__(self, tq) -> np.ndarray:
-        """States at the times ``tq``: shape (n,) for a scalar, (m, n) for a sequence."""
+    def __call__(self, tq, derivative: bool = False):
+        """States at the times ``tq``: shape (n,) for a scalar, (m, n) for a sequence; with
+        ``derivative=True``, ``(states, slopes)`` (the interpolant's d/dt, MATLAB's ``ntrp113`` ``ypint``)."""
         times, scalar = query_times(tq, self.t_start, self.t_stop)
         tdir = 1.0 if self.t_end[0] > self.t[0] else -1.0
         # Step i covers (t_i, t_end_i]: a time on a boundary takes the step that ends there.
@@ -172,13 +174,21 @@ class AdamsDenseOutput:
             phi[has, j] = self.phi[self.offsets[idx[has]] + j]
         hi_all = times - self.t_ref[idx]
         values = np.empty((times.size, n), dtype=self.y_ref.dtype)
+        slopes = np.empty_like(values) if derivative else None
         # One INTRP recurrence per distinct order (its length depends on the order).
         for ki in np.unique(orders):
             sel = np.flatnonzero(orders == ki)
-            g, _ = _interpolation_coefficients(hi_all[sel], self.psi[idx[sel]], int(ki))
-            values[sel] = self.y_ref[idx[sel]] + hi_all[sel, None] * np.einsum("mj,mjn->mn", g, phi[sel, :ki])
+            g, rho = _interpolation_coefficients(hi_all[sel], self.psi[idx[sel]], int(ki))
+            values[sel] = self.y_ref[idx[sel]] + hi_all[sel, None] * combine(g, phi[sel, :ki])
+            if derivative:
+                slopes[sel] = combine(rho, phi[sel, :ki])
         values[times == self.t_stop] = self.y_final
+        if derivative and self.nonnegative is not None:
+            part = slopes[:, self.nonnegative]
+            slopes[:, self.nonnegative] = np.where(values[:, self.nonnegative] < 0, 0.0, part)
         clip_nonnegative(values, self.nonnegative)
+        if derivative:
+            return (values[0], slopes[0]) if scalar else (values, slopes)
         return values[0] if scalar else values
 
     def extended(self, other: "AdamsDenseOutput") -> "AdamsDenseOutput":

@@ -21,8 +21,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from odelab.exceptions import InputError
+from odelab.solvers.ordered import backwards, combine, stage
 
-__all__ = ["basis_values", "clip_nonnegative", "query_times", "step_value", "step_slopes", "StageCompletion", "DenseOutput", "deval", "odextend"]
+__all__ = ["basis_values", "clip_nonnegative", "query_times", "refine_weights", "step_value", "step_slopes",
+           "StageCompletion", "DenseOutput", "deval", "odextend"]
 
 
 def query_times(tq, start: float, stop: float) -> tuple[np.ndarray, bool]:
@@ -92,14 +94,28 @@ def basis_slopes(s, columns: int, basis: str = "monomial") -> np.ndarray:
     return out
 
 
+def refine_weights(fractions, dense: np.ndarray, basis: str = "monomial") -> np.ndarray:
+    """Each stage's weight in the extension at the fractions ``s`` of a step: (len(s), stages).
+
+    Row j is ``sum_m dense[:, m] * basis_m(s_j)`` (summed for m = 0, 1, ...; no BLAS), what
+    ``Refine``'s interior points multiply ``h K`` by, the same in every engine.
+    """
+    return combine(basis_values(fractions, dense.shape[1], basis).T, dense.T)
+
+
 def step_value(tq: float, t: float, y: np.ndarray, h: float, K: np.ndarray, dense: np.ndarray,
                nonnegative=None, basis: str = "monomial") -> np.ndarray:
-    """The step's continuous extension at one time ``tq`` (MATLAB's ``ntrp45(tq, t, y, ..., h, f)``)."""
+    """The step's continuous extension at one time ``tq`` (MATLAB's ``ntrp45(tq, t, y, ..., h, f)``).
+
+    ``y + sum_j w_j K_j`` with the stage weights ``w_j = sum_m (h D[j, m]) basis_m(s)``, both
+    sums in :mod:`odelab.solvers.ordered`'s order (the compiled loops' too).
+    """
     if basis == "monomial":
         powers = np.cumprod(np.full(dense.shape[1], (tq - t) / h))
     else:
         powers = basis_values((tq - t) / h, dense.shape[1], basis)[:, 0]
-    value = y + (K.T @ (h * dense)) @ powers
+    weights = backwards(powers) @ (h * dense).T
+    value = y + backwards(weights) @ K
     return clip_nonnegative(value, nonnegative) if nonnegative is not None else value
 
 
@@ -115,10 +131,10 @@ def step_slopes(tq: np.ndarray, t: float, y: np.ndarray, h: float, K: np.ndarray
     q = dense.shape[1]
     # d/ds of s^(m+1) is (m+1) s^m; divided by h for d/dt, times the h in front: cancels.
     dpow = basis_slopes(s, q, basis)  # (q, k)
-    slopes = (K.T @ dense @ dpow).T
+    slopes = combine(combine(dpow.T, dense.T), K)
     if nonnegative is not None:
         powers = basis_values(s, q, basis)
-        values = y[None, :] + (K.T @ (h * dense) @ powers).T
+        values = y[None, :] + combine(combine(powers.T, (h * dense).T), K)
         part = slopes[:, nonnegative]
         slopes[:, nonnegative] = np.where(values[:, nonnegative] < 0, 0.0, part)
     return slopes
@@ -148,8 +164,8 @@ class StageCompletion:
         for i in todo:
             t, h, y, K = float(dense.t[i]), float(dense.h[i]), dense.y[i], dense.K[i]
             for j, cj in enumerate(self.c_extra):
-                row = s + 1 + j
-                K[row] = self.fun(t + cj * h, y + (h * self.A_extra[j, :row]) @ K[:row])
+                row = s + 1 + j  # the engine's stage sum, bit for bit (odelab.solvers.ordered)
+                K[row] = self.fun(t + cj * h, stage(y, self.A_extra[j, :row] * h, K[:row]))
                 K[row] -= K[0]
             self.nfevals += self.c_extra.size
             self.complete[i] = True
@@ -198,8 +214,12 @@ class DenseOutput:
     def t_end(self) -> float:
         return float(self.t[-1] + self.h[-1])
 
-    def __call__(self, tq) -> np.ndarray:
-        """States at the times ``tq``: shape (n,) for a scalar, (k, n) for a sequence."""
+    def __call__(self, tq, derivative: bool = False):
+        """States at the times ``tq``: shape (n,) for a scalar, (k, n) for a sequence.
+
+        With ``derivative=True``, ``(states, slopes)``: the slopes are the interpolant's
+        derivative d/dt at those times (MATLAB's ``[y, yp] = deval(sol, t)``).
+        """
         times, scalar = query_times(tq, self.t_start, self.t_end)
         tdir = 1.0 if self.h[0] > 0 else -1.0
         # Step i covers [t_i, t_i + h_i); a time on a step boundary takes the later step at s = 0,
@@ -211,12 +231,23 @@ class DenseOutput:
         h = self.h[idx]
         s = (times - self.t[idx]) / h
         q = self.coefficients.shape[1]
+        K = self.K[idx]
+        # step_value's formula for all times at once (the same bits): stage weights, then stages
         powers = basis_values(s, q, self.basis).T  # (k, q)
-        coef = np.einsum("jm,kjn->kmn", self.coefficients, self.K[idx]) * h[:, None, None]
-        values = self.y[idx] + np.einsum("km,kmn->kn", powers, coef)
+        D_T = self.coefficients.T  # (q, stages)
+        weights = combine(powers, h[:, None, None] * D_T[None, :, :])
+        values = self.y[idx] + combine(weights, K)
         values[times == self.t_end] = self.y_final
+        if derivative:
+            # d/ds of the basis, divided by h for d/dt, times the h in front: cancels
+            slopes = combine(combine(basis_slopes(s, q, self.basis).T, D_T[None, :, :]), K)
         if self.nonnegative is not None:
+            if derivative:
+                part = slopes[:, self.nonnegative]
+                slopes[:, self.nonnegative] = np.where(values[:, self.nonnegative] < 0, 0.0, part)
             clip_nonnegative(values, self.nonnegative)
+        if derivative:
+            return (values[0], slopes[0]) if scalar else (values, slopes)
         return values[0] if scalar else values
 
     def extended(self, other: "DenseOutput") -> "DenseOutput":
@@ -236,21 +267,27 @@ class DenseOutput:
         )
 
 
-def deval(sol, t) -> np.ndarray:
+def deval(sol, t, derivative: bool = False):
     """Evaluate a solution anywhere in its span with the method's own interpolant (MATLAB's ``deval``).
 
     Parameters
     ----------
     sol : Solution
-        A solution of ``ode23`` or ``ode45`` (or anything :func:`odelab.solve` ran with them).
+        A solution of a method with dense output (ode23, ode45, ode78, ode89, ode113, ode23t,
+        ode23tb, ode15s, ode23s, or anything :func:`odelab.solve` ran with them).
     t : float or sequence of float
         Times inside ``[sol.t[0], sol.t[-1]]``.
+    derivative : bool
+        Also return the slope of the interpolant there (MATLAB's ``[y, yp] = deval(sol, t)``,
+        "Slope of Interpolating Function").
 
     Returns
     -------
-    numpy.ndarray
+    numpy.ndarray or (numpy.ndarray, numpy.ndarray)
         Shape (n,) for a scalar ``t``, (k, n) for k times (rows are states, as in ``sol.y``;
-        MATLAB's ``deval`` returns the transpose).
+        MATLAB's ``deval`` returns the transpose). With ``derivative=True`` the pair
+        ``(y, yp)``, both of that shape: ``yp`` is d/dt of the interpolant, which equals
+        ``f(t, y)`` at the ends of the steps of ode23/ode45 and approximates it in between.
 
     Examples
     --------
@@ -268,6 +305,8 @@ def deval(sol, t) -> np.ndarray:
             "(their quadratics), or with a vector tspan of the times you need.",
             key="sol",
         )
+    if derivative:
+        return interpolant(t, derivative=True)
     return interpolant(t)
 
 

@@ -35,6 +35,8 @@ import math
 
 import numpy as np
 
+from odelab.solvers.ordered import backwards, combine, norm
+
 __all__ = [
     "STATUS_SUCCESS",
     "STATUS_STEP_UNDERFLOW",
@@ -79,22 +81,27 @@ def _grow(arr: np.ndarray, rows: int) -> None:
     arr.resize((rows,) + arr.shape[1:], refcheck=False)
 
 
-def _complete(fun, t: float, y: np.ndarray, h: float, K: np.ndarray, A_extra: np.ndarray, hA_extra: np.ndarray,
+def _complete(fun, t: float, h: float, K: np.ndarray, A_extra: np.ndarray, hA_extra: np.ndarray,
               extra_rows) -> int:
     """Evaluate a non-FSAL step's interpolation stages into K (stage ``s+1+j`` is
     ``f(t + c_j h, y + h A_extra[j] . K)``, held as its increment over ``K_0``), for a step that
-    is interpolated; returns their number."""
-    np.multiply(A_extra, h, hA_extra)
-    for row, cj, hA_row, K_head in extra_rows:
-        K[row] = fun(t + cj * h, y + hA_row.dot(K_head))
-        K[row] -= K[0]  # increment form
+    is interpolated; returns their number. ``hA_extra`` is ``[1, h*A_extra]`` by rows and each
+    of ``extra_rows`` pairs a row of it read backwards with the stages and ``y`` above it (the
+    stage's sum in :mod:`odelab.solvers.ordered`'s order, one non-BLAS product)."""
+    np.multiply(A_extra, h, hA_extra[:, 1:])
+    for K_row, cj, stage_dot, rows in extra_rows:
+        K_row[...] = fun(t + cj * h, stage_dot(rows)[0])
+        K_row -= K[0]  # increment form
     return len(extra_rows)
 
 
 def _refine_rows(weights_T: np.ndarray, h, K: np.ndarray, y: np.ndarray, nonnegative) -> np.ndarray:
     """MATLAB's interior Refine points of one step, ``y + h * W K`` with ``W`` the extension's
-    weights at s = j/refine: shape (refine-1, n) for one step's K (s, n)."""
-    block = h * weights_T.dot(K) + y
+    weights at s = j/refine (``weights_T`` holds its rows read backwards, see
+    :func:`odelab.solvers.ordered.backwards`): shape (refine-1, n) for one step's K (s, n)."""
+    block = np.empty((len(weights_T), K.shape[1]), dtype=K.dtype)
+    for r, w in enumerate(weights_T):
+        block[r] = h * (w @ K) + y
     if nonnegative is not None:
         block[:, nonnegative] = np.maximum(block[:, nonnegative], 0.0)
     return block
@@ -105,7 +112,8 @@ def _refine_output(t_ends, y_ends, step_K, fractions, weights_T, nonnegative):
 
     Row ``k*refine`` is the end of step k (t0 for k = 0) and the ``refine - 1`` rows after it
     are the step's interior points, computed with :func:`_refine_rows`' formula for blocks of
-    steps at once (a stacked matmul gives the same bits as the per-step product).
+    steps at once (a backwards weight row times a stack of steps' stages: numpy's own loop,
+    the same bits as the per-step product).
     """
     N = t_ends.size - 1
     r = fractions.size + 1
@@ -119,16 +127,13 @@ def _refine_output(t_ends, y_ends, step_K, fractions, weights_T, nonnegative):
     y_arr[0] = y_ends[0]
     y_view = y_arr[1:].reshape(N, r, y_ends.shape[1])
     y_view[:, -1] = y_ends[1:]
-    if np.iscomplexobj(step_K):  # complex products: numpy's stacked matmul sums differently
-        for k in range(N):
-            y_view[k, :-1] = _refine_rows(weights_T, h[k], step_K[k], y_ends[k], nonnegative)
-        return t_arr, y_arr
     for a in range(0, N, _BLOCK):
         b = min(N, a + _BLOCK)
-        block = h[a:b, None, None] * np.matmul(weights_T, step_K[a:b]) + y_ends[a:b, None, :]
-        if nonnegative is not None:
-            block[..., nonnegative] = np.maximum(block[..., nonnegative], 0.0)
-        y_view[a:b, :-1] = block
+        for r, w in enumerate(weights_T):
+            y_view[a:b, r] = h[a:b, None] * (w @ step_K[a:b]) + y_ends[a:b]
+    if nonnegative is not None:
+        interior = y_view[:, :-1]
+        interior[..., nonnegative] = np.maximum(interior[..., nonnegative], 0.0)
     return t_arr, y_arr
 
 
@@ -235,29 +240,44 @@ def integrate_adaptive(
     nodes = [float(ci) for ci in c]
     is_complex = np.iscomplexobj(y0)
     dtype = y0.dtype
-    # Preallocated work arrays and fixed views into them: per attempt the engine fills
-    # hA = h*A in place, and stage i reads row i of hA against the first i stages.
+    # Preallocated work arrays and fixed views into them. The stages and y share one array W,
+    # its rows K_(R-1), ..., K_1, K_0, y (R stages): stage i's terms and y are its rows
+    # R-i .. R, and a row of [1, h*A] read backwards holds their coefficients, so that
+    # ``coefficients.dot(rows[None])[0]`` is the stage ``y + sum_k hA[i, k] K_k`` in one call,
+    # summed in the order of odelab.solvers.ordered (k = i-1 down to 0, then y) by numpy's own
+    # loop (see there: a backwards vector and a 3-D operand keep numpy.dot off BLAS): the same
+    # bits under every BLAS, and those of the compiled loops. K is W's stage rows in stage
+    # order (a view).
     # A non-FSAL pair's K also holds f(t+h, y_new) (row s, the next step's first stage) and
     # the interpolation stages after it; K_main is the step's own s stages.
-    K = np.empty((s if fsal else dense.shape[0], n), dtype=dtype)
+    R = s if fsal else dense.shape[0]
+    W = np.empty((R + 1, n), dtype=dtype)
+    K = W[R - 1::-1]
+    W[R] = y0
+    y_row = W[R]  # the current step's start y: the loop copies an accepted ynew into it
     K[0] = f0
     K_main = K[:s]
-    hA = np.empty_like(A)
-    # (row i of K, c_i, row i of hA, the stages before i) of each stage the loop computes
-    # after the first (an FSAL pair's last stage is f(tnew, ynew), computed apart); writing
-    # into a fixed row view is cheaper than K[i] = ...
-    middle = [(K[i], nodes[i], hA[i, :i].dot, K[:i]) for i in range(1, last if fsal else s)]
+    hAx = np.empty((s, s + 1))
+    hAx[:, 0] = 1.0
+    hA = hAx[:, 1:]
+    # (row i of K, c_i, the coefficients, the rows) of each stage the loop computes after the
+    # first (an FSAL pair's last stage is f(tnew, ynew), computed apart); writing into a fixed
+    # row view is cheaper than K[i] = ...
+    middle = [(K[i], nodes[i], hAx[i, i::-1].dot, W[None, R - i:]) for i in range(1, last if fsal else s)]
     K_first, K_fnew = K[0], K[last if fsal else s]  # the next step's first stage is K_fnew
     if fsal:
-        hA_last_dot, K_head_last = hA[last, :last].dot, K[:last]
+        last_dot, rows_last = hAx[last, last::-1].dot, W[None, R - last:]
     else:
         b = np.asarray(b)
-        hb = np.empty_like(b)
-        hb_dot = hb.dot
+        hbx = np.empty(s + 1)
+        hbx[0] = 1.0
+        hb = hbx[1:]
+        last_dot, rows_last = hbx[::-1].dot, W[None, R - s:]
         if extra is not None:
             A_extra, c_extra = extra
-            hA_extra = np.empty_like(A_extra)
-            extra_rows = [(s + 1 + j, float(c_extra[j]), hA_extra[j, :s + 1 + j], K[:s + 1 + j])
+            hA_extra = np.empty((A_extra.shape[0], A_extra.shape[1] + 1))
+            hA_extra[:, 0] = 1.0
+            extra_rows = [(K[s + 1 + j], float(c_extra[j]), hA_extra[j, s + 1 + j::-1].dot, W[None, R - (s + 1 + j):])
                           for j in range(len(c_extra))]
     have_extra = not fsal and extra is not None
     step_complete: list[bool] = []
@@ -265,7 +285,10 @@ def integrate_adaptive(
     # closure] (a list: the closure updates it)
     completed = [True, 0]
     all_nodes = c if fsal else np.concatenate([c, [1.0], extra[1] if have_extra else []])
-    E_dot = E.dot
+    # fE = E . K summed for k = 0, 1, ... (numpy's own loop), into fE_row
+    E_dot, K_main_3d = backwards(E).dot, K_main[None]
+    fE_out = np.empty((1, n), dtype=np.result_type(E, dtype))
+    fE = fE_out[0]
     absy = np.abs(y0)
     have_nonneg = nonnegative is not None
     if have_nonneg:
@@ -281,15 +304,15 @@ def integrate_adaptive(
     absolute = np.abs
     maximum = np.maximum
     t = t0
-    y = y0
-    normy = float(np.linalg.norm(y0)) if norm_control else 0.0
+    y = y_row
+    normy = float(norm(y0)) if norm_control else 0.0
     normynew = normy
 
     hmin = _hmin(t)
     if htry != htry:  # NaN: MATLAB's initial step from the derivative at t0
         absh = min(hmax, abs(float(tspan[1]) - t0))
         if norm_control:
-            rh = (float(np.linalg.norm(f0)) / max(normy, float(threshold))) / (0.8 * rtol**power)
+            rh = (float(norm(f0)) / max(normy, float(threshold))) / (0.8 * rtol**power)
         else:
             rh = float((np.abs(f0) / np.maximum(absy, threshold)).max()) / (0.8 * rtol**power)
         if absh * rh > 1.0:
@@ -302,13 +325,12 @@ def integrate_adaptive(
     if refine_output and refine > 1:
         # Interior output at s = j/refine: the extension's weights sum_m dense[:, m] s^(m+1)
         # do not depend on the step, so they are formed once.
-        fractions = np.arange(1, refine) / refine
-        if dense_basis == "monomial":
-            weights_T = (dense @ np.cumprod(np.broadcast_to(fractions, (dense.shape[1], refine - 1)), axis=0)).T
-        else:
-            from odelab.solvers.dense import basis_values
+        from odelab.solvers.dense import refine_weights
 
-            weights_T = (dense @ basis_values(fractions, dense.shape[1], dense_basis)).T
+        fractions = np.arange(1, refine) / refine
+        # row j: the weight of each stage at s = fractions[j] (sum_m dense[:, m] * basis_m(s)),
+        # kept backwards for the products with the stages
+        weights_T = [backwards(w) for w in refine_weights(fractions, dense, dense_basis)]
     nxt = 1  # next tspan entry to output (vector tspan)
     if not refine_output:
         # MATLAB's output at the given times only: at most one row per entry, plus a terminal
@@ -361,34 +383,34 @@ def integrate_adaptive(
             while True:
                 np.multiply(A, h, hA)
                 if fsal:
-                    for K_row, ci, hA_row_dot, K_head in middle:
-                        K_row[...] = fun(t + ci * h, y + hA_row_dot(K_head))
+                    for K_row, ci, stage_dot, rows in middle:
+                        K_row[...] = fun(t + ci * h, stage_dot(rows)[0])
                     tnew = t + h
                     if done:
                         tnew = tfinal  # hit the end point exactly
                     h = tnew - t  # purify h
-                    ynew = y + hA_last_dot(K_head_last)
+                    ynew = last_dot(rows_last)[0]
                     K_fnew[...] = fun(tnew, ynew)
                 else:  # every stage inside the step; f(tnew, ynew) once the step is accepted
-                    for K_row, ci, hA_row_dot, K_head in middle:
-                        K_row[...] = fun(t + ci * h, y + hA_row_dot(K_head))
+                    for K_row, ci, stage_dot, rows in middle:
+                        K_row[...] = fun(t + ci * h, stage_dot(rows)[0])
                         K_row -= K_first  # increment form
                     tnew = t + h
                     if done:
                         tnew = tfinal
                     np.multiply(b, h, hb)  # with the h the stages used, as for hA
                     h = tnew - t
-                    ynew = y + hb_dot(K_main)
+                    ynew = last_dot(rows_last)[0]
                 nfevals += last
 
-                fE = E_dot(K_main)
+                E_dot(K_main_3d, fE_out)
                 if have_nonneg:
                     nn_reject = False
                 if norm_control:
-                    normynew = float(np.linalg.norm(ynew))
-                    err = absh * (float(np.linalg.norm(fE)) / max(normy, normynew, float(threshold)))
+                    normynew = float(norm(ynew))
+                    err = absh * (float(norm(fE)) / max(normy, normynew, float(threshold)))
                     if have_nonneg and err <= rtol and (ynew[nonnegative] < 0).any():
-                        err_nn = float(np.linalg.norm(np.maximum(0.0, -ynew[nonnegative]))) / max(
+                        err_nn = float(norm(np.maximum(0.0, -ynew[nonnegative]))) / max(
                             normy, normynew, float(threshold))
                         if err_nn > rtol:
                             err, nn_reject = err_nn, True
@@ -443,7 +465,7 @@ def integrate_adaptive(
                 # Accepted: clip to the constraint; the interpolant keeps the unclipped stages.
                 ynew[nonnegative] = np.maximum(ynew[nonnegative], 0.0)
                 if norm_control:
-                    normynew = float(np.linalg.norm(ynew))
+                    normynew = float(norm(ynew))
                 else:
                     absynew = np.abs(ynew)
                 nn_reset = True
@@ -454,7 +476,7 @@ def integrate_adaptive(
 
                 def interpolate(tq):
                     if not completed[0]:
-                        completed[1] += _complete(fun, step_t0, step_y0, step_h0, K, A_extra, hA_extra, extra_rows)
+                        completed[1] += _complete(fun, step_t0, step_h0, K, A_extra, hA_extra, extra_rows)
                         completed[0] = True
                     return step_value(tq, step_t0, step_y0, step_h0, K, dense, nonnegative, dense_basis)
 
@@ -484,7 +506,7 @@ def integrate_adaptive(
                     or (not refine_output and nxt < ntspan and tdir * (tnew - float(tspan[nxt])) > 0)):
                 # The step is interpolated (Refine, or an output time inside it): its
                 # interpolation stages are needed now.
-                nfevals += _complete(fun, t, y, h, K, A_extra, hA_extra, extra_rows)
+                nfevals += _complete(fun, t, h, K, A_extra, hA_extra, extra_rows)
                 completed[0] = True
             if stored == capacity:
                 capacity += max(capacity >> 2, _FIRST_CAPACITY)
@@ -511,16 +533,9 @@ def integrate_adaptive(
                     if tn == tnew:
                         y_out[nout] = ynew
                     else:
-                        if dense_basis == "monomial":
-                            powers = np.cumprod(np.full(dense.shape[1], (tn - t) / h))
-                        else:
-                            from odelab.solvers.dense import basis_values
+                        from odelab.solvers.dense import step_value
 
-                            powers = basis_values((tn - t) / h, dense.shape[1], dense_basis)[:, 0]
-                        yi = y + (K.T @ (h * dense)) @ powers
-                        if have_nonneg:
-                            yi[nonnegative] = np.maximum(yi[nonnegative], 0.0)
-                        y_out[nout] = yi
+                        y_out[nout] = step_value(tn, t, y, h, K, dense, nonnegative, dense_basis)
                     nout += 1
                     nxt += 1
                 if output_fcn is not None and nout > n_before:
@@ -556,7 +571,7 @@ def integrate_adaptive(
                     absh = 5.0 * absh
 
             t = tnew
-            y = ynew
+            y_row[...] = ynew  # y is y_row: the rows of the next step's stages
             if norm_control:
                 normy = normynew
             else:
@@ -622,10 +637,20 @@ def integrate_fixed(fun, grid: np.ndarray, keep: np.ndarray, y0: np.ndarray, A: 
     """
     s = c.size
     n = y0.size
-    K = np.empty((s, n))
+    # integrate_adaptive's layout: W's rows are K_(s-1), ..., K_0, y, and a row of [1, h*A]
+    # read backwards times the rows from R-i on is stage i in the order of odelab.solvers.ordered
+    W = np.empty((s + 1, n))
+    K = W[s - 1::-1]
+    y_row = W[s]
+    hAx = np.empty((s, s + 1))
+    hbx = np.empty(s + 1)
+    hAx[:, 0] = hbx[0] = 1.0
+    rows = [(K[i], hAx[i, i::-1].dot, W[None, s - i:]) for i in range(1, s)]
+    b_dot, W_3d = hbx[::-1].dot, W[None]
     ys = np.empty((grid.size, n))
     ys[0] = y0
-    y = y0
+    y_row[...] = y0
+    y = y_row
     nsteps = 0
     nfevals = 0
     status = STATUS_SUCCESS
@@ -637,22 +662,23 @@ def integrate_fixed(fun, grid: np.ndarray, keep: np.ndarray, y0: np.ndarray, A: 
     nodes = c.tolist()
     t = times[0]
     h_prev = math.nan
-    hA = hb = None
     try:
         for k in range(grid.size - 1):
             t = times[k]
             h = times[k + 1] - t
             if h != h_prev:
-                hA, hb, h_prev = h * A, h * b, h
+                np.multiply(A, h, hAx[:, 1:])
+                np.multiply(b, h, hbx[1:])
+                h_prev = h
             K[0] = fun(t, y)
-            for i in range(1, s):
-                K[i] = fun(t + nodes[i] * h, y + hA[i, :i] @ K[:i])
+            for i, (K_row, stage_dot, stage_rows) in enumerate(rows, start=1):
+                K_row[...] = fun(t + nodes[i] * h, stage_dot(stage_rows)[0])
             nfevals += s
-            ynew = y + hb @ K
+            ynew = b_dot(W_3d)[0]
             if not math.isfinite(float(ynew.sum())):
                 status = STATUS_NONFINITE
                 break
-            y = ynew
+            y_row[...] = ynew
             ys[k + 1] = y
             nsteps += 1
             t = times[k + 1]

@@ -33,9 +33,6 @@ __all__ = [
     "RK4",
 ]
 
-_TOL = 1e-14
-
-
 def _array(rows) -> np.ndarray:
     out = np.array([[float(x) for x in row] for row in rows]) if np.ndim(rows[0]) else np.array([float(x) for x in rows])
     out.setflags(write=False)
@@ -105,11 +102,22 @@ def _tree_structure():
 _ORDERS, _GAMMAS, _REST, _LAST = _tree_structure()
 
 
+def _products(M: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``M @ v`` as elementwise products summed by numpy's own reduction (no BLAS call).
+
+    The self-checks below run at import: their values must not depend on which BLAS kernel the
+    machine picks (another summation order, fused multiply-adds), so they never call BLAS.
+    """
+    return (M * v).sum(axis=-1)
+
+
 def _tree_data(A: np.ndarray, max_order: int = MAX_CHECKED_ORDER) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Order |t|, density gamma(t) and stage vector Phi(t) of each tree up to ``max_order``.
 
     The condition of tree t for weights b is ``b . Phi(t) = 1/gamma(t)``; Phi of a root
     carrying subtrees u is the product over u of ``A Phi(u)``. Returns arrays (N,), (N,), (N, s).
+    Called with ``|A|`` it gives the sum of the absolute values of the terms of each Phi(t), the
+    scale of its round-off.
     """
     count = _TREE_COUNTS[max_order]
     phis = np.ones((count, A.shape[0]))
@@ -118,30 +126,47 @@ def _tree_data(A: np.ndarray, max_order: int = MAX_CHECKED_ORDER) -> tuple[np.nd
     for p in range(2, max_order + 1):
         level = slice(_TREE_COUNTS[p - 1], _TREE_COUNTS[p])
         phis[level] = phis[_REST[level]] * a_phis[_LAST[level]]
-        a_phis[level] = phis[level] @ A.T
+        a_phis[level] = _products(phis[level][:, None, :], A[None, :, :])
     return _ORDERS[:count], _GAMMAS[:count], phis
-
-
-def _order_conditions(A: np.ndarray, b: np.ndarray, c: np.ndarray,
-                      max_order: int = MAX_CHECKED_ORDER) -> list[tuple[int, float, float, float]]:
-    """(order, value, required, scale) for the Runge-Kutta order conditions up to ``max_order``.
-
-    One condition per rooted tree: ``b . Phi(t) = 1/gamma(t)``, with ``Phi`` built from ``A``
-    (the row sums of ``A``, checked separately, are ``c``). ``scale`` is ``sum |b_j Phi_j|``,
-    the size of the round-off in ``value`` for coefficients given as floats.
-    """
-    orders, gammas, phis = _tree_data(A, max_order)
-    values, scales = phis @ b, np.abs(phis) @ np.abs(b)
-    return list(zip(orders.tolist(), values.tolist(), (1.0 / gammas).tolist(), scales.tolist()))
 
 
 _EPS = float(np.finfo(float).eps)
 
 
-def _condition_ok(value, required, scale):
-    """Exact rationals meet a condition to _TOL; 17-digit floats (Verner's published decimals)
-    to a few units of round-off of the terms' size. Scalars or arrays (then: all of them)."""
-    return bool(np.all(np.abs(np.asarray(value) - required) <= np.maximum(_TOL, 64 * _EPS * np.asarray(scale))))
+def _roundings(orders, stages: int):
+    """How many roundings (each at most eps/2 relative to its terms' size) a condition of a tree
+    of each order accumulates: |t| - 1 products with A and one with b, each a sum of at most
+    ``stages`` products. The bounds below allow twice that (eps per rounding), and the
+    coefficients' own rounding to doubles (eps/2 each, at most |t| + 1 factors a term) fits in
+    the same allowance."""
+    return np.asarray(orders) * (stages + 1)
+
+
+def _order_conditions(A: np.ndarray, b: np.ndarray, c: np.ndarray,
+                      max_order: int = MAX_CHECKED_ORDER) -> list[tuple[int, float, float, float]]:
+    """(order, value, required, tolerance) for the Runge-Kutta order conditions up to ``max_order``.
+
+    One condition per rooted tree: ``b . Phi(t) = 1/gamma(t)``, with ``Phi`` built from ``A``
+    (the row sums of ``A``, checked separately, are ``c``). ``tolerance`` is the round-off that
+    coefficients given as doubles can leave in ``value``: eps times the number of roundings
+    times ``sum |b_j| |Phi|_j`` (the terms' size, ``|Phi|`` built from ``|A|``).
+    """
+    orders, gammas, phis = _tree_data(A, max_order)
+    magnitudes = _tree_data(np.abs(A), max_order)[2]
+    values = _products(phis, b)
+    tolerances = _roundings(orders, A.shape[0]) * _EPS * _products(magnitudes, np.abs(b))
+    return list(zip(orders.tolist(), values.tolist(), (1.0 / gammas).tolist(), tolerances.tolist()))
+
+
+def _condition_ok(value, required, tolerance):
+    """A condition holds when its value is within ``tolerance`` (round-off of the coefficients'
+    own size, never a fixed absolute bound) of what it requires. Scalars or arrays (all of them)."""
+    return bool(np.all(np.abs(np.asarray(value) - required) <= np.asarray(tolerance)))
+
+
+def _sum_ok(values, required, magnitudes, terms):
+    """Sums of ``terms`` doubles (row sums, the weights at s = 1) equal ``required`` to their round-off."""
+    return _condition_ok(values, required, terms * _EPS * np.asarray(magnitudes))
 
 
 @dataclass(frozen=True, eq=False)
@@ -208,18 +233,19 @@ class ButcherTableau:
             problems.append("A is not strictly lower triangular (the method would be implicit)")
         else:
             row_sums = self.A.sum(axis=1)
-            if not all(map(_condition_ok, row_sums, self.c, np.abs(self.A).sum(axis=1))):
+            if not _sum_ok(row_sums, self.c, np.abs(self.A).sum(axis=1), s):
                 problems.append(f"row sums of A {row_sums} differ from the nodes c {self.c}")
             if not 1 <= self.order <= MAX_CHECKED_ORDER:
                 problems.append(f"order {self.order} is outside the checked range 1..{MAX_CHECKED_ORDER}")
             checked = min(self.order + 1, MAX_CHECKED_ORDER)
-            orders, gammas, phis = _tree_data(self.A, checked)
-            values, scales = phis @ self.b, np.abs(phis) @ np.abs(self.b)
-            ok = np.abs(values - 1.0 / gammas) <= np.maximum(_TOL, 64 * _EPS * scales)
+            orders, _, _ = _tree_data(self.A, checked)
+            conditions = _order_conditions(self.A, self.b, self.c, checked)
+            values, required, tolerances = (np.array(x) for x in list(zip(*conditions))[1:])
+            ok = np.abs(values - required) <= tolerances
             failed = np.flatnonzero(~ok & (orders <= self.order))
             if failed.size:
                 k = failed[0]
-                problems.append(f"order-{orders[k]} condition gives {values[k]!r}, needs {1.0 / gammas[k]!r}")
+                problems.append(f"order-{orders[k]} condition gives {values[k]!r}, needs {required[k]!r}")
             if self.order < MAX_CHECKED_ORDER and ok[orders == self.order + 1].all():
                 # The order is exactly what it says: some condition of the next order fails.
                 problems.append(f"the method meets every order-{self.order + 1} condition: its order is "
@@ -227,10 +253,17 @@ class ButcherTableau:
         if self.error_weights is not None:
             if self.error_weights.shape != (s,):
                 problems.append("error_weights must have one entry per stage")
-            elif abs(self.error_weights.sum()) > _TOL:
+            elif not _sum_ok(self.error_weights.sum(), 0.0, np.abs(self.error_weights).sum(), s):
                 problems.append("error weights must sum to 0 (both embedded solutions are consistent)")
             if self.error_order is None or self.error_order >= self.order:
                 problems.append("an embedded pair needs error_order < order")
+            elif not problems and self.error_order >= 1:
+                # The embedded solution b - E has the order the controller's exponent assumes.
+                conditions = _order_conditions(self.A, self.b - self.error_weights, self.c, self.error_order)
+                failed = [p for p, value, required, tol in conditions if abs(value - required) > tol]
+                if failed:
+                    problems.append(f"the embedded solution b - error_weights fails an order-{failed[0]} condition: "
+                                    f"its order is below {self.error_order}")
         if self.fsal and (self.c[-1] != 1.0 or not np.array_equal(self.A[-1], self.b)):
             problems.append("FSAL needs c[-1] == 1 and the last row of A equal to b")
         if (self.extra_c is None) != (self.extra_A is None):
@@ -241,7 +274,7 @@ class ButcherTableau:
                 problems.append("interpolation stages (extra_c, extra_A) belong to a non-FSAL pair")
             elif self.extra_A.shape != (m, s + 1 + m) or np.any(np.triu(self.extra_A[:, s + 1:]) != 0):
                 problems.append(f"extra_A must be ({m}, {s + 1 + m}) and explicit (stage j uses the ones before it)")
-            elif not all(map(_condition_ok, self.extra_A.sum(axis=1), self.extra_c, np.abs(self.extra_A).sum(axis=1))):
+            elif not _sum_ok(self.extra_A.sum(axis=1), self.extra_c, np.abs(self.extra_A).sum(axis=1), s + 1 + m):
                 problems.append(f"row sums of extra_A {self.extra_A.sum(axis=1)} differ from extra_c {self.extra_c}")
         if self.dense_basis not in ("monomial", "chebyshev"):
             problems.append(f"dense_basis is {self.dense_basis!r}: 'monomial' or 'chebyshev'")
@@ -251,7 +284,8 @@ class ButcherTableau:
             if self.dense.shape[0] != rows:
                 problems.append(f"dense must have one row per stage of the extended step ({rows})")
             # (judged against the round-off of the published powers-of-s coefficients, whatever the form)
-            elif not all(map(_condition_ok, self.dense.sum(axis=1), b_full, np.abs(self.dense_powers).sum(axis=1))):
+            elif not _sum_ok(self.dense.sum(axis=1), b_full, self._dense_magnitudes.sum(axis=1),
+                             2 * self.dense.shape[1]):
                 problems.append("the continuous extension at s = 1 must equal the step's solution b")
             elif self.dense_order is not None:
                 problems.extend(self._dense_order_problems())
@@ -319,10 +353,11 @@ class ButcherTableau:
         return out
 
     @cached_property
-    def dense_powers(self) -> np.ndarray:
-        """The continuous extension as coefficients of s, s^2, ... (converted from Chebyshev form)."""
+    def _to_powers(self) -> np.ndarray | None:
+        """Row k: the coefficients of s^0 .. s^(q-1) in the basis function k of ``dense``'s columns
+        (None for the monomial form)."""
         if self.dense_basis == "monomial":
-            return self.dense
+            return None
         q = self.dense.shape[1]
         # row k: T_k(2s - 1) in powers s^0 .. s^(q-1), by T_(k+1) = 2 (2s - 1) T_k - T_(k-1)
         to_powers = np.zeros((q, q))
@@ -333,21 +368,41 @@ class ButcherTableau:
             shifted = np.zeros(q)
             shifted[1:] = to_powers[k, :-1]
             to_powers[k + 1] = 2.0 * (2.0 * shifted - to_powers[k]) - to_powers[k - 1]
-        return (self.dense @ to_powers)[:, 1:]  # the s^0 column vanishes (checked below)
+        return to_powers  # integers, exact in doubles
+
+    @cached_property
+    def dense_powers(self) -> np.ndarray:
+        """The continuous extension as coefficients of s, s^2, ... (converted from Chebyshev form)."""
+        if self.dense_basis == "monomial":
+            return self.dense
+        # the s^0 column vanishes (checked below)
+        return _products(self.dense[:, None, :], self._to_powers.T[None, :, :])[:, 1:]
+
+    @cached_property
+    def _dense_magnitudes(self) -> np.ndarray:
+        """The size of the terms of each ``dense_powers`` coefficient (``|dense|`` itself for the
+        monomial form): the scale of the conversion's round-off."""
+        if self.dense_basis == "monomial":
+            return np.abs(self.dense)
+        return _products(np.abs(self.dense)[:, None, :], np.abs(self._to_powers.T)[None, :, :])[:, 1:]
 
     def _dense_order_problems(self) -> list[str]:
-        """The continuous extension's order conditions, one per tree and power of s."""
+        """The continuous extension's conditions, one per tree and power of s, each to the
+        round-off its terms can leave (the conversion to powers of s included)."""
         orders, gammas, phis = _tree_data(self.full_A, self.dense_order)
-        dense = self.dense_powers
+        magnitudes = _tree_data(np.abs(self.full_A), self.dense_order)[2]
+        dense, dense_abs = self.dense_powers, self._dense_magnitudes
+        q = self.dense.shape[1]
         if self.dense_basis == "chebyshev":
-            at_zero = self.dense @ (-1.0) ** np.arange(self.dense.shape[1])
-            if not _condition_ok(at_zero, 0.0, np.abs(dense).sum(axis=1)):
+            at_zero = _products(self.dense, (-1.0) ** np.arange(q))
+            if not _sum_ok(at_zero, 0.0, np.abs(self.dense).sum(axis=1), q):
                 return ["the continuous extension must vanish at s = 0"]
         powers = np.arange(1, dense.shape[1] + 1)
         required = np.where(powers[:, None] == orders[None, :], 1.0 / gammas[None, :], 0.0)  # (q, trees)
-        values = dense.T @ phis.T
-        scales = np.abs(dense.T) @ np.abs(phis.T)
-        bad = np.abs(values - required) > np.maximum(_TOL, 64 * _EPS * scales)
+        values = _products(dense.T[:, None, :], phis[None, :, :])
+        scales = _products(dense_abs.T[:, None, :], magnitudes[None, :, :])
+        roundings = _roundings(orders, self.full_c.size)[None, :] + q
+        bad = np.abs(values - required) > roundings * _EPS * scales
         if bad.any():
             m, k = np.argwhere(bad)[0]
             return [f"the continuous extension fails an order-{orders[k]} condition (power s^{m + 1}): "

@@ -332,9 +332,10 @@ def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dic
 
     refine = opts.refine
     if tspan_arr.size == 2 and refine > 1:
+        from odelab.solvers.dense import refine_weights
+
         fractions = np.arange(1, refine) / refine
-        weights = np.ascontiguousarray(
-            (tab.dense @ np.cumprod(np.broadcast_to(fractions, (tab.dense.shape[1], refine - 1)), axis=0)).T)
+        weights = np.ascontiguousarray(refine_weights(fractions, tab.dense))  # the Python engine's, bit for bit
     else:
         weights = np.zeros((0, tab.c.size))
     threshold = np.broadcast_to(np.atleast_1d(np.asarray(opts.atol / opts.rtol, dtype=float)), (n,)).copy()

@@ -8,9 +8,10 @@ loops as a first-class function (one indirect call per stage, a few nanoseconds)
 
 The loops are :func:`odelab.solvers.engine.integrate_adaptive` and ``integrate_fixed``
 statement for statement, with every array operation written out as a loop in the order of the
-mathematics (stage ``y + sum_k hA[i, k] K[k]``, the error ``sum_k E[k] K[k]``, Refine's
-``h * W K + y``): the same steps, the same accept/reject decisions and the same values to
-round-off (numpy's BLAS may sum in another order, so the last bits can differ). The output
+mathematics, in the order :mod:`odelab.solvers.ordered` fixes for the Python engine (stage
+``sum_k hA[i, k] K[k]`` for k = i-1 down to 0, then ``+ y``; the error ``sum_k E[k] K[k]`` and
+Refine's ``h * W K + y`` for k = 0 up): the same steps, the same accept/reject decisions and
+the same values bit for bit, under every BLAS (neither engine calls it). The output
 arrays grow geometrically (doubling), so a long run costs amortised O(1) per output row and
 no list of small arrays.
 """
@@ -71,7 +72,7 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
     ynew = _np.empty(n)
     absynew = _np.empty(n)
     fE = _np.empty(n)
-    M = _np.empty((n, ndense))
+    weight = _np.empty(s)
     powers = _np.empty(ndense)
     thr = threshold[0]
 
@@ -138,9 +139,9 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
             for i in range(1, last):
                 for j in range(n):
                     acc = 0.0
-                    for k in range(i):
+                    for k in range(i - 1, -1, -1):  # odelab.solvers.ordered.stage's order
                         acc += hA[i, k] * K[k, j]
-                    stage[j] = y[j] + acc
+                    stage[j] = acc + y[j]
                 _rhs(t + c[i] * h, stage, p, K[i])
             tnew = t + h
             if done:
@@ -148,9 +149,9 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
             h = tnew - t
             for j in range(n):
                 acc = 0.0
-                for k in range(last):
+                for k in range(last - 1, -1, -1):
                     acc += hA[last, k] * K[k, j]
-                ynew[j] = y[j] + acc
+                ynew[j] = acc + y[j]
             _rhs(tnew, ynew, p, K[last])
             nfevals += last
 
@@ -237,16 +238,16 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
                     for m in range(ndense):
                         pw *= x
                         powers[m] = pw
-                    for j in range(n):
-                        for m in range(ndense):
-                            acc = 0.0
-                            for k in range(s):
-                                acc += K[k, j] * (h * dense[k, m])
-                            M[j, m] = acc
-                    for j in range(n):
+                    # odelab.solvers.dense.step_value: stage weights, then the stages
+                    for k in range(s):
                         acc = 0.0
                         for m in range(ndense):
-                            acc += M[j, m] * powers[m]
+                            acc += powers[m] * (h * dense[k, m])
+                        weight[k] = acc
+                    for j in range(n):
+                        acc = 0.0
+                        for k in range(s):
+                            acc += weight[k] * K[k, j]
                         y_out[count, j] = y[j] + acc
                 count += 1
                 nxt += 1
@@ -306,17 +307,17 @@ def _fixed(_rhs, grid, y0, p, A, b, c):
         for i in range(1, s):
             for j in range(n):
                 acc = 0.0
-                for k in range(i):
+                for k in range(i - 1, -1, -1):  # odelab.solvers.ordered.stage's order
                     acc += hA[i, k] * K[k, j]
-                stage[j] = y[j] + acc
+                stage[j] = acc + y[j]
             _rhs(t + c[i] * h, stage, p, K[i])
         nfevals += s
         total = 0.0
         for j in range(n):
             acc = 0.0
-            for k in range(s):
+            for k in range(s - 1, -1, -1):
                 acc += hb[k] * K[k, j]
-            stage[j] = y[j] + acc
+            stage[j] = acc + y[j]
             total += stage[j]
         if not _np.isfinite(total):
             status = STATUS_NONFINITE

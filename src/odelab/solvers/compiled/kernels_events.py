@@ -40,20 +40,24 @@ def _bracketed(V, a, b, direction, found):
 
 @_njit(cache=True, error_model="numpy")
 def _interpolate(tq, t, y, h, K, dense, out):
-    """odelab.solvers.dense.step_value: y + (K.T @ (h*dense)) @ cumprod((tq - t)/h)."""
+    """odelab.solvers.dense.step_value: stage weights sum_m cumprod((tq - t)/h)_m (h dense[k, m]),
+    then y + sum_k weight_k K_k, both summed from index 0 up."""
     s = K.shape[0]
     ndense = dense.shape[1]
     x = (tq - t) / h
-    for j in range(y.shape[0]):
-        acc_j = 0.0
+    weight = _np.empty(s)
+    for k in range(s):
+        acc = 0.0
         pw = 1.0
         for m in range(ndense):
             pw *= x
-            acc = 0.0
-            for k in range(s):
-                acc += K[k, j] * (h * dense[k, m])
-            acc_j += acc * pw
-        out[j] = y[j] + acc_j
+            acc += pw * (h * dense[k, m])
+        weight[k] = acc
+    for j in range(y.shape[0]):
+        acc = 0.0
+        for k in range(s):
+            acc += weight[k] * K[k, j]
+        out[j] = y[j] + acc
 
 
 @_njit(cache=True, error_model="numpy")
@@ -174,24 +178,24 @@ def _locate(_ev, p, isterminal, direction, v, t, y, tnew, ynew, h, K, dense, t0,
 
 @_njit(cache=True, error_model="numpy")
 def _cut_slopes(t, te, h, K, dense, c):
-    """odelab.solvers.dense.step_slopes at the nodes of [t, te]: the stages of the shortened step."""
+    """odelab.solvers.dense.step_slopes at the nodes of [t, te]: the stages of the shortened step
+    (stage weights sum_m (m+1) x^m dense[k, m], then sum_k weight_k K_k, from index 0 up)."""
     s = K.shape[0]
     n = K.shape[1]
     q = dense.shape[1]
-    M = _np.empty((n, q))
-    for j in range(n):
-        for m in range(q):
-            acc = 0.0
-            for k in range(s):
-                acc += K[k, j] * dense[k, m]
-            M[j, m] = acc
+    weight = _np.empty(s)
     slopes = _np.empty((s - 1, n))
     for i in range(1, s):
         x = ((t + (te - t) * c[i]) - t) / h
-        for j in range(n):
+        for k in range(s):
             acc = 0.0
             for m in range(q):
-                acc += M[j, m] * ((m + 1) * x ** float(m))
+                acc += ((m + 1) * x ** float(m)) * dense[k, m]
+            weight[k] = acc
+        for j in range(n):
+            acc = 0.0
+            for k in range(s):
+                acc += weight[k] * K[k, j]
             slopes[i - 1, j] = acc
     for i in range(1, s):
         for j in range(n):
@@ -222,7 +226,7 @@ def _adaptive_events(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shr
     ynew = _np.empty(n)
     absynew = _np.empty(n)
     fE = _np.empty(n)
-    M = _np.empty((n, ndense))
+    weight = _np.empty(s)
     powers = _np.empty(ndense)
     thr = threshold[0]
 
@@ -296,9 +300,9 @@ def _adaptive_events(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shr
             for i in range(1, last):
                 for j in range(n):
                     acc = 0.0
-                    for k in range(i):
+                    for k in range(i - 1, -1, -1):  # odelab.solvers.ordered.stage's order
                         acc += hA[i, k] * K[k, j]
-                    stage[j] = y[j] + acc
+                    stage[j] = acc + y[j]
                 _rhs(t + c[i] * h, stage, p, K[i])
             tnew = t + h
             if done:
@@ -306,9 +310,9 @@ def _adaptive_events(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shr
             h = tnew - t
             for j in range(n):
                 acc = 0.0
-                for k in range(last):
+                for k in range(last - 1, -1, -1):
                     acc += hA[last, k] * K[k, j]
-                ynew[j] = y[j] + acc
+                ynew[j] = acc + y[j]
             _rhs(tnew, ynew, p, K[last])
             nfevals += last
 
@@ -429,16 +433,16 @@ def _adaptive_events(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shr
                     for m in range(ndense):
                         pw *= x
                         powers[m] = pw
-                    for j in range(n):
-                        for m in range(ndense):
-                            acc = 0.0
-                            for k in range(s):
-                                acc += K[k, j] * (h * dense[k, m])
-                            M[j, m] = acc
-                    for j in range(n):
+                    # odelab.solvers.dense.step_value: stage weights, then the stages
+                    for k in range(s):
                         acc = 0.0
                         for m in range(ndense):
-                            acc += M[j, m] * powers[m]
+                            acc += powers[m] * (h * dense[k, m])
+                        weight[k] = acc
+                    for j in range(n):
+                        acc = 0.0
+                        for k in range(s):
+                            acc += weight[k] * K[k, j]
                         y_out[count, j] = y[j] + acc
                 count += 1
                 nxt += 1
