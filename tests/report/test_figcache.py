@@ -27,6 +27,13 @@ def test_the_key_follows_every_plotted_value_and_label_but_not_the_file_name():
 
 
 def test_a_rebuild_of_unchanged_runs_draws_nothing(lab_runs, tmp_path, monkeypatch):
+    # the header states when the report was built: one clock for both builds, so that two
+    # builds a minute apart still compare (nothing else in a report depends on the time)
+    from datetime import datetime, timezone
+
+    import odelab.report.build as report_build
+
+    monkeypatch.setattr(report_build, "generated_at", lambda: datetime(2026, 1, 2, 3, 4, tzinfo=timezone.utc))
     first = build(lab_runs, tmp_path / "one", formats=["md"])
     drawn = []
     monkeypatch.setattr(drawing, "POOL_MIN", 10**6)  # drawn here, where the list below can see it
@@ -37,7 +44,7 @@ def test_a_rebuild_of_unchanged_runs_draws_nothing(lab_runs, tmp_path, monkeypat
     assert len(names) >= 10 and names == sorted(p.name for p in (tmp_path / "two" / "figures").iterdir())
     for name in names:
         assert (tmp_path / "one" / "figures" / name).read_bytes() == (tmp_path / "two" / "figures" / name).read_bytes()
-    assert second.md == first.md
+    assert second.md == first.md and "2026-01-02 03:04 UTC" in first.md
 
 
 def test_a_changed_run_redraws_only_its_figures(lab_runs, tmp_path, monkeypatch):
