@@ -97,13 +97,16 @@ def test_the_shipped_cases_left_on_python_are_the_documented_ones():
     assert left == {
         ("stiff", "it runs odelab's explicit Runge-Kutta methods (ode23"),  # ode15s, ode23s, Radau
         ("work-precision", "it runs odelab's explicit Runge-Kutta methods (ode23"),  # SciPy's RK45, DOP853...
+        # the saturation's zero crossings are located on the Python path (diagrams, d5a4ce6)
+        ("feedback_pi", "its block `actuator` (saturation) has zero crossings located by the Python driver "
+                        "(zero_crossing = false on it compiles it)"),
     }
 
 
 def test_the_shipped_lab_has_compiled_cases():
     names = {path.stem for path, _, _, case in _shipped() if _why_python(case) is None}
-    assert names == {"bouncing_ball", "convergence", "damping", "exercise1", "exercise1_2pi", "exercise2", "feedback_pi", "figure1",
-                     "linearisation", "rigid_body", "stiff", "work-precision"}
+    assert names == {"bouncing_ball", "convergence", "damping", "exercise1", "exercise1_2pi", "exercise2", "figure1",
+                     "linearisation", "rigid_body", "stiff", "work-precision"}  # feedback_pi: see above
 
 
 @pytest.mark.parametrize("method", ["ode23", "ode45"])
