@@ -105,7 +105,7 @@ def test_the_shipped_cases_left_on_python_are_the_documented_ones():
 
 def test_the_shipped_lab_has_compiled_cases():
     names = {path.stem for path, _, _, case in _shipped() if _why_python(case) is None}
-    assert names == {"bouncing_ball", "convergence", "damping", "exercise1", "exercise1_2pi", "exercise2", "figure1",
+    assert names == {"bouncing_ball", "convergence", "cooling_fit", "damping", "exercise1", "exercise1_2pi", "exercise2", "figure1", "msd_fit",
                      "linearisation", "rigid_body", "stiff", "work-precision"}  # feedback_pi: see above
 
 
