@@ -607,6 +607,27 @@ def grade(
                       f"{_escape(str(out))}/")
 
 
+@app.command(cls=_Command)
+def network(
+    file: Annotated[Path, typer.Argument(help="An experiment file with kind = \"network\".", show_default=False,
+                                         metavar="FILE.toml")],
+    width: Annotated[int, typer.Option("--width", min=40, help="Wrap the text at this many columns.",
+                                       metavar="N")] = 80,
+) -> None:
+    """Show how a network's equations are derived (element laws, interconnection laws, states,
+    state equations; A, B, C, D and transfer functions if linear). Runs nothing."""
+    from odelab.exceptions import InputError
+    from odelab.experiment.network import describe_file
+
+    out, err = _consoles()
+    try:
+        text = describe_file(file, width=width)
+    except InputError as exc:
+        err.print(f"[bold red]error:[/] {_escape(_error_text(exc))}")
+        raise typer.Exit(EXIT_INPUT) from None
+    out.print(_escape(text), end="", highlight=False, soft_wrap=True)
+
+
 @app.command()
 def solvers() -> None:
     """List the integration methods: what they are for (non-stiff, stiff, DAE), order, defaults."""

@@ -43,6 +43,7 @@ class Problem:
     analysis: Any = None  # the resolved [analysis] section: {"step_info", "bode", "poles", "input"}
     data: Any = None  # [data]: an experiment.data.MeasuredData, the case's reference
     fit: Any = None  # the summary of the experiment's [fit] (a plain dict), once it has been fitted
+    network: Any = None  # the derived odelab.systems.network.Network of a kind = "network" system
 
 
 @dataclass(frozen=True, eq=False)
@@ -87,3 +88,4 @@ class Built:
     diagram: Any = None  # the CompiledDiagram, for drawings and reports
     compiled: Any = None  # CompiledSystem for the compiled backend (expression systems without inputs)
     jacobian: Any = None  # exact df/dx for the stiff solvers: J(t, x) or a constant matrix
+    network: Any = None  # the derived Network of a kind = "network" system

@@ -51,6 +51,11 @@ SWEEP_ROWS_SHOWN = 40
 
 def print_experiment(console: Console, exp, results, *, table: bool = False) -> None:
     console.print(f"\n[bold]{_shown(exp.title)}[/]  [dim]({_shown(str(exp.source))})[/]")
+    network = next((c.problem.network for c in exp.cases if getattr(c.problem, "network", None)), None)
+    if network is not None:  # kind = "network": the derived states and equations, compactly
+        from odelab.systems.network.show import compact_lines
+
+        console.print("[dim]" + _shown("\n".join(compact_lines(network)), lines=True) + "[/]")
     if getattr(exp, "sweep", None) is not None and (exp.study is not None or len(results) > SWEEP_ROWS_SHOWN):
         print_sweep(console, exp, results)
         return

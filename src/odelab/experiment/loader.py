@@ -536,6 +536,13 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
 
         built = build_diagram(model, params, path, constant(model.time.start, "time.start", params),
                               max_rows=limits.table_rows or None)
+    elif system.kind == "network":
+        from odelab.experiment.network import build_network
+
+        built = build_network(model, params)
+    elif model.elements is not None:
+        raise ExperimentError("[elements] is given but the system is not a network: add kind = \"network\" under "
+                              "[system].", key="elements")
     elif model.blocks is not None:
         raise ExperimentError("[blocks] is given but the system is not a diagram: add kind = \"diagram\" under "
                               "[system].", key="blocks")
@@ -708,7 +715,7 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
         options=options, output_fn=built.output_fn, input_fn=input_fn, exact_fn=exact_fn, reference=kind,
         reference_solver=(ref.solver, float(ref.rtol), float(ref.atol)), system=built.system, signals=signals,
         linearize=model.linearize, parameters=params, diagram=built.diagram, events=events, backend=backend,
-        compiled=fast, analysis=analysis, data=data,
+        compiled=fast, analysis=analysis, data=data, network=built.network,
     )
     return problem, resolved
 

@@ -32,7 +32,7 @@ class _Section(BaseModel):
 class System(_Section):
     """[system]: what is integrated."""
 
-    kind: Literal["ode", "state-space", "diagram"] = "ode"
+    kind: Literal["ode", "state-space", "diagram", "network"] = "ode"
     states: list[StrictStr] | None = None
     equations: dict[str, Value] | None = None
     function: StrictStr | None = None
@@ -191,6 +191,7 @@ class Experiment(_Section):
     linearize: Linearize | None = None
     analysis: Analysis | None = None
     blocks: dict[str, dict[str, Any]] | None = None  # kind = "diagram"; checked by experiment/diagram.py
+    elements: dict[str, dict[str, Any]] | None = None  # kind = "network"; checked by systems/network
     units: dict[str, StrictStr] | None = None  # [units]: x = "m", f = "N", t = "s": axis labels
     events: dict[str, Any] | None = None  # checked and compiled by experiment/events.py
     data: Data | None = None  # [data]: measurements, the reference of every case (experiment/data.py)

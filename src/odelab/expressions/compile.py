@@ -25,7 +25,9 @@ from odelab.expressions.parse import (
     ParsedExpression,
     _did_you_mean,
     _too_deep_message,
+    is_dotted_name,
     parse_expression,
+    python_name,
 )
 
 # --------------------------------------------------------------------------------------------
@@ -40,6 +42,9 @@ def _unknown_name_error(
     for name, offset in parsed._occurrences:
         if name in known_set:
             continue
+        if "." in name and not any("." in k for k in known):  # only networks have dotted names
+            return ExpressionError("attribute access (`.`) is not allowed in expressions",
+                                   expression=parsed.text, column=parsed.column(offset), source=source, key=key)
         hint = _did_you_mean(name, [*known, *CONSTANTS])
         listed = [*known, *CONSTANTS]
         if len(listed) > 40:
@@ -95,6 +100,8 @@ class _Emitter:
             if node.id in CONSTANTS:
                 return self.number(CONSTANTS[node.id])
             return node.id
+        if isinstance(node, ast.Attribute):  # a dotted name, validated by the parser
+            return python_name(f"{node.value.id}.{node.attr}")
         if isinstance(node, ast.BinOp):
             left, right = parts
             if self.complex_step and isinstance(node.op, ast.Pow):
@@ -128,6 +135,7 @@ def _operands(node: ast.AST) -> list[ast.AST]:
 
 def _function_source(name: str, params: Sequence[str], body: list[str]) -> str:
     """A function that coerces its arguments and runs ``body`` with FP errors ignored."""
+    params = [python_name(p) for p in params]
     inner = [f"{p} = _coerce({p})" for p in params] + body
     if _FAST_ERRSTATE is not None:
         lines = ["_token = _fp_set(_FP_IGNORE)", "try:"]
@@ -279,6 +287,8 @@ def _compile_expression(text, names: tuple, key, source, complex_step: bool) -> 
 
 
 def _check_argument_name(name: Any, what: str) -> None:
+    if what == "an argument" and is_dotted_name(name):  # a network's `mass.x`
+        return
     if (
         not isinstance(name, str)
         or not name.isascii()
@@ -374,7 +384,7 @@ def compile_vector(
     emitter = _Emitter(namespace, complex_step)
     rows = [emitter.expression(p.tree) for p in parsed]
     used = set().union(*(p.names for p in parsed))
-    unused_args = [a for a in args if a not in used]
+    unused_args = [python_name(a) for a in args if a not in used]
 
     # np.array stacks rows of equal shape fast; rows of different shapes (a constant next to an
     # array) make it raise ValueError, and arguments no row uses can still set the shape
@@ -384,12 +394,12 @@ def compile_vector(
         "try:",
         f"    _out = _array(_rows{dtype})",
         "except _ValueError:",
-        f"    return _broadcast_rows(_rows, ({''.join(a + ', ' for a in args)}), _dtype)",
+        f"    return _broadcast_rows(_rows, ({''.join(python_name(a) + ', ' for a in args)}), _dtype)",
     ]
     if unused_args:
         pack += [
             f"if {' or '.join(a + '.ndim' for a in unused_args)}:",
-            f"    return _broadcast_rows(_rows, ({''.join(a + ', ' for a in args)}), _dtype)",
+            f"    return _broadcast_rows(_rows, ({''.join(python_name(a) + ', ' for a in args)}), _dtype)",
         ]
     pack.append("return _out")
     source_code = _function_source("_odelab_vector", args, body)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import ast
 import difflib
 import io
+import keyword
 import math
 import numbers
 import re
@@ -431,6 +432,31 @@ def _check_power(reader: _Reader, node: ast.BinOp, carets: set[int]) -> None:
         )
 
 
+def _is_dotted_name(node: ast.AST) -> bool:
+    """``element.variable`` (``mass.x``, ``C1.v``): a plain name of two parts, neither starting
+    with ``_`` nor a function or constant. It is one free name; nothing is ever looked up on
+    an object (the compilers turn it into a plain identifier, see :func:`python_name`)."""
+    return (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+            and not node.value.id.startswith("_") and not node.attr.startswith("_")
+            and node.value.id not in FUNCTIONS and node.value.id not in CONSTANTS)
+
+
+def python_name(name: str) -> str:
+    """The Python identifier standing for a name in generated code: the name itself, or for a
+    dotted name ``a.b`` the identifier ``_d<len(a)>_a_b`` (unique, and no user name starts
+    with ``_``)."""
+    head, dot, tail = name.partition(".")
+    return f"_d{len(head)}_{head}_{tail}" if dot else name
+
+
+def is_dotted_name(name: str) -> bool:
+    """Whether ``name`` is a valid dotted name ``element.variable`` of the language."""
+    head, dot, tail = name.partition(".") if isinstance(name, str) else ("", "", "")
+    return bool(dot) and all(part.isascii() and part.isidentifier() and not part.startswith("_")
+                             and not keyword.iskeyword(part) for part in (head, tail)) \
+        and head not in FUNCTIONS and head not in CONSTANTS
+
+
 def _validate(reader: _Reader, tree: ast.Expression, carets: set[int]):
     """Check every node against the whitelist, in source order; return the free names."""
     occurrences: dict[str, int] = {}
@@ -466,6 +492,8 @@ def _validate(reader: _Reader, tree: ast.Expression, carets: set[int]):
                 raise reader.error(f"`{name}` is a function; call it as `{name}(...)`", node.col_offset)
             if name not in CONSTANTS:
                 occurrences.setdefault(name, node.col_offset)
+        elif _is_dotted_name(node):  # `mass.x`: one name, a network element's variable
+            occurrences.setdefault(f"{node.value.id}.{node.attr}", node.col_offset)
         elif isinstance(node, ast.BinOp):
             if type(node.op) not in _BINARY:
                 symbol = _FORBIDDEN_OPERATORS.get(type(node.op), "this operator")

@@ -19,7 +19,7 @@ from collections.abc import Sequence
 
 from odelab.expressions.compile import _check_argument_name, _operands
 from odelab.expressions.functions import _BINARY, _COMPARATORS, _UNARY, CONSTANTS, FUNCTIONS
-from odelab.expressions.parse import ParsedExpression
+from odelab.expressions.parse import ParsedExpression, python_name
 
 __all__ = ["PRELUDE", "equations_source", "events_source", "linear_source"]
 
@@ -92,6 +92,10 @@ def _node(node: ast.AST, parts: list[str], rename: dict[str, str] | None = None)
             return _number(CONSTANTS[node.id])
         _check_argument_name(node.id, "an argument")
         return rename.get(node.id, node.id) if rename else node.id
+    if isinstance(node, ast.Attribute):  # a dotted name (a network's `mass.x`), validated by the parser
+        name = f"{node.value.id}.{node.attr}"
+        _check_argument_name(name, "an argument")
+        return rename.get(name, python_name(name)) if rename else python_name(name)
     if isinstance(node, ast.BinOp):
         if isinstance(node.op, ast.Pow):  # numba would fold `(-1.0) ** 0.5` to a complex constant
             return f"_np.power({parts[0]}, {parts[1]})"
@@ -143,8 +147,8 @@ def equations_source(states: Sequence[str], parameters: Sequence[str], equations
     first = 2 if inputs else 0
     lines = ["@_njit(_RHS, cache=True, error_model=\"numpy\")", "def rhs(t, _y, _p, _out):"]
     lines += list(input_lines)
-    lines += [f"    {name} = _u{i}" for i, name in enumerate(inputs)]
-    lines += [f"    {name} = _y[{i}]" for i, name in enumerate(states)]
+    lines += [f"    {python_name(name)} = _u{i}" for i, name in enumerate(inputs)]
+    lines += [f"    {python_name(name)} = _y[{i}]" for i, name in enumerate(states)]
     lines += [f"    {name} = _p[{first + i}]" for i, name in enumerate(parameters)]
     lines += [f"    _out[{i}] = {expression_source(p)}" for i, p in enumerate(equations)]
     return "\n".join(lines) + "\n"
@@ -154,7 +158,7 @@ def events_source(states: Sequence[str], parameters: Sequence[str], whens: Seque
                   first: int = 0) -> str:
     """``events(t, _y, _p, _out)``: the [events] ``when`` values, parameters from ``_p[first]`` on."""
     lines = ["@_njit(_RHS, cache=True, error_model=\"numpy\")", "def events(t, _y, _p, _out):"]
-    lines += [f"    {name} = _y[{i}]" for i, name in enumerate(states)]
+    lines += [f"    {python_name(name)} = _y[{i}]" for i, name in enumerate(states)]
     lines += [f"    {name} = _p[{first + i}]" for i, name in enumerate(parameters)]
     lines += [f"    _out[{i}] = {expression_source(p)}" for i, p in enumerate(whens)]
     return "\n".join(lines) + "\n"

@@ -1,0 +1,157 @@
+"""Building a system from an experiment file's [elements] table (``kind = "network"``).
+
+The network is derived once per file (:mod:`odelab.systems.network`, symbolic in the
+parameters) and compiled for each case's parameter values into the system odelab already
+runs: a state-space model when the network is linear, otherwise a system of equations in the
+expression language, exactly as ``kind = "state-space"`` and ``kind = "ode"`` build theirs.
+So every solver, [inputs], [events], [linearize], [analysis], sweeps, studies, the compiled
+backend and the report work on a network unchanged.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from odelab.exceptions import ExperimentError, InputError
+from odelab.experiment import schema
+from odelab.experiment.cases import Built
+
+__all__ = ["build_network", "network_of"]
+
+# derivations by (elements, outputs, parameter names): the cases and sweeps of a file share one
+_DERIVED: dict[str, object] = {}
+_DERIVED_MAX = 64
+
+
+def network_of(model: schema.Experiment, params: dict[str, float]):
+    """The :class:`~odelab.systems.network.Network` of a validated model, derived (keyed errors)."""
+    from odelab.systems.network import Network, NetworkError
+
+    system = model.system
+    for field_name in ("states", "equations", "function", "inputs", "A", "B", "C", "D", "jacobian"):
+        if getattr(system, field_name) is not None:
+            raise ExperimentError(f"`system.{field_name}` does not apply to kind = \"network\": odelab derives the "
+                                  "states, inputs and equations from [elements]; remove it.",
+                                  key=f"system.{field_name}")
+    if not model.elements:
+        raise ExperimentError("kind = \"network\" needs an [elements] table: one element per line, e.g. "
+                              "mass = { type = \"mass\", node = \"p\", m = 1 }.", key="elements")
+    if system.outputs is not None and not isinstance(system.outputs, dict):
+        raise ExperimentError("`system.outputs` of a network maps output names to expressions of element "
+                              "variables, e.g. outputs = { y = \"q*mass.x\" }.", key="system.outputs")
+    outputs = {}
+    for name, text in (system.outputs or {}).items():
+        if not isinstance(text, (str, int, float)) or isinstance(text, bool):
+            raise ExperimentError(f"`system.outputs.{name}` must be an expression string.",
+                                  key=f"system.outputs.{name}")
+        outputs[name] = text
+    memo = json.dumps([model.elements, outputs, sorted(params)], sort_keys=True, default=str)
+    try:
+        net = _DERIVED.get(memo)
+        if net is None:
+            net = Network.from_tables(model.elements, outputs=outputs, parameters=params)
+            net.derive()
+            if len(_DERIVED) < _DERIVED_MAX:
+                _DERIVED[memo] = net
+    except NetworkError as exc:
+        raise ExperimentError(exc.message, key=exc.key or "elements") from None
+    clash = sorted(set(net.derive().outputs) & (set(net.states) | set(net.inputs) | set(params)))
+    if clash:
+        raise ExperimentError(f"output {clash[0]!r} has the name of a state, input or parameter; rename it.",
+                              key=f"system.outputs.{clash[0]}")
+    return net
+
+
+def build_network(model: schema.Experiment, params: dict[str, float]) -> Built:
+    """A system from [elements]: linear networks become StateSpace systems, others equations."""
+    from odelab.expressions.compile import compile_vector
+    from odelab.solvers.compiled import CompiledSystem
+
+    net = network_of(model, params)
+    d = net.derive()
+    states, inputs, outputs = d.states, d.inputs, d.outputs
+    resolved = {"kind": "network", "states": list(states), "equations": d.equation_texts()}
+    if inputs:
+        resolved["inputs"] = list(inputs)
+    if outputs:
+        resolved["outputs"] = d.output_texts()
+    try:
+        if d.linear:
+            ss = net.compile(params)
+            A, B, C, D = ss.A, ss.B, ss.C, ss.D
+            resolved.update({"A": A.tolist(), "B": B.tolist(), "C": C.tolist(), "D": D.tolist()})
+
+            def output_fn(t, x, u=None):
+                y = x @ C.T
+                if u is not None and D.size:
+                    y = y + u @ D.T
+                return y
+
+            fun = None
+            if not inputs:
+                def fun(t, x):
+                    return A @ x
+            return Built(states=states, inputs=inputs, outputs=outputs, fun=fun,
+                         output_fn=output_fn if outputs else None, resolved=resolved, linear=True, system=ss,
+                         compiled=CompiledSystem.linear(A, states, B, inputs), jacobian=A, network=net)
+        from odelab.systems.jacobian import complex_step_jacobian
+
+        texts = d.equation_texts()
+        eqs = [texts[s] for s in states]
+        keys = [f"elements (d({s})/dt)" for s in states]
+        args = ["t", *states, *inputs]
+        F = compile_vector(eqs, args=args, constants=params, keys=keys)
+        output_fn = None
+        if outputs:
+            out_texts = d.output_texts()
+            G = compile_vector([out_texts[y] for y in outputs], args=args, constants=params,
+                               keys=[f"system.outputs.{y}" for y in outputs])
+
+            def output_fn(t, x, u=None, _G=G):
+                cols = [t, *x.T] + ([] if u is None else [*u.T])
+                return np.asarray(_G(*cols), dtype=float).reshape(len(outputs), -1).T
+        sys_obj = net.compile(params)
+        fun = None
+        if not inputs:
+            def fun(t, x, _F=F):
+                return _F(t, *x)
+        compiled = CompiledSystem.from_system(states, eqs, params, inputs, keys=keys)
+        jacobian = complex_step_jacobian(eqs, states, params, keys=keys)
+    except InputError as exc:  # pragma: no cover - the derivation's own expressions compile
+        raise ExperimentError(f"the derived network does not compile: {exc.message}", key="elements") from None
+    return Built(states=states, inputs=inputs, outputs=outputs, fun=fun, output_fn=output_fn, resolved=resolved,
+                 linear=False, system=sys_obj, compiled=compiled, jacobian=jacobian, network=net)
+
+
+def describe_file(path, width: int = 80) -> str:
+    """The derivation of a network experiment file as text (``odelab network FILE.toml``).
+
+    The file is loaded and checked as ``odelab run`` would (every case), and nothing runs. The
+    first case's parameter values give the numeric A, B, C, D; cases with other parameter values
+    are listed after it with their own matrices.
+    """
+    from odelab.experiment.loader import load_experiments
+    from odelab.systems.network.show import derivation_text, matrix_text
+
+    out = []
+    for exp in load_experiments(path):
+        problems = [c for c in exp.cases if getattr(c.problem, "network", None) is not None]
+        if not problems:
+            raise ExperimentError(f"{exp.source}: the system is not a network; `odelab network` shows the derivation "
+                                  "of a kind = \"network\" file (for others, `odelab run` shows the equations).",
+                                  key="system.kind")
+        first = problems[0]
+        out.append(f"{exp.title}  ({exp.source})\n")
+        out.append(derivation_text(first.problem.network, first.problem.parameters, width=width))
+        shown = {tuple(sorted(first.problem.parameters.items()))}
+        for case in problems[1:]:
+            key = tuple(sorted(case.problem.parameters.items()))
+            if key in shown or not case.problem.network.derive().linear:
+                continue
+            shown.add(key)
+            m = case.problem.network.matrices(case.problem.parameters)
+            out.append(f"case {case.name}: " + ", ".join(f"{k} = {matrix_text(m[k].tolist())}" for k in "ABCD"
+                                                         if m[k].size) + "\n")
+    return "\n".join(out)
