@@ -46,7 +46,7 @@ NOTES: dict[str, str] = {
     "parameters.<name>": "A number, or an expression of other parameters.",
     "system": "What is integrated: equations, a state-space model, a block diagram or a Python function.",
     "system.kind": "The kind of system: `ode` (states and [system.equations]), `state-space` (A, B, C, D), "
-                   "`diagram` ([blocks]).",
+                   "`diagram` ([blocks]), `network` ([elements]: odelab derives the equations).",
     "system.states": "The state names, in order (the order of y in MATLAB).",
     "system.equations": "d(state)/dt for each state, in the expression language.",
     "system.equations.<name>": "The right-hand side of d(<name>)/dt: an expression of t, the states, the inputs "
@@ -156,6 +156,10 @@ NOTES: dict[str, str] = {
     "analysis.loop": "Diagrams: the block at whose input the loop is opened for gain and phase margins.",
     "blocks": "The blocks of a diagram (kind = \"diagram\"), each a table with a `type` and its keys.",
     "blocks.<name>": "One block: `type`, `input` or `inputs`, and the type's keys.",
+    "elements": "The elements of a network (kind = \"network\"), each a table with a `type`, its nodes and its "
+                "parameters; odelab derives the state equations (docs/networks.md).",
+    "elements.<name>": "One element: `type`, `nodes = [a, b]` (or `node = a`), `nodes2` for a coupling, and the "
+                       "type's parameters (numbers or expressions of [parameters]).",
     "units": "A unit per time, state, input, output or parameter, shown on the report's axes (`x = \"m\"`).",
     "units.<name>": "The unit of <name>, as text (\"m/s\"), shown as \"x (m)\".",
     "events": "Zero-crossing events (MATLAB's Events), one table per event, and `max_events`.",
@@ -388,6 +392,38 @@ def _blocks(out: list[KeyEntry]) -> None:
             out.append(KeyEntry(f"blocks.{name}.{key}", spec.kind, default, (), spec.doc))
 
 
+def _elements(out: list[KeyEntry]) -> None:
+    """Each element type of the network registry, with its keys, defaults and meanings."""
+    from odelab.systems.network.elements import ELEMENTS
+
+    out.append(KeyEntry("elements.<name>.type", "string", "required", tuple(ELEMENTS),
+                        "The element type (listed under elements.<type>)."))
+    for name, cls in ELEMENTS.items():
+        domain = cls.DOMAIN if cls.DOMAIN2 is None else f"{cls.DOMAIN} to {cls.DOMAIN2}"
+        out.append(KeyEntry(f"elements.{name}", "element type", None, (),
+                            f"{domain}: {cls.DOC}; variables {', '.join(cls.variables())}.",
+                            children=tuple(cls.keys())))
+        for key in cls.keys():
+            if key in ("node", "nodes", "nodes2"):
+                text = {"node": "The node it sits on (referenced to ground).",
+                        "nodes": "Its two nodes [a, b]: across variables are measured from b to a (`node = a` is "
+                                 "short for [a, \"ground\"]).",
+                        "nodes2": "The node pair of its second side."}[key]
+                out.append(KeyEntry(f"elements.{name}.{key}", "list of strings" if key != "node" else "string",
+                                    "required", (), text))
+            elif key == cls.LAW:
+                out.append(KeyEntry(f"elements.{name}.{key}", "expression", None, (),
+                                    f"A nonlinear law instead of the coefficient: an expression of its "
+                                    f"`{cls.LAW_OF}` and of [parameters]."))
+            else:
+                p = cls.PARAMETERS[key]
+                out.append(KeyEntry(f"elements.{name}.{key}", "number or expression",
+                                    "required" if p.default is None else repr(p.default), (), p.doc + "."))
+        if cls.GROUNDED:
+            out.append(KeyEntry(f"elements.{name}.nodes", "list of strings", None, (),
+                                "[a, \"ground\"] (the same as `node = a`)."))
+
+
 def _free_form(out: list[KeyEntry]) -> None:
     known = {e.path for e in out}
     for path, (kind, children) in _FREE_FORM.items():
@@ -416,6 +452,7 @@ def entries() -> tuple[KeyEntry, ...]:
         _walk(schema.Experiment, "", out)
         _inputs(out)
         _blocks(out)
+        _elements(out)
         _free_form(out)
         seen: dict[str, KeyEntry] = {}
         for e in out:
@@ -545,10 +582,12 @@ def unknown_keys(data: dict, prefix: str = "") -> list[str]:
     for key, value in data.items():
         path = f"{prefix}.{key}" if prefix else str(key)
         parts = path.split(".")
-        if len(parts) == 3 and parts[0] in ("inputs", "blocks") and parts[2] not in ("type", "input", "inputs"):
+        if len(parts) == 3 and parts[0] in ("inputs", "blocks", "elements") \
+                and parts[2] not in ("type", "input", "inputs"):
             kind = data.get("type")
             if isinstance(kind, str):
-                if find(f"inputs.{kind}.{parts[2]}") is None and find(f"blocks.{kind}.{parts[2]}") is None:
+                if find(f"inputs.{kind}.{parts[2]}") is None and find(f"blocks.{kind}.{parts[2]}") is None \
+                        and find(f"elements.{kind}.{parts[2]}") is None:
                     out.append(f"{path} (for type {kind!r})")
                 continue
         entry = find(path)
@@ -560,7 +599,7 @@ def unknown_keys(data: dict, prefix: str = "") -> list[str]:
                 if isinstance(item, dict):
                     out += [k for k in unknown_keys({k: v for k, v in item.items() if k != "name"})]
             continue
-        typed = len(parts) == 2 and parts[0] in ("inputs", "blocks")  # its keys depend on its type
+        typed = len(parts) == 2 and parts[0] in ("inputs", "blocks", "elements")  # its keys depend on its type
         if isinstance(value, dict) and (entry.children or typed) and not path.startswith("sweep"):
             out += unknown_keys(value, path)
     return out
