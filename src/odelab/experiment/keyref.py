@@ -471,6 +471,8 @@ def find(key: str) -> KeyEntry | None:
         if key.lower() in {f"{path.split('.')[0]}.{m}".lower() for m in spellings}:
             return table[path]
     parts = key.split(".")
+    if len(parts) == 3 and parts[0] in ("initial", "units", "exact") and f"{parts[0]}.<name>" in table:
+        return table[f"{parts[0]}.<name>"]  # a network's state: "mass.x" = 0.1
     # inputs.f.type, system.equations.x, events.floor.when, sweep."solver.h"...
     for i in range(len(parts)):
         for placeholder in ("<name>", "<key>"):

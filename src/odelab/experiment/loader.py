@@ -299,8 +299,25 @@ def load_experiments(path: str | Path, *, limits: Limits = DEFAULT_LIMITS) -> li
     return out
 
 
+def _dotted_states(table):
+    """A network's ``mass.x = 0.1`` (TOML's nested table {mass: {x: 0.1}}) as the key "mass.x"."""
+    if not isinstance(table, dict):
+        return table
+    out = {}
+    for key, value in table.items():
+        if isinstance(value, dict) and value and all(not isinstance(v, dict) for v in value.values()):
+            out.update({f"{key}.{k}": v for k, v in value.items()})
+        else:
+            out[key] = value
+    return out
+
+
 def _load(path: Path, data: dict, file_hash: str, name, limits: Limits) -> LoadedExperiment:
     src = str(path)
+    if isinstance(data.get("system"), dict) and data["system"].get("kind") == "network":
+        for section in ("initial", "units"):
+            if section in data:
+                data[section] = _dotted_states(data[section])
     fit_raw = data.pop("fit", None)
     original = copy.deepcopy(data) if fit_raw is not None else None  # [fit] rebuilds the file with its estimates
     cases_raw = data.pop("case", None)

@@ -95,7 +95,8 @@ def build_network(model: schema.Experiment, params: dict[str, float]) -> Built:
                     return A @ x
             return Built(states=states, inputs=inputs, outputs=outputs, fun=fun,
                          output_fn=output_fn if outputs else None, resolved=resolved, linear=True, system=ss,
-                         compiled=CompiledSystem.linear(A, states, B, inputs), jacobian=A, network=net)
+                         compiled=CompiledSystem.linear(A, states, B, inputs), jacobian=A, network=net,
+                         x0=np.zeros(len(states)))
         from odelab.systems.jacobian import complex_step_jacobian
 
         texts = d.equation_texts()
@@ -122,7 +123,8 @@ def build_network(model: schema.Experiment, params: dict[str, float]) -> Built:
     except InputError as exc:  # pragma: no cover - the derivation's own expressions compile
         raise ExperimentError(f"the derived network does not compile: {exc.message}", key="elements") from None
     return Built(states=states, inputs=inputs, outputs=outputs, fun=fun, output_fn=output_fn, resolved=resolved,
-                 linear=False, system=sys_obj, compiled=compiled, jacobian=jacobian, network=net)
+                 linear=False, system=sys_obj, compiled=compiled, jacobian=jacobian, network=net,
+                 x0=np.zeros(len(states)))  # [initial] gives some states by name; the others start at 0
 
 
 def describe_file(path, width: int = 80) -> str:
@@ -143,7 +145,7 @@ def describe_file(path, width: int = 80) -> str:
                                   "of a kind = \"network\" file (for others, `odelab run` shows the equations).",
                                   key="system.kind")
         first = problems[0]
-        out.append(f"{exp.title}  ({exp.source})\n")
+        out.append(f"{exp.title}\n({exp.source})\n")
         out.append(derivation_text(first.problem.network, first.problem.parameters, width=width))
         shown = {tuple(sorted(first.problem.parameters.items()))}
         for case in problems[1:]:
@@ -155,3 +157,18 @@ def describe_file(path, width: int = 80) -> str:
             out.append(f"case {case.name}: " + ", ".join(f"{k} = {matrix_text(m[k].tolist())}" for k in "ABCD"
                                                          if m[k].size) + "\n")
     return "\n".join(out)
+
+
+def network_record(p) -> dict:
+    """What the report needs of a network: its drawing (DOT) and its derivation's sections."""
+    from odelab.systems.network.draw import network_dot
+    from odelab.systems.network.show import derivation_sections
+
+    net = p.network
+    key = tuple(sorted(p.parameters.items()))
+    cache = net.__dict__.setdefault("_sections", {})  # the cases of a file share their network
+    if key not in cache:
+        cache[key] = derivation_sections(net, p.parameters)
+    sections = cache[key]
+    return {"dot": network_dot(net.elements), "linear": bool(net.derive().linear),
+            "sections": [[heading, list(lines)] for heading, lines in sections]}

@@ -103,6 +103,10 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
     _reference(result)
     if p.diagram is not None:
         result.extra["diagram"] = diagram_record(p)
+    if getattr(p, "network", None) is not None:  # kind = "network": its drawing and derivation
+        from odelab.experiment.network import network_record
+
+        result.extra["network"] = network_record(p)
     if p.analysis is not None:
         from odelab.exceptions import InputError
 

@@ -132,6 +132,18 @@ def _draw_control(view, stem: str, draw: _Drawing) -> list[Figure]:
             view.diagram_figure = Figure(name=name, caption="The block diagram as written in the experiment file, "
                                          "laid out by Graphviz.", alt="Block diagram of the experiment.", png=png)
             drawn.append(view.diagram_figure)
+    if view.network_dot is not None:
+        png, view.network_note = render_dot(view.network_dot)
+        if png is not None:
+            name, i = f"{stem}-network", 2
+            while name in taken:
+                name, i = f"{stem}-network-{i}", i + 1
+            taken.add(name)
+            view.network_figure = Figure(name=name, caption="The network as written in the experiment file: nodes "
+                                         "as circles, each element between its two nodes (the arrow points at its "
+                                         "first node, the + side), couplings as boxes; laid out by Graphviz.",
+                                         alt="Drawing of the network's elements and nodes.", png=png)
+            drawn.append(view.network_figure)
     view.bode_figure = draw(view.bode_figure)
     if view.bode_figure is not None:
         drawn.append(view.bode_figure)

@@ -45,6 +45,10 @@ class ControlView:
     margins: list[dict[str, Any]] = field(default_factory=list)
     loop: dict[str, Any] | None = None  # the loop gain opened at a block: L(s), margins, Bode data
     bode_figure: Any = None  # a FigureSpec, then a Figure once drawn
+    network_dot: str | None = None  # kind = "network": the network as DOT text
+    network_figure: Any = None  # a build.Figure once drawn, or None
+    network_note: str = ""  # why there is no drawing
+    derivation: list[tuple[str, list[str]]] = field(default_factory=list)  # (heading, lines) of the derivation
 
     @property
     def has_analysis(self) -> bool:
@@ -157,9 +161,14 @@ def control_view(stem: str, runs, groups) -> ControlView | None:
     """The diagram and analysis parts of one experiment (None if it has neither)."""
     diagram_run = next((r for r in runs if isinstance(r.extra.get("diagram"), dict)), None)
     analysis_run = next((r for r in runs if isinstance(r.extra.get("analysis"), dict)), None)
-    if diagram_run is None and analysis_run is None:
+    network_run = next((r for r in runs if isinstance(r.extra.get("network"), dict)), None)
+    if diagram_run is None and analysis_run is None and network_run is None:
         return None
-    view = ControlView(case=(analysis_run or diagram_run).case)
+    view = ControlView(case=(analysis_run or diagram_run or network_run).case)
+    if network_run is not None:
+        n = network_run.extra["network"]
+        view.network_dot = n.get("dot") if isinstance(n.get("dot"), str) else None
+        view.derivation = [(str(h), [str(line) for line in lines]) for h, lines in n.get("sections", [])]
     if diagram_run is not None:
         d = diagram_run.extra["diagram"]
         view.dot = d.get("dot") if isinstance(d.get("dot"), str) else None

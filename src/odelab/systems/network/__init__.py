@@ -58,6 +58,11 @@ __all__ = ["Network", "NetworkError", "ELEMENTS", "DOMAINS", "Element", "element
            "Lever", "Gear", "RackPinion", "DCMotor"]
 
 
+#: The largest network derived: the symbolic solve grows as the cube of the elements (a ladder
+#: of 40 elements takes about 10 s on a loaded 2-core machine).
+MAX_ELEMENTS = 120
+
+
 def _check_element_name(name) -> str:
     if not isinstance(name, str) or not name.isascii() or not name.isidentifier() or name.startswith("_") \
             or name == "ground" or name == "t":
@@ -99,6 +104,10 @@ class Network:
             self.elements[name] = el
         if not self.elements:
             raise NetworkError("a network needs elements, e.g. {\"mass\": Mass(node=\"p\", m=1)}.", key="elements")
+        if len(self.elements) > MAX_ELEMENTS:
+            raise NetworkError(f"the network has {len(self.elements)} elements; odelab derives networks of at most "
+                               f"{MAX_ELEMENTS} (a symbolic derivation grows with the cube of the size): split it, "
+                               "or write its equations as kind = \"ode\".", key="elements")
         self.outputs = dict(outputs or {})
         self.parameters = dict(parameters or {})
         self._derivation = None

@@ -84,7 +84,7 @@ class _Parser:
         self.inputs_allowed = inputs_allowed
 
     def parse(self, value, *, element: str, key: str, allowed: dict[str, object], what: str,
-              inputs: bool = False):
+              inputs: bool = False, law_of: str | None = None):
         """``allowed``: name -> symbol. With ``inputs``, any other name becomes an input."""
         path = f"elements.{element}.{key}"
         parsed = parse_expression(value, key=path)
@@ -92,6 +92,14 @@ class _Parser:
         for p in self.parameters:
             names.setdefault(p, self.symbols[p])
         extra = [n for n in parsed.names if n not in names and n not in ("pi", "e")]
+        if extra and law_of is not None:
+            import difflib
+
+            listed = ", ".join(f"`{n}`" for n in extra)
+            close = difflib.get_close_matches(extra[0], list(allowed), n=1)
+            hint = f" Did you mean `{close[0]}`?" if close else ""
+            raise NetworkError(f"`{path}` = {value!r} names {listed}, which {'it does' if len(extra) == 1 else 'they do'}"
+                               f" not have: {what} and of t.{hint}", key=path)
         if extra and inputs:
             for n in extra:
                 if "." in n:
@@ -144,7 +152,7 @@ def derive(elements: dict[str, Element], outputs: dict[str, str] | None, paramet
             allowed = {el.LAW_OF: var, "t": t}
             law_expr[name] = reader.parse(
                 el.law, element=name, key=el.LAW,
-                allowed=allowed,
+                allowed=allowed, law_of=el.LAW_OF,
                 what=(f"the {el.LAW} of a {el.TYPE} is a law of its {_variable_word(el)} `{el.LAW_OF}` "
                       "(and of [parameters])"))
     inputs = tuple(reader.inputs)
@@ -290,6 +298,8 @@ def derive(elements: dict[str, Element], outputs: dict[str, str] | None, paramet
             fixed = disp_of(*el.nodes)
             if fixed is not None:
                 stretch[name] = sp.expand(fixed)
+                notes.append(f"{name}.{d.integral} = {to_text(stretch[name])}: the masses fix the "
+                             f"{_variable_word(el)} of {name}, no state")
                 continue
         form = solved_through(flow[(name, 1)])
         combo = _combination(sp, form, [(c[0], c[1]) for c in chosen_through], flow_vars, numeric)
@@ -606,13 +616,12 @@ def _reduction_note(sp, name, el, coeffs, rest, marker, elements, var) -> str:
     others = list(coeffs)
     what = DOMAINS[el.DOMAIN].across_word if el.ROLE == "across-store" else DOMAINS[el.DOMAIN].through_word
     if others and not sources:
-        exprs = " + ".join(f"{to_text(c)}*{o}.{var}" if c != 1 else f"{o}.{var}" for o, c in coeffs.items())
-        couplings = [n for n, e in elements.items() if e.ROLE in ("transformer", "gyrator")]
-        if el.ROLE == "across-store":
-            why = ("joined through " + ", ".join(repr(c) for c in couplings)) if couplings and all(
-                c != 1 for c in coeffs.values()) else "in parallel"
+        exprs = to_text(sum((c * sp.Symbol(f"{o}.{var}") for o, c in coeffs.items()), sp.Integer(0)))
+        couplings = _couplings_between(elements, [name, *others])
+        if couplings and any(c != 1 for c in coeffs.values()):
+            why = "joined by " + ", ".join(couplings)
         else:
-            why = "in series"
+            why = "in parallel" if el.ROLE == "across-store" else "in series"
         return (f"{name} and {', '.join(others)} are {why}: {name}.{var} = {exprs}, so {name} adds no state "
                 f"(its {what} follows from {', '.join(f'{o}.{var}' for o in others)})")
     if sources and not others:
@@ -620,6 +629,26 @@ def _reduction_note(sp, name, el, coeffs, rest, marker, elements, var) -> str:
                 f"{', '.join(sources)}'s value)")
     return (f"{name}'s {what} follows from {', '.join(others)} and the source {', '.join(sources)}: "
             f"{name} adds no state")
+
+
+def _couplings_between(elements, names) -> list[str]:
+    """The couplings (gears, levers...) on the way between the nodes of the named elements."""
+    nodes = {n for name in names for n in elements[name].nodes if n != GROUND}
+    found: list[str] = []
+    grown = True
+    while grown:
+        grown = False
+        for cname, el in elements.items():
+            if el.ROLE not in ("transformer", "gyrator") or cname in found:
+                continue
+            sides = [set(el.nodes) - {GROUND}, set(el.nodes2) - {GROUND}]
+            if all(side & nodes for side in sides):
+                found.append(cname)
+    if not found:  # a chain: grow the node set through couplings touching it
+        for cname, el in elements.items():
+            if el.ROLE == "transformer" and (set(el.nodes) | set(el.nodes2)) & nodes:
+                found.append(cname)
+    return found
 
 
 def _solve_laws(sp, eqs, unknowns, numeric, graph, elements):
@@ -673,32 +702,35 @@ def _element_variables(sp, elements, across, flow, u, solution, stretch, known_d
 
 
 def _law_lines(elements, coef, law_expr, law_var, value, stretch, el_state, sp):
+    S = sp.Symbol
+
+    def mul(c, name):
+        if name.startswith("d("):  # a derivative: its coefficient in front, whole
+            return name if c == 1 else f"{_factor(c)}*{name}"
+        return to_text(c * S(name))
+
     lines = []
     for name, el in elements.items():
         d = DOMAINS[el.DOMAIN]
-        a, b = el.nodes
         c = coef[name]
         v, f = f"{name}.{d.across}", f"{name}.{d.through}"
         if el.ROLE == "across-store":
-            C = to_text(c[_first(el.PARAMETERS)])
-            text = f"{f} = {C}*d({v})/dt"
+            text = f"{f} = {mul(c[_first(el.PARAMETERS)], f'd({v})/dt')}"
             if d.integral:
                 text += f",  d({name}.{d.integral})/dt = {v}"
         elif el.ROLE == "through-store":
             if d.integral:
                 x = f"{name}.{d.integral}"
-                law = to_text(law_expr[name].subs(law_var[name], sp.Symbol(x))) if name in law_expr \
-                    else f"{_factor(c['k'])}*{x}"
+                law = to_text(law_expr[name].subs(law_var[name], S(x))) if name in law_expr else mul(c["k"], x)
                 text = f"{f} = {law},  d({x})/dt = {v}"
             else:
-                text = f"{_factor(c[_first(el.PARAMETERS)])}*d({f})/dt = {v}"
+                text = f"{mul(c[_first(el.PARAMETERS)], f'd({f})/dt')} = {v}"
         elif el.ROLE == "dissipator":
             if name in law_expr:
-                text = f"{f} = {to_text(law_expr[name].subs(law_var[name], sp.Symbol(v)))}"
+                text = f"{f} = {to_text(law_expr[name].subs(law_var[name], S(v)))}"
             else:
                 k = c[_first(el.PARAMETERS)]
-                text = f"{f} = {_factor(k)}*{v}" if el.TYPE in ("damper", "rotational-damper") \
-                    else f"{f} = {v}/{_factor(k)}"
+                text = f"{f} = {mul(k, v)}" if el.TYPE in ("damper", "rotational-damper") else f"{f} = {mul(1 / k, v)}"
         elif el.ROLE == "across-source":
             text = f"{v} = {to_text(value[name])}"
         elif el.ROLE == "through-source":
@@ -708,14 +740,11 @@ def _law_lines(elements, coef, law_expr, law_var, value, stretch, el_state, sp):
             s2 = "2" if el.DOMAIN2 == el.DOMAIN else ""
             v2, f2 = f"{name}.{d2.across}{s2}", f"{name}.{d2.through}{s2}"
             if el.ROLE == "gyrator":
-                K = _factor(c["K"])
-                text = f"{f2} = {K}*{f},  {v} = {K}*{v2}"
+                text = f"{f2} = {mul(c['K'], f)},  {v} = {mul(c['K'], v2)}"
             elif el.TYPE == "rack-pinion":
-                r = _factor(c["r"])
-                text = f"{v2} = {r}*{v},  {f2} = {f}/{r}"
+                text = f"{v2} = {mul(c['r'], v)},  {f2} = {mul(1 / c['r'], f)}"
             else:
-                n = _factor(c["n"])
-                text = f"{v2} = {v}/{n},  {f2} = {n}*{f}"
+                text = f"{v2} = {mul(1 / c['n'], v)},  {f2} = {mul(c['n'], f)}"
         lines.append((name, text))
     return lines
 
@@ -740,6 +769,7 @@ def _interconnection_lines(graph: Graph, elements, sp) -> list[str]:
             if p.b == node:
                 (left if gives else right).append(var)
         lines.append(f"node {node}: {' + '.join(left) or '0'} = {' + '.join(right) or '0'}")
+    pairs: dict[tuple[str, str, str], list[str]] = {}  # elements between the same nodes share one line
     for name, el in elements.items():
         sides = [(1, el.DOMAIN, el.nodes)]
         if el.DOMAIN2:
@@ -747,9 +777,12 @@ def _interconnection_lines(graph: Graph, elements, sp) -> list[str]:
         for side, domain, (a, b) in sides:
             d = DOMAINS[domain]
             suffix = "2" if side == 2 and el.DOMAIN2 == el.DOMAIN else ""
-            terms = [f"{d.across}({n})" for n in (a, b) if n != GROUND]
-            rhs = terms[0] if b == GROUND else (f"-{terms[0]}" if a == GROUND else f"{terms[0]} - {terms[1]}")
-            lines.append(f"{name}.{d.across}{suffix} = {rhs}")
+            pairs.setdefault((domain, a, b), []).append(f"{name}.{d.across}{suffix}")
+    for (domain, a, b), names in pairs.items():
+        d = DOMAINS[domain]
+        terms = [f"{d.across}({n})" for n in (a, b) if n != GROUND]
+        rhs = terms[0] if b == GROUND else (f"-{terms[0]}" if a == GROUND else f"{terms[0]} - {terms[1]}")
+        lines.append(f"{' = '.join(names)} = {rhs}")
     return lines
 
 
@@ -769,7 +802,8 @@ def _linear_form(sp, equations, outputs, states, inputs, symbols, t):
     for vec, A_, B_ in ((f, mats["A"], mats["B"]), (g, mats["C"], mats["D"])):
         if vec.shape[0] == 0:
             continue
-        rest = vec - A_ * sp.Matrix(X) - (B_ * sp.Matrix(U) if U else sp.zeros(vec.shape[0], 1))
+        rest = vec - (A_ * sp.Matrix(X) if X else sp.zeros(vec.shape[0], 1)) \
+            - (B_ * sp.Matrix(U) if U else sp.zeros(vec.shape[0], 1))
         if any(sp.cancel(sp.expand(e)) != 0 for e in rest):
             return False, None
     return True, {k: m.applyfunc(lambda e: _tidy(sp, e)) for k, m in mats.items()}

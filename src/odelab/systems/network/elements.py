@@ -196,11 +196,21 @@ def _node_pair(nodes, name, key) -> tuple[str, str]:
     return (nodes[0], nodes[1])
 
 
+# what a student may write for a coefficient, by its meaning
+_MEANINGS = {"mass": "m", "stiffness": "k", "spring_constant": "k", "damping": "b", "friction": "b",
+             "resistance": "R", "capacitance": "C", "inductance": "L", "inertia": "J", "inertance": "I",
+             "ratio": "n", "radius": "r", "constant": "K", "value": "value", "torque": "torque",
+             "current": "current", "flow": "flow", "force": "force"}
+
+
 def _unknown_key(cls_or_self, name, key) -> str:
     import difflib
 
     known = cls_or_self.keys()
     close = difflib.get_close_matches(key, known, n=1)
+    meant = _MEANINGS.get(key.lower()) or _MEANINGS.get(key)
+    if meant in known and not close:
+        close = [meant]
     hint = f" Did you mean `{close[0]}`?" if close else ""
     return (f"element {name!r}: `{key}` is not a key of a {cls_or_self.TYPE}; a {cls_or_self.TYPE} takes "
             f"{', '.join(known)}.{hint}")

@@ -114,9 +114,9 @@ def derivation_sections(net, values=None, symbolic_tf: bool = True) -> list[tupl
     inter = [f"at each node, {words}:", *(f"  {line}" for line in nodes),
              "compatibility (each element's across variable from its nodes'):", *(f"  {line}" for line in compat)]
     sections.append(("Interconnection laws", inter))
-    stores = sum(1 for el in d.elements.values() if el.ROLE in ("across-store", "through-store"))
-    head = (f"{len(d.states)} state{'s' if len(d.states) != 1 else ''} from {stores} energy "
-            f"store{'s' if stores != 1 else ''}: {', '.join(d.states) or 'none'}")
+    stores = [n for n, el in d.elements.items() if el.ROLE in ("across-store", "through-store")]
+    head = (f"{', '.join(d.states) or 'none'} ({len(d.states)} state{'s' if len(d.states) != 1 else ''}; "
+            f"energy stores: {', '.join(stores) or 'none'})")
     sections.append(("States", [head, *d.state_notes]))
     eq = d.equation_texts()
     sections.append(("State equations", [f"d({s})/dt = {eq[s]}" for s in d.states]))

@@ -146,6 +146,42 @@ def _printer_class():
             return f"{self.parenthesize(base, PRECEDENCE['Pow'], strict=True)}^" \
                    f"{self.parenthesize(exp, PRECEDENCE['Pow'], strict=False)}"
 
+        def _print_Mul(self, expr):
+            # parameters before element variables (``b*mass.v``, not ``mass.v*b``); a quotient
+            # over one denominator (``(f - k*mass.x)/m``)
+            coeff, rest = expr.as_coeff_Mul()
+            if coeff.is_negative:
+                return "-" + self._print(sp.Mul(-coeff, rest, evaluate=False) if coeff != -1 else rest)
+            num, den = [], []
+            for f in sp.Mul.make_args(rest):
+                b, e = f.as_base_exp()
+                if e.is_Number and e.is_negative:
+                    den.append(b if e == -1 else sp.Pow(b, -e, evaluate=False))
+                else:
+                    num.append(f)
+            if coeff.is_Rational and coeff != 1:
+                if coeff.p != 1:
+                    num.insert(0, sp.Integer(coeff.p))
+                if coeff.q != 1:
+                    den.insert(0, sp.Integer(coeff.q))
+            elif coeff != 1:
+                num.insert(0, coeff)
+
+            def element(f):
+                return any("." in getattr(v, "name", "") for v in f.free_symbols)
+
+            def joined(factors):
+                factors = sorted(factors, key=element)
+                return "*".join(self.parenthesize(f, PRECEDENCE["Mul"], strict=False) for f in factors)
+
+            top = joined(num) if num else "1"
+            if not den:
+                return top
+            bottom = joined(den)
+            if len(den) > 1:
+                bottom = f"({bottom})"
+            return f"{top}/{bottom}"
+
         def _print_Exp1(self, expr):
             return "e"
 
