@@ -94,3 +94,62 @@ def test_outputs_observe_with_sensitivities():
 def test_never_extrapolated():
     with pytest.raises(ValueError, match="never extrapolated"):
         solve_sensitivities(misra_model(), [1.0, 1.0], [0.5, 2.0], t0=0.0, tf=1.0)
+
+
+MSD_MATLAB = """
+[parameters]
+m = 1
+k = 3
+b = 4
+q = 10
+F0 = 2
+
+[system]
+kind = "state-space"
+states = ["x", "v"]
+inputs = ["f"]
+outputs = ["y"]
+A = "[0 1; -k/m -b/m]"
+B = [[0], ["1/m"]]
+C = [["q", 0]]
+D = [[0]]
+
+[initial]
+x = 0
+v = 0
+
+[time]
+stop = 5
+
+[inputs]
+f = { type = "expression", expression = "F0*sin(2*t)" }
+
+[data]
+file = "y.csv"
+
+[fit]
+parameters = { k = {}, b = {}, F0 = {}, q = {} }
+"""
+
+
+def test_parameters_in_an_expression_input_a_matlab_matrix_and_an_output(tmp_path):
+    """F0 enters only through [inputs], k and b through a MATLAB matrix string, q only through C."""
+    from odelab.experiment.fit import _solve_case
+    from odelab.experiment.loader import load_experiment
+
+    t = np.linspace(0, 5, 21)
+    (tmp_path / "y.csv").write_text("t,y\n" + "".join(f"{a:g},{np.sin(a):.6f}\n" for a in t))
+    path = tmp_path / "msd.toml"
+    path.write_text(MSD_MATLAB)
+    spec = load_experiment(path).fit
+    fc = spec.cases[0]
+    assert fc.quantities == ("y",)
+    p = np.array([3.0, 4.0, 2.0, 10.0])
+    y, dy, _ = _solve_case(fc, p, spec)
+    fd = finite_differences(fc, spec, p)
+    scale = np.max(np.abs(dy), axis=(0, 1))
+    assert np.all(scale > 0)
+    assert np.max(np.abs(dy - fd) / scale) < 1e-6
+    # y is linear in q and in F0: dy/dq = y / q, dy/dF0 = y / F0, exactly
+    np.testing.assert_allclose(dy[:, 0, 3], y[:, 0] / 10, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(dy[:, 0, 2], y[:, 0] / 2, rtol=1e-9, atol=1e-12)

@@ -283,9 +283,13 @@ def test_data_larger_than_the_budgets(tmp_path, monkeypatch):
     ('parameters = { k = { lower = 0.2 } }', "the value in [parameters] (0.1), the fit's start, 0.1 is outside"),
     ('parameters = { k = { lower = 1, upper = 1 } }', "lower = 1 must be below upper = 1"),
     ('parameters = { k = { start = 1 } }', "unknown key `fit.parameters.k.start`"),
+    ('parameters = { k = {} }\nvalidat = "x.csv"', "unknown key `fit.validat`. Did you mean `validate`?"),
     ('parameters = { k = {} }\nquantities = ["x"]', "`fit.quantities[0]` is 'x', which no case's [data] measures"),
     ('parameters = { k = {} }\nmethod = "ode15s"', "`fit.method` is 'ode15s'"),
     ('parameters = {}', "`fit.parameters` is empty"),
+    ('quantities = ["T"]', "`fit.parameters` is required"),
+    ('parameters = { k = {} }\nmax_solves = 100000000', "`fit.max_solves` must be between 1 and 10,000"),
+    ('parameters = { k = {} }\nrtol = 0.5', "`fit.rtol` must be between 0 and 0.01"),
 ])
 def test_bad_fit(tmp_path, fit_text, expected):
     cooling_csv(tmp_path / "cooling.csv")
@@ -333,3 +337,19 @@ def test_validate_with_without_a_fit(tmp_path):
     path = write(tmp_path, COOLING)
     result = runner.invoke(app, ["run", str(path), "--no-store", "--validate-with", str(tmp_path / "cooling.csv")])
     assert result.exit_code == 2 and "no experiment has a [fit]" in result.output
+
+
+def test_the_report_shows_the_fit_its_failure_and_the_warning(tmp_path):
+    from odelab.report import build_report
+
+    cooling_csv(tmp_path / "cooling.csv", seed=1)
+    good = write(tmp_path, 'name = "good"\n' + COOLING + FIT, "good.toml")
+    failed = write(tmp_path, 'name = "failed"\n' + COOLING + FIT + "max_solves = 2\n", "failed.toml")
+    runs = tmp_path / "runs"
+    result = runner.invoke(app, ["run", str(good), str(failed), "--runs", str(runs)])
+    assert result.exit_code == 1, result.output
+    report = build_report(runs, tmp_path / "report", formats="md", jobs=1)
+    text = report.markdown.read_text()
+    assert "### Parameter estimates" in text and "| k | 0.04" in text
+    assert "The fit failed:" in text and "did not converge within 2 model solves" in text
+    assert "figures/good-data.png" in text and "figures/good-residuals.png" in text

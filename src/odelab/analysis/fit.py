@@ -80,7 +80,7 @@ class FitResult:
 def uncertainties(J: np.ndarray, r: np.ndarray, p: np.ndarray, names: Sequence[str], *, sigma_known: bool,
                   limit: float = IDENTIFIABILITY_LIMIT) -> dict:
     """Covariance-based uncertainties and the identifiability diagnosis at the estimates ``p``."""
-    from scipy import stats
+    from scipy.special import stdtrit  # Student's t quantile (scipy.stats costs seconds to import)
 
     J = np.asarray(J, dtype=float)
     r = np.asarray(r, dtype=float)
@@ -114,12 +114,12 @@ def uncertainties(J: np.ndarray, r: np.ndarray, p: np.ndarray, names: Sequence[s
     warning = None
     if m >= 1 and condition > limit:
         null = Vt[-1].copy()
-        null /= np.sign(null[np.argmax(np.abs(null))]) or 1.0
-        warning = combination_text(names, null, condition)
         involved = np.abs(null) >= 0.1 * np.abs(null).max()
-        if cov_rel is None or not np.all(np.isfinite(se)):
-            se = np.where(involved, math.inf, se)
-    tq = float(stats.t.ppf(0.975, dof)) if dof > 0 else math.nan
+        null /= np.sign(null[np.argmax(involved)]) or 1.0  # the first parameter involved moves up
+        warning = combination_text(names, null, condition)
+        # the data do not determine these: their linearised standard errors (1e12 and the like) mean nothing
+        se = np.where(involved, math.inf, se)
+    tq = float(stdtrit(dof, 0.975)) if dof > 0 else math.nan
     return {"standard_errors": se, "correlation": corr, "rss": rss, "dof": dof, "n": n, "residual_variance": s2,
             "t_quantile": tq, "lower95": p - tq * se, "upper95": p + tq * se, "condition": condition,
             "identifiability": warning, "null_direction": null}

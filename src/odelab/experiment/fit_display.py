@@ -6,7 +6,10 @@ from rich.console import Console
 
 from odelab.terminal import shown
 
-__all__ = ["print_fit"]
+__all__ = ["print_fit", "SOLVER_EFFECT_LIMIT"]
+
+SOLVER_EFFECT_LIMIT = 0.01
+"""Above this shift of the estimates (in standard errors) caused by the solver, the terminal warns."""
 
 
 def _num(value, digits: int = 7) -> str:
@@ -60,6 +63,10 @@ def print_fit(console: Console, fit: dict) -> None:
         pairs.sort(reverse=True)
         more = f" (and {len(pairs) - 6} more in result.json)" if len(pairs) > 6 else ""
         console.print("  correlations: " + ", ".join(text for _, text in pairs[:6]) + more)
+    effect = fit.get("solver_effect")
+    if effect is not None and effect > SOLVER_EFFECT_LIMIT:
+        console.print(f"[yellow]  warning: the solver's error at rtol {fit['rtol']:g} moves the estimates by {effect:.2g} "
+                      "of their standard errors: tighten [fit] rtol (100 times smaller).[/]")
     if fit.get("identifiability"):
         console.print(f"[yellow]  warning: {shown(fit['identifiability'], lines=True)}[/]")
     for case, quantities in fit.get("residuals", {}).items():

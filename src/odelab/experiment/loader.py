@@ -163,7 +163,7 @@ def _model_fields_at(loc) -> list[str]:
         if model is None:
             return []
     if isinstance(model, type) and issubclass(model, BaseModel):
-        return list(model.model_fields)
+        return [info.alias or name for name, info in model.model_fields.items()]  # as the file spells them
     return []
 
 

@@ -50,7 +50,7 @@ def fit_view(stem: str, runs, units: dict[str, str]) -> FitView | None:
     if fit is not None:
         for name, p in fit.get("parameters", {}).items():
             est, se = p.get("estimate"), p.get("standard_error")
-            rel = abs(se / est) if se is not None and est else None
+            rel = f"{abs(se / est):.2%}" if se is not None and est else "—"
             view.rows.append({"name": name, "estimate": est, "se": se, "lo": p.get("ci95", [None, None])[0],
                               "hi": p.get("ci95", [None, None])[1], "rel": rel, "initial": p.get("initial"),
                               "at_bound": p.get("at_bound", False)})
