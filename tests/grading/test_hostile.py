@@ -232,3 +232,13 @@ def test_a_stray_experiment_file_beside_the_students_folders_is_not_a_student(ma
     (tmp_path / "submissions" / "exercise1.toml").write_text(EXERCISE1)
     (tmp_path / "submissions" / "notes.txt").symlink_to(tmp_path / "rubric.toml")
     assert sorted(by_name(grade_class(rubric))) == ["alice", "bob"]
+
+
+def test_feedback_never_shows_the_grading_machines_folders(make_class, tmp_path):
+    driven = DRIVEN.replace("FILE", "missing.csv")
+    rubric = make_class({"ann": {"driven.toml": driven}},
+                        reference={"driven.toml": DRIVEN.replace("FILE", "force.csv"), "force.csv": FORCE},
+                        rubric=DRIVEN_RUBRIC)
+    text = feedback_text(by_name(grade_class(rubric))["ann"])
+    assert "'missing.csv' does not exist (looked for missing.csv)" in text, text
+    assert str(tmp_path) not in text

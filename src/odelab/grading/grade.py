@@ -18,6 +18,7 @@ feedback. Problems with the rubric or the reference are the instructor's: they r
 from __future__ import annotations
 
 import difflib
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -436,6 +437,10 @@ def _load_student_file(student: Student, f: StudentFile, limits: Limits, allow_p
         with confined_to(student.folder):
             return load_experiments(f.path, limits=limits)
     except InputError as exc:
+        # paths in the message relative to the student's folder: the feedback does not depend on
+        # where the class is stored, and does not show the grading machine's folders
+        for folder in {str(student.folder.resolve()), str(student.folder)}:
+            exc.message = exc.message.replace(folder + os.sep, "")
         return exc
     except RecursionError:
         return ExperimentError("is nested too deeply to be read.", source=shown)
