@@ -123,11 +123,14 @@ def test_statistics_count_what_matlab_counts():
     sol = odelab.ode15s(vdp, [0, 3000], [2, 0])
     s = sol.stats
     # most attempts reuse the last LU (MATLAB's vdp1000: 289 LU decompositions in 591 + 225
-    # attempts). Counted per attempt, not per step: the count of decompositions moves with the
-    # LAPACK kernel's last bits (314 of 842 attempts with OpenBLAS's Haswell kernels, 316 with
-    # Nehalem's), half the attempts is far from both.
+    # attempts; odelab with numjac: 300 in 589 + 235). Counted per attempt, not per step: the count
+    # of decompositions moves with the LAPACK kernel's last bits, half the attempts is far from it.
     attempts = s.nsteps + s.nfailed
-    assert s.nsteps < 700 and s.npds < 50 and s.ndecomps < attempts / 2
+    assert s.nsteps < 700 and s.npds < 60 and s.ndecomps < attempts / 2
+    # a Jacobian only after a stalled iteration; an LU after each failure, and on accepted steps
+    # only when h or the order changed, which ode15s considers after k + 2 >= 3 steps at constant
+    # h and order (plus the first step and the stretch onto tf)
+    assert s.npds <= 1 + s.nfailed and s.ndecomps <= 2 + s.nfailed + s.nsteps / 3
     # the first evaluation, the y'' probe for the first step, one per Newton iteration, n per
     # finite-difference Jacobian and f(t, y) for each Jacobian refreshed after a stalled iteration
     assert s.nfevals == 1 + 1 + s.nsolves + 2 * s.npds + (s.npds - 1)
@@ -146,7 +149,9 @@ def test_options_jacobian_jpattern_vectorized_agree():
         return np.array([Y[1], 1000 * (1 - Y[0] ** 2) * Y[1] - Y[0]])
 
     v = odelab.ode15s(vec, [0, 50], [2, 0], Vectorized=True)
-    assert v.stats.nsteps == plain.stats.nsteps and v.stats.nfevals == plain.stats.nfevals - plain.stats.npds
+    # one call per Jacobian, but MATLAB's numjac counts its n evaluations (the columns) all the same
+    assert v.stats.as_dict() == plain.stats.as_dict()
+    np.testing.assert_array_equal(v.y, plain.y)
 
     # A tridiagonal chain: JPattern groups columns 3 at a time and LU is sparse.
     n = 30

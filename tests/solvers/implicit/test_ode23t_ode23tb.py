@@ -64,27 +64,43 @@ def test_error_estimate_is_asymptotically_correct(method):
                                                     np.ones(2), 1e-10, Newton())
         else:
             history = [(t0 - 2 * h, _flow(t0, y0, t0 - 2 * h)), (t0 - h, _flow(t0, y0, t0 - h)), (t0, y0)]
-            ypred, P = tr.predict(history, _nonlinear(t0, y0), None, h)
+            ypred = tr.predict(history, t0 + h)
+            z = h * _nonlinear(t0, y0)
             lu = work.factor(np.eye(2) - 0.5 * h * J)
-            ynew, _, est, ok = tr.tr_attempt(work, lu, t0, y0, _nonlinear(t0, y0), ypred, P, h, np.ones(2), 1e-10,
-                                             Newton())
+            ynew, _, ok = tr.solve_z(work, lu, t0 + h, ypred, 2 * (ypred - y0) - z, 0.5, h, np.ones(2), 1e-10,
+                                     Newton())
+            est = -tr.local_error(history, t0 + h, ynew)  # the rule's error is -h^3 y'''/12
         assert ok
         true = ynew - _flow(t0, y0, t0 + h)
         ratios.append(np.abs(est / true))
         errors.append(np.abs(true).max())
     ratios = np.array(ratios)
-    assert np.all(np.abs(ratios[-1] - 1) < 0.06), ratios
+    # ode23t's y''' comes from a cubic over 3h (MATLAB's): its gap to 1 halves with h (0.69 ... 0.14)
+    assert np.all(np.abs(ratios[-1] - 1) < (0.06 if method == "ode23tb" else 0.16)), ratios
     assert np.all(np.diff(np.abs(ratios - 1).max(axis=1)) < 0)  # closing in on 1
     np.testing.assert_allclose(np.array(errors[:-1]) / errors[1:], 8, rtol=0.15)
 
 
-def test_predictor_is_exact_for_quadratics():
+def test_predictor_is_exact_for_quadratics_and_the_estimate_for_cubics():
     q = lambda t: np.array([1 + 2 * t - 3 * t**2])  # noqa: E731
-    dq = lambda t: np.array([2 - 6 * t])  # noqa: E731
-    for history in ([(0.0, q(0.0))], [(-0.3, q(-0.3)), (0.0, q(0.0))], [(-0.5, q(-0.5)), (-0.3, q(-0.3)), (0.0, q(0.0))]):
-        ypred, P = tr.predict(history, dq(0.0), np.array([-6.0]), 0.2)
-        np.testing.assert_allclose(ypred, q(0.2), rtol=1e-13)
-    assert P == pytest.approx(0.2 * 0.5 * 0.7)
+    history = [(-0.5, q(-0.5)), (-0.3, q(-0.3)), (0.0, q(0.0))]
+    np.testing.assert_allclose(tr.predict(history, 0.2), q(0.2), rtol=1e-13)
+    assert abs(tr.local_error(history, 0.2, q(0.2))[0]) < 1e-14
+    # for a cubic the estimate is h^3 y'''/12 exactly (y''' = 24 here), whatever the spacing
+    c = lambda t: q(t) + 4 * t**3  # noqa: E731
+    history = [(-0.5, c(-0.5)), (-0.3, c(-0.3)), (0.0, c(0.0))]
+    assert tr.local_error(history, 0.2, c(0.2))[0] == pytest.approx(24 * 0.2**3 / 12, rel=1e-12)
+    # the cubic Hermite midpoint is exact for cubics (z = h y' at both ends)
+    h, dc = 0.2, (lambda t: 2 - 6 * t + 12 * t**2)  # noqa: E731
+    mid = tr.hermite_midpoint(c(0.0), h * np.array([dc(0.0)]), c(h), h * np.array([dc(h)]))
+    np.testing.assert_allclose(mid, c(h / 2), rtol=1e-14)
+
+
+def test_ringing_is_told_from_a_smooth_solution():
+    smooth_history = [(0.0, np.array([1.0])), (0.1, np.array([1.1])), (0.2, np.array([1.15]))]
+    assert not tr.rings(smooth_history, np.array([1.17]), 0)
+    ringing = [(0.0, np.array([1.0])), (0.1, np.array([1.2])), (0.2, np.array([1.0]))]
+    assert tr.rings(ringing, np.array([1.2]), 0) and not tr.rings(ringing, np.array([0.9]), 0)
 
 
 def observed_order(method):
@@ -185,7 +201,8 @@ def test_a_nonsingular_mass_matrix():
 def test_options_jacobian_jpattern_vectorized_agree(method):
     plain = odelab.solve(vdp, [0, 50], [2, 0], method=method)
     jac = odelab.solve(vdp, [0, 50], [2, 0], method=method, jacobian=VDP_JAC)
-    assert jac.stats.nfevals < plain.stats.nfevals
+    # the evaluations besides Newton's (one per solve): no column differences with a Jacobian
+    assert jac.stats.nfevals - jac.stats.nsolves < plain.stats.nfevals - plain.stats.nsolves
     np.testing.assert_allclose(jac.y[-1], plain.y[-1], rtol=1e-2)
 
     def vec(t, Y):
@@ -193,7 +210,9 @@ def test_options_jacobian_jpattern_vectorized_agree(method):
         return np.array([Y[1], 1000 * (1 - Y[0] ** 2) * Y[1] - Y[0]])
 
     v = odelab.solve(vec, [0, 50], [2, 0], method=method, Vectorized="on")
-    assert v.stats.nsteps == plain.stats.nsteps and v.stats.nfevals == plain.stats.nfevals - plain.stats.npds
+    # one call per Jacobian, but MATLAB's numjac counts its n evaluations (the columns) all the same
+    assert v.stats.as_dict() == plain.stats.as_dict()
+    np.testing.assert_array_equal(v.y, plain.y)
 
     n = 30
 

@@ -5,9 +5,10 @@ derivatives (Jacobians) formed, the LU decompositions and the linear solves. :cl
 holds those counters and the three operations that produce them:
 
 * :meth:`Work.jacobian` — ``df/dy`` at ``(t, y)``: the user's analytic Jacobian (a matrix or a
-  callable), or finite differences as MATLAB's ``numjac`` does them (one evaluation per column,
-  fewer with a ``JPattern`` sparsity pattern by grouping structurally orthogonal columns, one
-  vectorised call with ``Vectorized``);
+  callable), or MATLAB's ``numjac`` (:mod:`odelab.solvers.numjac`: adaptive increments whose
+  factors are kept from one Jacobian to the next; one evaluation per column, fewer with a
+  ``JPattern`` sparsity pattern by grouping structurally orthogonal columns, one vectorised call
+  with ``Vectorized``);
 * :meth:`Work.factor` — LU of an iteration matrix ``M - c J`` (dense LAPACK, or SuperLU when a
   sparsity pattern makes the matrix sparse);
 * :meth:`Work.solve` — one solve with that factorisation.
@@ -44,11 +45,15 @@ class Work:
         self.sparse = jpattern is not None
         self._jac = jacobian
         self._groups = None
+        self.fac = None  # numjac's increment factors, carried from one Jacobian to the next
         if jpattern is not None:
             from scipy import sparse
 
+            from odelab.solvers.numjac import column_groups
+
             self.pattern = sparse.csc_matrix(jpattern, dtype=bool)
-            self._groups = _column_groups(self.pattern)
+            self.pattern.eliminate_zeros()
+            self._groups = column_groups(self.pattern)
         if mass is None:
             self.mass = None
         else:
@@ -75,8 +80,13 @@ class Work:
 
     # --- Jacobian -------------------------------------------------------------------------
 
-    def jacobian(self, t: float, y: np.ndarray, fy, threshold: np.ndarray):
-        """``df/dy`` at ``(t, y)``; ``fy = f(t, y)`` (or None) is reused by finite differences."""
+    def jacobian(self, t: float, y: np.ndarray, fy, threshold):
+        """``df/dy`` at ``(t, y)``; ``fy = f(t, y)`` (or None: evaluated here) serves the differences.
+
+        Without an analytic Jacobian this is MATLAB's ``numjac``
+        (:func:`odelab.solvers.numjac.numjac`) with ``thresh = threshold`` (the solvers pass
+        ``AbsTol``, as MATLAB's do); its increment factors ``fac`` are kept here from one
+        Jacobian to the next, and its evaluations count in ``nfevals``."""
         self.npds += 1
         jac = self._jac
         if jac is not None:
@@ -88,39 +98,13 @@ class Work:
             return np.asarray(value, dtype=float).reshape(self.n, self.n)
         if fy is None:
             fy = self.f(t, y)
-        return self._numjac(t, y, fy, threshold)
+        from odelab.solvers.numjac import numjac
 
-    def _numjac(self, t, y, fy, threshold):
-        # Increments as MATLAB's numjac starts them: sqrt(eps) relative to max(|y|, thresh),
-        # with the sign of y (so the perturbed point stays on the same side of zero).
-        ymax = np.maximum(np.abs(y), threshold)
-        delta = SQRT_EPS * ymax
-        delta = np.where(y >= 0, delta, -delta)
-        delta = (y + delta) - y  # the increment actually represented
-        n = self.n
-        if self._groups is not None:
-            from scipy import sparse
-
-            rows, cols = self.pattern.nonzero()
-            values = np.empty(rows.size)
-            for group in self._groups:
-                yp = y.copy()
-                yp[group] += delta[group]
-                df = self.f(t, yp) - fy
-                mask = np.isin(cols, group)
-                values[mask] = df[rows[mask]] / delta[cols[mask]]
-            return sparse.csc_matrix((values, (rows, cols)), shape=(n, n))
-        if self.vectorized:
-            Y = y[:, None] + np.diag(delta)
-            self.nfevals += 1
-            F = np.asarray(self.fun(t, Y), dtype=float).reshape(n, n)
-            return (F - fy[:, None]) / delta
-        J = np.empty((n, n))
-        for j in range(n):
-            yp = y.copy()
-            yp[j] += delta[j]
-            J[:, j] = (self.f(t, yp) - fy) / delta[j]
-        return J
+        result = numjac(self.fun, t, y, fy, threshold, self.fac, vectorized=self.vectorized,
+                        pattern=self.pattern if self.sparse else None, groups=self._groups)
+        self.fac = result.fac
+        self.nfevals += result.nfevals
+        return result.dfdy
 
     # --- linear algebra ---------------------------------------------------------------------
 
@@ -147,25 +131,6 @@ class Work:
 
     def mass_times(self, v: np.ndarray) -> np.ndarray:
         return v if self.mass is None else self.mass @ v
-
-
-def _column_groups(pattern) -> list[np.ndarray]:
-    """Greedy grouping of structurally orthogonal columns (Curtis, Powell & Reid 1974)."""
-    n = pattern.shape[1]
-    csc = pattern.tocsc()
-    groups: list[list[int]] = []
-    used_rows: list[set[int]] = []
-    for j in range(n):
-        rows = set(csc.indices[csc.indptr[j]:csc.indptr[j + 1]].tolist())
-        for g, taken in zip(groups, used_rows):
-            if not rows & taken:
-                g.append(j)
-                taken |= rows
-                break
-        else:
-            groups.append([j])
-            used_rows.append(set(rows))
-    return [np.array(g) for g in groups]
 
 
 def rms_or_max(v: np.ndarray, scale: np.ndarray) -> float:

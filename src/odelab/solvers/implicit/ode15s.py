@@ -74,7 +74,7 @@ def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # singular iteration matrices show as failed Newton iterations
         try:
-            J = work.jacobian(t, y, f0, threshold)
+            J = work.jacobian(t, y, f0, atol)  # numjac's thresh is AbsTol, as in MATLAB
             Jcurrent = True
             # The initial slope: y' = M^-1 f (least squares for a singular M: algebraic rows get 0).
             if work.mass is None:
@@ -126,13 +126,16 @@ def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                 nofailed = True
                 nfails = 0
                 while True:  # attempts at this step
-                    h = tdir * absh
+                    h = tf - t if done else tdir * absh
                     tnew = tf if done else t + h
-                    h = tnew - t
-                    c = h / alpha[k]
-                    if lu is None or lu_key != (c, k):
+                    # MATLAB re-forms the iteration matrix only when |h| or the order changed
+                    # (or after a failure), with h = tdir*|h|, not with the purified tnew - t:
+                    # keyed on tnew - t, ulp-level changes of t + h - t re-factored (and reset
+                    # the Newton rate) on steps where nothing changed.
+                    if lu is None or lu_key != (absh, k):
+                        c = h / alpha[k]
                         lu = work.factor(M - c * J)
-                        lu_key = (c, k)
+                        lu_key = (absh, k)
                         havrate = False
                     ypred = D[: k + 1].sum(axis=0)
                     psi = (GAMMA[1 : k + 1] @ D[1 : k + 1]) / alpha[k]
@@ -176,7 +179,7 @@ def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                     if not converged:
                         nfailed += 1
                         if not Jcurrent:
-                            J = work.jacobian(t, y, None, threshold)
+                            J = work.jacobian(t, y, None, atol)
                             Jcurrent = True
                             lu = None
                             continue

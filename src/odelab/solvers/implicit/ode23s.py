@@ -58,7 +58,7 @@ def integrate_ode23s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                 hmin, absh, done = clamp_step(t, tf, absh, hmax)
                 h = tf - t if done else tdir * absh
                 # Partial derivatives, once per step: J and T = df/dt by a forward difference.
-                J = work.jacobian(t, y, F0, threshold)
+                J = work.jacobian(t, y, F0, atol)  # numjac's thresh is AbsTol, as in MATLAB
                 tdel = (t + tdir * min(SQRT_EPS * max(abs(t), abs(t + h)), absh)) - t
                 T = (work.f(t + tdel, y) - F0) / tdel
                 nofailed = True

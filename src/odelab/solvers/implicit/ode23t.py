@@ -2,34 +2,45 @@
 problems and index-1 DAEs.
 
 Written from Shampine, Reichelt & Kierzenka, *Solving index-1 DAEs in MATLAB and Simulink*,
-SIAM Review 41(3), 1999 (the trapezoidal rule and its interpolant), with the step-size,
-Jacobian and Newton machinery of Shampine & Reichelt, *The MATLAB ODE Suite*, SIAM J. Sci.
-Comput. 18(1), 1997, Section 2 (shared with :mod:`ode15s`).
+SIAM Review 41(3), 1999, and Shampine & Hosea, *Analysis and implementation of TR-BDF2*,
+Applied Numerical Mathematics 20 (1996) (the trapezoidal rule in ``z = h y'``, the restart with
+the backward Euler formula), with the Jacobian and Newton machinery of Shampine & Reichelt,
+*The MATLAB ODE Suite*, SIAM J. Sci. Comput. 18(1), 1997 (shared with :mod:`ode15s`).
 
-With ``z = h y'`` the trapezoidal rule is ``y_{n+1} = y_n + (z_n + z_{n+1}) / 2`` and the
-unknown is ``z_{n+1}``, the solution of ``M z_{n+1} = h f(t_{n+1}, y_{n+1})``. Written so, an
-algebraic equation (a zero row of ``M``) is imposed at every step, which makes the rule usable
-for index-1 DAEs with a singular mass matrix (the slope of the algebraic states starts
+With ``z = h y'`` a step solves ``M z_{n+1} = h f(t_{n+1}, y_{n+1})`` with
+
+* ``y_{n+1} = y_n + (z_n + z_{n+1}) / 2`` (the trapezoidal rule, TR), or
+* ``y_{n+1} = y_n + z_{n+1}`` (backward Euler, BDF1) on the **first step and on a restart**.
+
+An algebraic equation (a zero row of ``M``) is imposed at every step, which makes the rule
+usable for index-1 DAEs with a singular mass matrix (the slope of the algebraic states starts
 consistent, see :func:`~odelab.solvers.implicit.common.consistent_slope`).
 
-* The rule fixes an interpolant for free: the quadratic ``y_n + s z_n + s^2 (z_{n+1} - z_n)/2``
-  (``s = (t - t_n)/h``) matches ``y_n``, ``y_{n+1}`` and both slopes. odelab uses it on the
-  first step and afterwards the quadratic through ``y_{n-1}, y_n, y_{n+1}``, equally free and of
-  the same order, because the slopes of stiff components are noisy (next item; see
-  :func:`interpolant`). It serves ``Refine`` and ``tspan`` output.
-* The local error, ``h^3 y''' / 12``, is estimated by Milne's device from a prediction exact for
-  quadratics, ``ypred - y(t_{n+1}) = -P y''' / 6``: ``est = h^3 / (h^3 + 2P) (ynew - ypred)``.
-  The prediction extrapolates the last three solution *values* (``P = h (h + h_1)(h + h_1 +
-  h_2)``); the first two steps use ``y'`` (and, for the first, ``y'' = f_t + J y'``). Values,
-  not slopes: the trapezoidal rule does not damp stiff components, whose slopes keep an
-  alternating error of size ``h lambda e`` for an error ``e`` in ``y``; a slope-based predictor
-  carries that noise into the estimate and into Newton's starting guess (Robertson then stalls
-  at ``h = 60``, or Newton fails every few steps).
-* A simplified Newton iteration with ``M - (h/2) J``, started at ``ypred``; the Jacobian is
-  formed once and refreshed only when the iteration fails to converge, the matrix re-factored
-  only when ``h`` changes; MATLAB's weighted max norm and ode15s's step-size rules for an error
-  of order 3 (safety 1.2, at most 10x up, at least 0.1x down, 0.3x after a failed iteration, the
-  step increased only when that pays).
+* Prediction: BDF1 starts Newton at ``y_n + z_n``; TR at the quadratic through the last three
+  solution values (``znew = 2 (ypred - y_n) - z_n``). After a BDF1 step the point before it is
+  "generated" at its midpoint from the step's cubic Hermite interpolant.
+* Local error: BDF1 ``h^2 y''/2`` as ``(z_{n+1} - z_n)/2``; TR ``h^3 y'''/12`` with ``y'''``
+  from the cubic through ``y_{n+1}, y_n, y_{n-1}, y_{n-2}`` (half its third divided difference,
+  times ``|h|^3``), in MATLAB's weighted max norm ``max(|y_n|, |y_{n+1}|, AbsTol/RelTol)``.
+* Newton (simplified, on ``z``, iteration matrix ``M - gamma h J``, ``gamma = 1/2`` for TR and
+  ``1`` for BDF1): at most 5 iterations to ``RelTol/2`` (``RelTol/20`` on the first with a rate
+  kept from earlier steps), each correction weighted by ``max(wt, |y|)``, abandoned as soon as
+  it does not contract by 10% or cannot converge in the iterations left. A failure refreshes a
+  stale Jacobian; with a current one the step is cut to 0.3 h, and **after three failures the
+  integration restarts with BDF1** at a step size from ``y''`` (the second divided difference of
+  the last three values). The trapezoidal rule does not damp stiff components: an error there
+  survives, alternating in sign, step after step (in Robertson's y2 once it falls below AbsTol);
+  extrapolated over a longer step it spoils Newton's starting guess, and one damped BDF1 step
+  is what clears it (without the restart ode23t thrashed on Robertson: 286,956 failed attempts
+  in 200,000 steps, reaching t = 3.8e9 of 4e10 at RelTol 1e-4).
+* Step size: exponent ``1/3`` (``1/2`` for BDF1), safety ``0.7``; after a success the step
+  changes only by more than 20% (so the LU is kept), by ``0.2x`` to ``5x``; a failed error test
+  takes ``max(0.1, 0.7 (RelTol/err)^p)``. The first step from the BDF1 error ``h^2 |y''|/2``
+  with ``y'' = f_t + J y'``; after the first (BDF1) step the step is doubled (``gamma h`` and so
+  the LU unchanged).
+* Output between steps is the quadratic through ``y_{n-1}, y_n, y_{n+1}`` (free, O(h^3)); on a
+  BDF1 step the quadratic through ``y_n``, the Hermite midpoint and ``y_{n+1}``. The slopes'
+  undamped error on stiff components would otherwise reach the output (see :func:`interpolant`).
 """
 
 from __future__ import annotations
@@ -40,73 +51,115 @@ import warnings
 import numpy as np
 
 from odelab.solvers import engine
-from odelab.solvers.implicit.common import (SQRT_EPS, Newton, Output, QuadraticSteps, Work, clamp_step,
-                                           consistent_slope, newton, quadratic_through)
+from odelab.solvers.implicit.common import (EPS, SQRT_EPS, Newton, Output, QuadraticSteps, Work, clamp_step,
+                                           consistent_slope, quadratic_through)
 
-__all__ = ["integrate_ode23t", "tr_attempt", "predict", "interpolant"]
+__all__ = ["integrate_ode23t", "predict", "local_error", "rings", "interpolant", "solve_z", "hermite_midpoint"]
 
 POWER = 1.0 / 3.0
+MAX_NEWTON = 5
+KAPPA = 0.5  # Newton converges to KAPPA * RelTol
+DAMPING_STEPS = 2  # BDF1 steps taken to damp a ringing component
 
 
-def predict(history, yp: np.ndarray, ypp: np.ndarray, h: float) -> tuple[np.ndarray, float]:
-    """Extrapolate the solution to ``t_n + h`` from the last accepted points.
-
-    ``history`` holds up to three ``(t, y)``, the newest last. Three points: the quadratic through
-    them; two: the quadratic through both with the slope ``yp`` at the newest; one: Taylor's
-    ``y + h y' + h^2 y''/2``. Returns ``(ypred, P)`` with ``ypred - y(t_n + h) = -P y''' / 6`` to
-    leading order (``P`` is the product of the distances from ``t_n + h`` to the nodes).
-    """
-    tn, yn = history[-1]
-    tnew = tn + h
-    if len(history) == 1:
-        return yn + h * (yp + 0.5 * h * ypp), abs(h) ** 3
-    if len(history) == 2:
-        t1, y1 = history[-2]
-        dt = t1 - tn
-        a = (y1 - yn - dt * yp) / (dt * dt)
-        return yn + h * (yp + h * a), h * h * abs(tnew - t1)
-    (t2, y2), (t1, y1) = history[-3], history[-2]
+def predict(history, tnew: float) -> np.ndarray:
+    """The quadratic through the last three accepted ``(t, y)`` (the newest last), at ``tnew``."""
+    (t2, y2), (t1, y1), (tn, yn) = history[-3:]
     l2 = (tnew - t1) * (tnew - tn) / ((t2 - t1) * (t2 - tn))
     l1 = (tnew - t2) * (tnew - tn) / ((t1 - t2) * (t1 - tn))
     l0 = (tnew - t2) * (tnew - t1) / ((tn - t2) * (tn - t1))
-    return l2 * y2 + l1 * y1 + l0 * yn, abs((tnew - tn) * (tnew - t1) * (tnew - t2))
+    return l2 * y2 + l1 * y1 + l0 * yn
 
 
-def interpolant(history, tnew: float, ynew: np.ndarray, z: np.ndarray, znew: np.ndarray):
+def _divided_difference(points) -> np.ndarray:
+    """The highest divided difference through ``points`` = [(t, y), ...]."""
+    total = 0.0
+    for i, (ti, yi) in enumerate(points):
+        denominator = 1.0
+        for j, (tj, _) in enumerate(points):
+            if j != i:
+                denominator *= ti - tj
+        total = total + yi / denominator
+    return total
+
+
+def rings(history, ynew: np.ndarray, i: int) -> bool:
+    """Does component ``i`` alternate over the last steps (``y_{n-2}, y_{n-1}, y_n, y_{n+1}``
+    going up, down, up or down, up, down)? The trapezoidal rule's undamped stiff error does; a
+    solution resolved by accurate steps does not (it would need two steps per period)."""
+    if len(history) < 3:
+        return False
+    v = [p[1][i] for p in history[-3:]] + [ynew[i]]
+    d = np.diff(v)
+    return bool(d[0] * d[1] < 0 and d[1] * d[2] < 0)
+
+
+def local_error(history, tnew: float, ynew: np.ndarray) -> np.ndarray:
+    """The trapezoidal rule's local error ``h^3 y'''/12`` (a vector, before weighting), with
+    ``y'''`` from the cubic through ``ynew`` and the last three values: half the third divided
+    difference times ``|h|^3``, ``h = tnew - t_n``."""
+    dd3 = _divided_difference([(tnew, ynew)] + list(history[-3:]))
+    return 0.5 * dd3 * abs(tnew - history[-1][0]) ** 3
+
+
+def hermite_midpoint(y: np.ndarray, z: np.ndarray, ynew: np.ndarray, znew: np.ndarray) -> np.ndarray:
+    """The cubic Hermite interpolant through ``(y, z)`` and ``(ynew, znew)`` (``z = h y'``) at the
+    middle of the step."""
+    return 0.5 * (y + ynew) - 0.125 * (znew - z)
+
+
+def interpolant(history, tnew: float, ynew: np.ndarray, ymid=None):
     """The step's interpolant as ``(a1, a2)`` of ``y_n + s a1 + s^2 a2``, ``s = (t - t_n)/h``.
 
-    On the first step the trapezoidal rule's free quadratic ``y_n + s z_n + s^2 (z_{n+1} - z_n)/2``;
-    after it, the quadratic through the values ``y_{n-1}, y_n, y_{n+1}`` (as free, and as
-    accurate, O(h^3)). The slopes' undamped error on stiff components (see the module's notes)
-    would otherwise reach the output: Robertson's y2 at t = 4e8, between steps of 1e8, came out
-    1e10 tolerances off with the slopes, within 1 with the values.
+    A TR step: the quadratic through the values ``y_{n-1}, y_n, y_{n+1}`` (free and O(h^3)); the
+    slopes' undamped error on stiff components would otherwise reach the output (Robertson's y2
+    at t = 4e8, between steps of 1e8, came out 1e10 tolerances off with the slopes' free
+    quadratic, within 1 with the values). A BDF1 step (``ymid`` given): the quadratic through
+    ``y_n``, the Hermite midpoint ``ymid`` and ``y_{n+1}``.
     """
     tn, yn = history[-1]
-    if len(history) == 1:
-        return z, 0.5 * (znew - z)
+    if ymid is not None:
+        return quadratic_through(0.5, yn, ymid, ynew)
     t1, y1 = history[-2]
     return quadratic_through((t1 - tn) / (tnew - tn), yn, y1, ynew)
 
 
-def tr_attempt(work: Work, lu, t: float, y: np.ndarray, yp: np.ndarray, ypred: np.ndarray, P: float, h: float,
-               wt: np.ndarray, rtol: float, memory: Newton):
-    """One trapezoidal step ``t -> t + h`` from ``y, y'`` and the prediction ``(ypred, P)`` of :func:`predict`.
-
-    ``lu`` factors ``M - (h/2) J``. Returns ``(ynew, znew, est, converged)`` where ``est`` is the
-    local-error estimate (a vector) and ``znew = h y'(t + h)``.
+def solve_z(work: Work, lu, tnew: float, ynew: np.ndarray, znew: np.ndarray, gamma: float, h: float,
+            wt: np.ndarray, rtol: float, memory: Newton):
+    """Simplified Newton for ``M z = h f(tnew, v + gamma z)`` from the prediction ``(ynew, znew)``
+    (``ynew = v + gamma znew``); ``lu`` factors ``M - gamma h J``. Returns ``(ynew, znew, converged)``;
+    ``memory`` carries the rate of convergence to the next call (reset it when ``lu`` changes).
     """
-    tnew = t + h
-    z = h * yp
-    zpred = 2.0 * (ypred - y) - z  # the slope that puts the trapezoidal rule's result at ypred
-
-    def residual(zn):
-        return h * work.f(tnew, y + 0.5 * (z + zn)) - work.mass_times(zn)
-
-    znew, converged = newton(work, lu, residual, zpred, 0.5, wt, rtol, memory)
-    ynew = y + 0.5 * (z + znew)
-    h3 = abs(h) ** 3
-    est = (h3 / (h3 + 2.0 * P)) * (ynew - ypred)  # (h^3/12) / (h^3/12 + P/6) of the difference
-    return ynew, znew, est, converged
+    y, z = ynew.copy(), znew.copy()
+    minnrm = 100 * EPS * float(np.max(np.abs(y) / wt)) if y.size else 0.0
+    oldnrm = 0.0
+    for it in range(1, MAX_NEWTON + 1):
+        dz = work.solve(lu, h * work.f(tnew, y) - work.mass_times(z))
+        z = z + dz
+        y = y + gamma * dz
+        newnrm = float(np.max(np.abs(dz) / np.maximum(wt, np.abs(y)))) if y.size else 0.0
+        if not math.isfinite(newnrm):
+            return y, z, False
+        if newnrm <= minnrm:
+            return y, z, True
+        if it == 1:
+            if memory.havrate:
+                if newnrm * memory.rate / (1 - memory.rate) <= 0.1 * KAPPA * rtol:
+                    return y, z, True
+            else:
+                memory.rate = 0.0
+        elif newnrm > 0.9 * oldnrm:
+            return y, z, False
+        else:
+            memory.rate = max(0.9 * memory.rate, newnrm / oldnrm)
+            memory.havrate = True
+            errit = newnrm * memory.rate / (1 - memory.rate)
+            if errit <= KAPPA * rtol:
+                return y, z, True
+            if it == MAX_NEWTON or KAPPA * rtol < errit * memory.rate ** (MAX_NEWTON - it):
+                return y, z, False
+        oldnrm = newnrm
+    return y, z, False
 
 
 def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, max_steps, events=None):
@@ -125,72 +178,128 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
     t, y = t0, y0.copy()
     absh = 0.0
     M = work.M
+    n = y0.size
+    dae = False
+    if work.mass is not None:
+        Md = M.toarray() if hasattr(M, "toarray") else np.asarray(M)
+        dae = np.linalg.matrix_rank(Md) < n
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # singular iteration matrices show as failed Newton iterations
         try:
-            J = work.jacobian(t, y, f0, threshold)
+            J = work.jacobian(t, y, f0, atol)  # numjac's thresh is AbsTol, as in MATLAB
             Jcurrent = True
             yp = consistent_slope(work, t, y, f0, J)
             hmin = 16.0 * math.ulp(t)
             wt = np.maximum(np.abs(y), threshold)
-            # The first step: MATLAB's 1.25 ||y'/wt|| / rtol^(1/3) rule; y'' = f_t + J y' (one
-            # evaluation) serves the first prediction.
-            absh = min(hmax, abs(float(tspan[1]) - t0))
-            h = tdir * absh
-            tdel = (t + tdir * min(SQRT_EPS * max(abs(t), abs(t + h)), absh)) - t
-            ypp = (work.f(t + tdel, y) - f0) / tdel + (J @ yp)
-            if work.mass is not None:
-                ypp = np.linalg.lstsq(M.toarray() if hasattr(M, "toarray") else M, ypp, rcond=None)[0]
+            start, gamma, power = True, 1.0, 0.5  # the first step is BDF1
+            damping = 0  # BDF1 steps left to damp a ringing component
+            ringing = False
             if htry == htry:
                 absh = min(hmax, max(hmin, htry))
             else:
-                rh = 1.25 * float(np.max(np.abs(yp) / wt)) / rtol ** POWER
+                absh = min(hmax, abs(float(tspan[1]) - t0))
+                rh = 1.43 * float(np.max(np.abs(yp) / wt)) / rtol ** power
                 if absh * rh > 1:
                     absh = 1.0 / rh
                 absh = max(absh, hmin)
+                if not dae:
+                    # BDF1's error is h^2 |y''| / 2 with y'' = f_t + J y' (one evaluation).
+                    h = tdir * absh
+                    tdel = (t + tdir * min(SQRT_EPS * max(abs(t), abs(t + h)), absh)) - t
+                    ypp = (work.f(t + tdel, y) - f0) / tdel + (J @ yp)
+                    if work.mass is not None:
+                        ypp = np.linalg.solve(Md, ypp)
+                    rh = 1.43 * math.sqrt(0.5 * float(np.max(np.abs(ypp) / wt)) / rtol)
+                    absh = min(hmax, abs(float(tspan[1]) - t0))
+                    if absh * rh > 1:
+                        absh = 1.0 / rh
+                    absh = max(absh, hmin)
+            z = tdir * absh * yp
             history = [(t, y)]
             memory = Newton()
-            lu, lu_h = None, None
-            while True:
+            lu = None
+            need_lu, need_j = True, False
+            done = False
+            err = 0.0
+            while not done:
+                hmin = 16.0 * math.ulp(t)
+                absh_last = absh
                 hmin, absh, done = clamp_step(t, tf, absh, hmax)
+                h = tf - t if done else tdir * absh
+                if absh != absh_last:
+                    z = (absh / absh_last) * z
+                    need_lu = True
                 nofailed = True
+                itfailed = 0
                 while True:  # attempts at this step
-                    tnew = tf if done else t + tdir * absh
-                    h = tnew - t
-                    if lu is None or lu_h != h:
-                        lu = work.factor(M - (0.5 * h) * J)
-                        lu_h = h
-                        memory.havrate = False
                     wt = np.maximum(np.abs(y), threshold)
-                    ypred, P = predict(history, yp, ypp, h)
-                    ynew, znew, est, converged = tr_attempt(work, lu, t, y, yp, ypred, P, h, wt, rtol, memory)
+                    if need_j:
+                        J = work.jacobian(t, y, None, atol)
+                        Jcurrent, need_j, need_lu = True, False, True
+                    if need_lu:
+                        lu = work.factor(M - (gamma * h) * J)
+                        memory.havrate = False
+                        need_lu = False
+                    tnew = tf if done else t + h
+                    h = tnew - t
+                    if start and len(history) < 3:
+                        ynew, znew = y + z, z
+                    elif start:  # damping a ringing component: z carries its error, the values less
+                        ynew = predict(history, tnew)
+                        znew = ynew - y
+                    else:
+                        ynew = predict(history, tnew)
+                        znew = 2.0 * (ynew - y) - z
+                    ynew, znew, converged = solve_z(work, lu, tnew, ynew, znew, gamma, h, wt, rtol, memory)
                     if not converged:
                         nfailed += 1
+                        nofailed = False
+                        itfailed += 1
                         if not Jcurrent:
-                            J = work.jacobian(t, y, None, threshold)
-                            Jcurrent = True
-                            lu = None
+                            need_j = True
                             continue
                         if absh <= hmin:
                             status = engine.STATUS_STEP_UNDERFLOW
                             break
-                        absh = max(0.3 * absh, hmin)
+                        absh_last = absh
+                        if itfailed == 3 and not start:
+                            # Restart with BDF1, sized from y'' (the last three values).
+                            start, gamma, power = True, 1.0, 0.5
+                            ypp2 = _divided_difference(history[-3:])  # y''/2
+                            e = float(np.max(np.abs(ypp2) / wt)) * absh * absh
+                            q = math.sqrt(e / rtol)
+                            ratio = hmax / absh
+                            if 0.7 < q * ratio:
+                                ratio = 0.7 / q
+                            absh = max(ratio * absh, hmin)
+                        else:
+                            absh = max(0.3 * absh, hmin)
+                        h = tdir * absh
+                        z = (absh / absh_last) * z
+                        need_lu = True
                         done = False
-                        nofailed = False
                         continue
-                    scale = np.maximum(np.maximum(np.abs(y), np.abs(ynew)), threshold)
-                    err = float(np.max(np.abs(est) / scale))
+                    wt = np.maximum(wt, np.abs(ynew))
+                    if start:
+                        err = float(np.max(np.abs(0.5 * (znew - z)) / wt)) if n else 0.0
+                    else:
+                        est = np.abs(local_error(history, tnew, ynew)) / wt
+                        err = float(np.max(est)) if n else 0.0
+                        ringing = err > 0.1 * rtol and rings(history, ynew, int(np.argmax(est)))
                     if err > rtol:
                         nfailed += 1
                         if absh <= hmin:
                             status = engine.STATUS_STEP_UNDERFLOW
                             break
-                        if nofailed:
-                            absh = max(hmin, absh * max(0.1, 0.833 * (rtol / err) ** POWER))
-                        else:
-                            absh = max(hmin, 0.5 * absh)
-                        done = False
                         nofailed = False
+                        absh_last = absh
+                        absh = max(absh_last * max(0.1, 0.7 * (rtol / err) ** power), hmin)
+                        if not start and ringing:
+                            start, gamma, power, damping = True, 1.0, 0.5, DAMPING_STEPS
+                        h = tdir * absh
+                        z = (absh / absh_last) * z
+                        need_lu = True
+                        done = False
                         continue
                     if err != err:
                         status = engine.STATUS_NONFINITE
@@ -199,24 +308,46 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                     break
 
                 nsteps += 1
-                if out.step(t, tnew, ynew, steps.add(t, h, y, *interpolant(history, tnew, ynew, h * yp, znew))):
+                ymid = hermite_midpoint(y, z, ynew, znew) if start else None
+                if out.step(t, tnew, ynew, steps.add(t, h, y, *interpolant(history, tnew, ynew, ymid))):
                     t, y = out.t[-1], out.y[-1]
                     steps.cut(t)
                     status = engine.STATUS_TERMINAL_EVENT
                     break
-                t, y, yp = tnew, ynew, znew / h
-                history = history[-2:] + [(t, y)]
+                if start and damping > 1:
+                    history = [(tnew, ynew)]  # damped: the next BDF1 step starts afresh from here
+                elif start:
+                    # The point before the step is "generated" at its midpoint.
+                    history = [(t, y), (t + 0.5 * h, ymid), (tnew, ynew)]
+                else:
+                    history = history[-2:] + [(tnew, ynew)]
+                t, y, z = tnew, ynew, znew
                 Jcurrent = False
                 if done:
                     break
                 if max_steps and nsteps >= max_steps:
                     status = engine.STATUS_MAX_STEPS
                     break
-                if nofailed:
-                    temp = 1.2 * (err / rtol) ** POWER
-                    hopt = absh / temp if temp > 0.1 else 10.0 * absh
-                    if hopt > absh:
-                        absh = hopt
+                if start and damping > 1:
+                    damping -= 1
+                elif start:
+                    # From BDF1 to TR: doubling h keeps gamma h, and so the LU.
+                    start, gamma, power, damping = False, 0.5, POWER, 0
+                    absh *= 2.0
+                    z = 2.0 * z
+                elif ringing:
+                    start, gamma, power, damping = True, 1.0, 0.5, DAMPING_STEPS
+                    need_lu = True
+                elif nofailed:
+                    q = (err / rtol) ** power
+                    ratio = hmax / absh
+                    if 0.7 < q * ratio:
+                        ratio = 0.7 / q
+                    ratio = min(5.0, max(0.2, ratio))
+                    if abs(ratio - 1.0) > 0.2:
+                        absh *= ratio
+                        z = ratio * z
+                        need_lu = True
         except Exception as exc:  # the user's right-hand side (or Jacobian) failed
             status, exception = engine.STATUS_FUN_RAISED, exc
     t_out, y_out = out.arrays()

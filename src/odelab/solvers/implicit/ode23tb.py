@@ -101,7 +101,7 @@ def integrate_ode23tb(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine,
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # singular iteration matrices show as failed Newton iterations
         try:
-            J = work.jacobian(t, y, f0, threshold)
+            J = work.jacobian(t, y, f0, atol)  # numjac's thresh is AbsTol, as in MATLAB
             Jcurrent = True
             yp = f0 if work.mass is None else np.linalg.solve(M.toarray() if hasattr(M, "toarray") else M, f0)
             absh = initial_step(yp, y0, threshold, rtol, POWER, hmax, abs(float(tspan[1]) - t0), t0, htry)
@@ -124,7 +124,7 @@ def integrate_ode23tb(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine,
                     if not converged:
                         nfailed += 1
                         if not Jcurrent:
-                            J = work.jacobian(t, y, None, threshold)
+                            J = work.jacobian(t, y, None, atol)
                             Jcurrent = True
                             lu = None
                             continue
