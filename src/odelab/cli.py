@@ -273,6 +273,7 @@ def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, st
         stored_now.add(_case_key(result.case))
         done[0] += 1
 
+    _prepare_references(cases, max_steps, err)  # in this process, before a pool forks (the workers inherit them)
     try:  # a process pool forks its workers here, before the progress bar starts its thread
         stream = run_cases(cases, executor=executor, jobs=jobs, scheduler=scheduler, max_steps=max_steps or None,
                            on_done=on_done, backend=backend, on_result=on_result)
@@ -373,6 +374,25 @@ class _NoProgress:
 
     def update(self, *args, **kwargs) -> None:
         return None
+
+
+def _prepare_references(cases, max_steps, err) -> None:
+    """The high-accuracy references the cases share, computed once with a status line on stderr:
+    which solver (and why a stiff one), then how far it got, then done (see docs/guide/references.md)."""
+    if not any(c.problem.reference == "high-accuracy" for c in cases):
+        return
+    from odelab.experiment.reference import prepare
+
+    if not err.is_terminal:  # a log or a pipe: the case's notes say which solver and why
+        prepare(cases, max_steps or None)
+        return
+    with err.status("", spinner="dots") as live:
+        def line(text: str) -> None:
+            if ": t = " not in text:  # which solver, why, done: kept; how far it got: the status line only
+                err.print(f"[dim]{_escape(text)}[/]")
+            live.update(_escape(text))
+
+        prepare(cases, max_steps or None, progress=line)
 
 
 def _progress(err, *, shown: bool):

@@ -31,7 +31,7 @@ class Problem:
     input_fn: Callable | None = None  # t (N,) -> (N, nu)
     exact_fn: Callable | None = None  # t (N,) -> {name: (N,)} for states and outputs
     reference: str = "none"  # "exact", "lti", "high-accuracy" or "none"
-    reference_solver: tuple[str, float, float] = ("DOP853", 1e-12, 1e-14)
+    reference_solver: tuple[str, float, float] = ("auto", 1e-12, 1e-14)
     system: Any = None  # a StateSpace or NonlinearSystem where one was built
     signals: tuple = ()  # one odelab.signals signal per input
     linearize: Any = None  # the [linearize] section, if any

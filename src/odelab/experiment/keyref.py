@@ -97,8 +97,10 @@ NOTES: dict[str, str] = {
     "reference": "What the errors are measured against.",
     "reference.method": "`auto` (the exact solution if given, the exact LTI response of a linear system, else a "
                         "high-accuracy solve), `exact`, `lti`, `high-accuracy` or `none`.",
-    "reference.solver": "The method of the high-accuracy reference (default DOP853; a stiff problem needs a stiff "
-                        "method such as Radau or ode15s).",
+    "reference.solver": "The method of the high-accuracy reference: `auto` (the default: SciPy's DOP853, switched "
+                        "to Radau when its steps prove held by stability, i.e. the problem is stiff; the case's "
+                        "notes say so), or a method name such as `DOP853`, `Radau`, `BDF`, `LSODA` or `ode15s`. "
+                        "It is bounded by the run's --max-steps. See docs/guide/references.md.",
     "reference.rtol": "The high-accuracy reference's relative tolerance.",
     "reference.atol": "The high-accuracy reference's absolute tolerance.",
     "inputs": "The input signals u(t), one table per input name.",

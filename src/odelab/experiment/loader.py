@@ -711,7 +711,8 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
                               "model: use \"high-accuracy\".", key="reference.method")
     if kind == "lti" and not _all_exact(signals):
         kind = "high-accuracy"
-    get_method(ref.solver, key="reference.solver")
+    if ref.solver != "auto":
+        get_method(ref.solver, key="reference.solver")
     resolved["reference"] = {"method": kind, "solver": ref.solver, "rtol": ref.rtol, "atol": ref.atol}
     if model.units:
         resolved["units"] = _units(model.units, states, inputs, outputs, params)

@@ -100,7 +100,7 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
                         y=y, warnings=list(warnings), events=events, event_marks=marks, backend=ran)
     if p.fit is not None:  # the experiment's [fit], estimated before its cases ran (experiment/fit.py)
         result.extra["fit"] = p.fit
-    _reference(result)
+    _reference(result, max_steps)
     if p.diagram is not None:
         result.extra["diagram"] = diagram_record(p)
     if getattr(p, "network", None) is not None:  # kind = "network": its drawing and derivation
@@ -168,7 +168,7 @@ def analyze_problem(p) -> dict:
 _ANALYSES: dict = {}
 
 
-def _reference(result: CaseResult) -> None:
+def _reference(result: CaseResult, max_steps: int | None = None) -> None:
     p = result.case.problem
     t = result.t
     kind = p.reference
@@ -193,11 +193,24 @@ def _reference(result: CaseResult) -> None:
             result.warnings.append("exact LTI reference needs increasing time; used a high-accuracy one instead")
             kind = "high-accuracy"
         solver, rtol, atol = p.reference_solver
-        options = {"rtol": rtol, "atol": atol}
-        rt, rx, ru, _, status, message, _, _ = _integrate(p, t, solver, options)
-        if status != "success" or rt.size != t.size:
-            result.warnings.append(f"the high-accuracy reference ({solver}, rtol {rtol:g}) failed: {message}")
-            return
+        from odelab.experiment.reference import can_share, shared_reference
+
+        if can_share(p):  # one stiff-aware, bounded solve shared by the problem's cases
+            shared = shared_reference(result.case, max_steps)
+            if shared.status != "success":
+                result.warnings.append(f"the high-accuracy reference ({shared.solver}, rtol {rtol:g}) failed: "
+                                       f"{shared.message}")
+                return
+            if shared.note:
+                result.warnings.append(f"reference: {shared.note}")
+            rt, rx, ru = t, shared.values(t), None
+        else:
+            options = {"rtol": rtol, "atol": atol, **({"max_steps": max_steps} if max_steps else {})}
+            solver = "DOP853" if solver == "auto" else solver
+            rt, rx, ru, _, status, message, _, _ = _integrate(p, t, solver, options)
+            if status != "success" or rt.size != t.size:
+                result.warnings.append(f"the high-accuracy reference ({solver}, rtol {rtol:g}) failed: {message}")
+                return
         ref = {name: rx[:, i] for i, name in enumerate(p.states)}
         if p.output_fn is not None:
             if ru is None and p.input_fn is not None:

@@ -80,7 +80,7 @@ class Reference(_Section):
     """[reference]: what errors are measured against."""
 
     method: Literal["auto", "exact", "lti", "high-accuracy", "none"] = "auto"
-    solver: StrictStr = "DOP853"
+    solver: StrictStr = "auto"  # DOP853, or Radau once the problem proves stiff (analysis/reference.py)
     rtol: Number = 1e-12
     atol: Number = 1e-14
 
