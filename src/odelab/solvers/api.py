@@ -121,6 +121,7 @@ def _matlab_solver(name, fun, tspan, y0, rtol, atol, max_step, initial_step, ref
             options[key] = value
     sol = _solve(fun, tspan, y0, name, options)
     _warn_if_failed(sol, 4)
+    _warn_if_implausible(sol, 4)
     return sol
 
 
@@ -151,6 +152,7 @@ def solve(fun, tspan, y0, method: str = "ode45", **options) -> Solution:
     """
     sol = _solve(fun, tspan, y0, method, options)
     _warn_if_failed(sol, 3)
+    _warn_if_implausible(sol, 3)
     return sol
 
 
@@ -160,6 +162,32 @@ def _warn_if_failed(sol: Solution, stacklevel: int) -> None:
 
 
 def _solve(fun, tspan, y0, method: str, options: dict) -> Solution:
+    sol = _solve_method(fun, tspan, y0, method, options)
+    if get_method(method).stiff and sol.status == "success":  # a stiff run's result checked (plausibility.py)
+        from dataclasses import replace
+
+        from odelab.solvers.plausibility import implausible
+
+        note = implausible(sol.t, sol.y, np.asarray(sol.y[0]), _atol_of(sol, options), sol.method)
+        if note is not None:
+            sol = replace(sol, warnings=tuple(sol.warnings) + (note,))
+    return sol
+
+
+def _atol_of(sol: Solution, options: dict):
+    atol = normalize_options(options, get_method(sol.method)).get("atol", 1e-6)
+    return np.asarray(atol, dtype=float).ravel()
+
+
+def _warn_if_implausible(sol: Solution, stacklevel: int) -> None:
+    from odelab.solvers.plausibility import PREFIX
+
+    for note in sol.warnings:
+        if note.startswith(PREFIX):
+            warnings.warn(note, SolverWarning, stacklevel=stacklevel)
+
+
+def _solve_method(fun, tspan, y0, method: str, options: dict) -> Solution:
     m = get_method(method)
     if not callable(fun):
         raise InputError(f"`fun` must be a callable fun(t, y); got {fun!r}.", key="fun")
