@@ -134,7 +134,14 @@ def dcgain(system) -> np.ndarray:
     """The steady-state gain -C A^-1 B + D, (ny, nu) (inf where A is singular on that channel)."""
     ss = _statespace(system)
     with np.errstate(all="ignore"):
-        g = np.asarray(_ct().dcgain(to_control(ss)), dtype=float)
+        try:
+            g = np.asarray(_ct().dcgain(to_control(ss)), dtype=float)
+        except (NotImplementedError, np.linalg.LinAlgError):
+            # python-control evaluates a singular A's MIMO gain through its zeros, which it has
+            # only for square systems (a network's integrator with two outputs): channel by channel
+            sys = to_control(ss)
+            g = np.array([[np.real(_ct().dcgain(sys[i, j])) for j in range(len(ss.inputs))]
+                          for i in range(len(ss.outputs))], dtype=float)
     return g.reshape(len(ss.outputs), len(ss.inputs))
 
 

@@ -11,6 +11,7 @@ backend and the report work on a network unchanged.
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 
@@ -137,8 +138,15 @@ def describe_file(path, width: int = 80) -> str:
     from odelab.experiment.loader import load_experiments
     from odelab.systems.network.show import derivation_text, matrix_text
 
+    try:
+        experiments = load_experiments(path)
+    except ExperimentError as exc:
+        if not (exc.key or "").startswith("inputs"):
+            raise
+        # the elements written, the input signals not yet: the derivation needs no signal
+        return _describe_base(Path(path), width)
     out = []
-    for exp in load_experiments(path):
+    for exp in experiments:
         problems = [c for c in exp.cases if getattr(c.problem, "network", None) is not None]
         if not problems:
             raise ExperimentError(f"{exp.source}: the system is not a network; `odelab network` shows the derivation "
@@ -172,3 +180,28 @@ def network_record(p) -> dict:
     sections = cache[key]
     return {"dot": network_dot(net.elements), "linear": bool(net.derive().linear),
             "sections": [[heading, list(lines)] for heading, lines in sections]}
+
+
+def _describe_base(path, width: int) -> str:
+    """The derivation from a file's base tables alone (a file whose [inputs] are still missing)."""
+    from odelab.experiment.fields import expr
+    from odelab.experiment.reading import read_toml
+    from odelab.systems.network.show import derivation_text
+
+    data, _ = read_toml(path)
+    src = str(path)
+    try:
+        model = schema.Experiment.model_validate({k: v for k, v in data.items() if k not in ("case", "sweep", "study")})
+    except Exception:  # the full loader's message is the one to show
+        from odelab.experiment.loader import load_experiments
+
+        load_experiments(path)
+        raise
+    try:
+        params = expr().evaluate_parameters(model.parameters) if model.parameters else {}
+        net = network_of(model, params)
+        text = derivation_text(net, params, width=width)
+    except InputError as exc:
+        raise exc.located(source=src) from None
+    title = model.title or path.stem
+    return f"{title}\n({path})\n\n{text}"

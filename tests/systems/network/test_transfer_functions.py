@@ -126,3 +126,49 @@ def test_two_capacitors_in_parallel_are_one_state():
     s = control.tf("s")
     assert_same_response(derived(net, "v", "i_in"), R / (R * (C1 + C2) * s + 1), 1)
     assert_same_response(derived(net, "i2", "i_in"), C2 * R * s / (R * (C1 + C2) * s + 1), 1)
+
+
+def test_two_inductors_in_series_are_one_state():
+    L1, L2, R = 1.0, 3.0, 2.0
+    net = Network({"V": VoltageSource(node="a", value="u"), "L1": Inductor(nodes=["a", "b"], L=L1),
+                   "L2": Inductor(nodes=["b", "c"], L=L2), "R1": Resistor(nodes=["c", "ground"], R=R)},
+                  outputs={"i": "L2.i", "vL2": "L2.v"})
+    d = net.derive()
+    assert d.states == ("L1.i",)
+    assert "L2 and L1 are in series: L2.i = L1.i, so L2 adds no state" in " ".join(d.state_notes)
+    s = control.tf("s")
+    assert_same_response(derived(net, "i", "u"), 1 / ((L1 + L2) * s + R), 1)
+    assert_same_response(derived(net, "vL2", "u"), L2 * s / ((L1 + L2) * s + R), 1)
+
+
+def test_a_rack_and_pinion_reflects_the_mass_by_its_radius_squared():
+    from odelab.network import RackPinion, TorqueSource
+
+    J, r, m, b = 0.01, 0.05, 2.0, 3.0
+    net = Network({"T": TorqueSource(node="w", value="tau"), "pinion": Inertia(node="w", J=J),
+                   "rack": RackPinion(nodes=["w", "ground"], nodes2=["x", "ground"], r=r),
+                   "cart": Mass(node="x", m=m), "drag": Damper(nodes=["x", "ground"], b=b)},
+                  outputs={"v": "cart.v"})
+    assert net.states == ("pinion.theta", "pinion.w")  # the cart moves with the pinion: v = r w
+    s = control.tf("s")
+    # (J + m r^2) dw/dt = tau - b r^2 w, and v = r w
+    assert_same_response(derived(net, "v", "tau"), r / ((J + m * r**2) * s + b * r**2), 2)
+
+
+def test_fluid_and_thermal_analogues_of_the_rlc_and_rc_circuits():
+    from odelab.network import (FluidCapacitance, FluidInertance, FluidResistance, PressureSource,
+                                TemperatureSource, ThermalCapacitance, ThermalResistance)
+
+    I, R, C = 2.0, 3.0, 0.5
+    pipe = Network({"pump": PressureSource(node="a", value="p_in"), "line": FluidInertance(nodes=["a", "b"], I=I),
+                    "valve": FluidResistance(nodes=["b", "c"], R=R), "tank": FluidCapacitance(node="c", C=C)},
+                   outputs={"p": "tank.p"})
+    assert pipe.states == ("tank.p", "line.q")
+    s = control.tf("s")
+    assert_same_response(derived(pipe, "p", "p_in"), 1 / (I * C * s**2 + R * C * s + 1), 2)
+    Rt, Ct = 0.2, 400.0
+    room = Network({"outside": TemperatureSource(node="o", value="T_out"),
+                    "wall": ThermalResistance(nodes=["o", "r"], R=Rt), "air": ThermalCapacitance(node="r", C=Ct)},
+                   outputs={"T": "air.T", "q": "wall.q"})
+    assert_same_response(derived(room, "T", "T_out"), 1 / (Rt * Ct * s + 1), 1)
+    assert_same_response(derived(room, "q", "T_out"), Ct * s / (Rt * Ct * s + 1), 1)

@@ -76,12 +76,11 @@ def _generic_values(names) -> dict:
 class _Parser:
     """Element texts -> SymPy, through odelab's parser; each message names the element and key."""
 
-    def __init__(self, sp, parameters, symbols, inputs_allowed: bool):
+    def __init__(self, sp, parameters, symbols):
         self.sp = sp
         self.parameters = parameters
         self.symbols = symbols
-        self.inputs: list[str] = []
-        self.inputs_allowed = inputs_allowed
+        self.inputs: list[str] = []  # names of the sources' values that are not parameters, in order
 
     def parse(self, value, *, element: str, key: str, allowed: dict[str, object], what: str,
               inputs: bool = False, law_of: str | None = None):
@@ -130,7 +129,7 @@ def derive(elements: dict[str, Element], outputs: dict[str, str] | None, paramet
     t = sp.Symbol("t")
     symbols: dict[str, object] = {p: sp.Symbol(p) for p in parameters}
     symbols["t"] = t
-    reader = _Parser(sp, parameters, symbols, True)
+    reader = _Parser(sp, parameters, symbols)
 
     # -- coefficients, source values and laws, read by odelab's parser ----------------------
     coef: dict[str, dict[str, object]] = {}
@@ -156,9 +155,6 @@ def derive(elements: dict[str, Element], outputs: dict[str, str] | None, paramet
                 what=(f"the {el.LAW} of a {el.TYPE} is a law of its {_variable_word(el)} `{el.LAW_OF}` "
                       "(and of [parameters])"))
     inputs = tuple(reader.inputs)
-    for u in inputs:
-        if u in parameters:  # pragma: no cover - parameters are known names
-            continue
 
     generic = _generic_values(parameters)
 

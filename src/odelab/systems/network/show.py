@@ -144,10 +144,29 @@ def derivation_sections(net, values=None, symbolic_tf: bool = True) -> list[tupl
             for label, sym, num in tfs:
                 tf_lines.append(f"G_{label}(s) = {sym}" + (f" = {num}" if num and num != sym else ""))
             sections.append(("Transfer functions", tf_lines))
+    elif any(e.has(d.symbols["t"]) for e in [*d.equations.values(), *d.output_expressions.values()]):
+        sections.append(("Time-varying", ["a source's value is a function of t: odelab integrates the equations "
+                                          "as written above; give the source's value as an input (an [inputs] "
+                                          "table: sine, ramp, table...) to get A, B, C, D"]))
+    elif _affine(d):
+        sections.append(("Affine", ["the state equations are linear but for constant terms (a source of constant "
+                                    "value): odelab integrates them as written above; give the constant as an "
+                                    "input (an [inputs] table of type \"constant\") to get A, B, C, D"]))
     else:
         sections.append(("Nonlinear", ["the state equations are nonlinear: odelab integrates them as written "
                                        "above; [linearize] gives the linear model about an operating point"]))
     return sections
+
+
+def _affine(d) -> bool:
+    """x' = A x + B u + c with c != 0: every equation and output of degree at most 1."""
+    sp = require_sympy()
+    names = [d.symbols[n] for n in (*d.states, *d.inputs)] + [d.symbols["t"]]
+    try:
+        return all(sp.Poly(e, *names).total_degree() <= 1
+                   for e in [*d.equations.values(), *d.output_expressions.values()])
+    except sp.PolynomialError:
+        return False
 
 
 def derivation_text(net, values=None, width: int = 80) -> str:
