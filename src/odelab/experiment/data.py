@@ -66,10 +66,14 @@ def _split(line: str) -> tuple[list[str], str | None]:
     return line.split(), None
 
 
+_READ: dict[tuple, tuple[list[str], np.ndarray]] = {}  # the cases of a file (a sweep's) share their data file
+
+
 def read_data_file(path: Path, shown: str, key: str) -> tuple[list[str], np.ndarray]:
     """The header and the numbers (rows x columns) of a CSV file with one header row.
 
-    ``shown`` is the file's name as the user wrote it; ``key`` the TOML key that named it.
+    ``shown`` is the file's name as the user wrote it; ``key`` the TOML key that named it. A
+    file read before, unchanged since (same size and modification time), is not read again.
     """
     where = f"`{key}` {shown!r}"
     try:
@@ -87,6 +91,19 @@ def read_data_file(path: Path, shown: str, key: str) -> tuple[list[str], np.ndar
     if info.st_size > MAX_DATA_BYTES:
         raise ExperimentError(f"{where} is {info.st_size:,} bytes; data files are limited to {MAX_DATA_BYTES:,} bytes "
                               f"({MAX_DATA_ROWS:,} rows): thin the recording (every k-th row) first.", key=key)
+    memo = (str(path), info.st_size, info.st_mtime_ns, MAX_DATA_BYTES, MAX_DATA_ROWS)
+    if memo in _READ:
+        header, table = _READ[memo]
+        return list(header), table
+    header, table = _parse(path, where, key)
+    if len(_READ) >= 8:
+        _READ.clear()
+    table.flags.writeable = False
+    _READ[memo] = (list(header), table)
+    return header, table
+
+
+def _parse(path: Path, where: str, key: str) -> tuple[list[str], np.ndarray]:
     try:
         with open(path, "rb") as fh:
             raw = fh.read(MAX_DATA_BYTES + 1)

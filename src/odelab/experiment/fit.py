@@ -553,6 +553,7 @@ def _finite(value):
 def fit_summary(result, spec: FitSpec) -> dict:
     """The fit as plain, JSON-safe data: what the terminal, --json, result.json and the report show."""
     from odelab.analysis.fit import autocorrelation
+    from odelab.experiment.data import MAX_STORED_ROWS
 
     params = {}
     for i, pname in enumerate(result.names):
@@ -575,8 +576,11 @@ def fit_summary(result, spec: FitSpec) -> dict:
         offset += k * nq
         if block is None:
             continue
+        keep = np.unique(np.linspace(0, k - 1, min(k, MAX_STORED_ROWS)).round().astype(int))
         per_case[fc.name] = {q: {"rms": float(np.sqrt(np.mean((block[:, j] / fc.weights[j]) ** 2))), "rows": int(k),
-                                 "autocorrelation": autocorrelation(block[:, j]).tolist()}
+                                 "autocorrelation": autocorrelation(block[:, j]).tolist(),
+                                 # model - data at the fit's tolerances, at the (thinned) measured times
+                                 "t": fc.t[keep].tolist(), "residuals": (block[keep, j] / fc.weights[j]).tolist()}
                              for j, q in enumerate(fc.quantities)}
     s2 = _finite(float(result.residual_variance))
     return {

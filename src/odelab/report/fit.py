@@ -92,10 +92,20 @@ def fit_view(stem: str, runs, units: dict[str, str]) -> FitView | None:
             panels.append(Panel(f"{name}{where}: {label} over the data", _axis("t", units), _axis(name, units),
                                 (data_line, Line(t, m, f"{label} ({r.method})", REFERENCE_COLOR, linewidth=1.4,
                                                  zorder=10))))
-            res = m - y
+            # the fit's own residuals (the model at the fit's tight tolerances) where there is a fit, else the
+            # case's (its own solver's values at the measured times)
+            tr, res = t, m - y
+            fitted = (fit or {}).get("residuals", {}).get(r.case, {}).get(name, {})
+            try:
+                if fitted.get("residuals") is not None:
+                    tr, res = np.asarray(fitted["t"], dtype=float), np.asarray(fitted["residuals"], dtype=float)
+                    if tr.shape != res.shape:
+                        tr, res = t, m - y
+            except (TypeError, ValueError, AttributeError):
+                tr, res = t, m - y
             color = SERIES_COLORS[k % len(SERIES_COLORS)]
             residual_panels.append(Panel(f"residuals of {name}{where}", _axis("t", units), f"model - data",
-                                         (Line(t, res, "model - data", color, linestyle="-" if not marker else ":",
+                                         (Line(tr, res, "model - data", color, linestyle="-" if not marker else ":",
                                                marker=marker, linewidth=0.8, markersize=3),),
                                          reflines=(RefLine(0.0, "zero", color="#555555", linestyle="-"),),
                                          legend=False))
@@ -116,7 +126,8 @@ def fit_view(stem: str, runs, units: dict[str, str]) -> FitView | None:
             alt=f"{what.capitalize()} drawn over the measured data.", panels=tuple(panels),
             columns=2 if len(panels) > 1 else 1))
         view.figures.append(FigureSpec(
-            name=f"{stem}-residuals", caption="Residuals (model minus data) against time, and their autocorrelation "
+            name=f"{stem}-residuals", caption="Residuals (model minus data; of a fitted case, the fit's own, at its "
+            "tolerances) against time, and their autocorrelation "
             "with white noise's 95 % band (+-1.96/sqrt(n)): residuals that stay on one side for long stretches, or an "
             "autocorrelation outside the band, say the model misses a dynamic (and the intervals are optimistic).",
             alt="Residuals against time and their autocorrelation.",
