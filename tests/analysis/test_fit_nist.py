@@ -35,8 +35,8 @@ CERTIFIED = {
 
 # Lanczos3's six estimates are correlated up to 0.9997 (the scaled Fisher matrix's condition number is 7e8):
 # a change dr of the residuals moves them by about |dr| / s_min, 2e4 times more than it moves Misra1a's.
-# The ODE solution's own rounding (7e-12 at the data, against the closed form) then shifts b1 by 4e-7 of
-# itself, which is 2e-6 of its standard error: statistically nothing, but NIST's sixth digit. (The
+# The ODE solution's own rounding (7e-12 at the data, against the closed form) then shifts b1 by 5e-7 of
+# itself, which is 3e-6 of its standard error: statistically nothing, but NIST's sixth digit. (The
 # closed-form fit gets 9e-10.) So five digits here, six for the Misra models.
 DIGITS = {"lanczos3": 5e-6}
 

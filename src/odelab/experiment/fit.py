@@ -27,7 +27,7 @@ Tolerances: the sensitivities are integrated with the states under one error nor
 Jacobian's relative errors (about rtol) stay orders of magnitude below any real data's noise
 (1e-2 to 1e-5 of the signal). Errors in the model values reach the estimates divided by the
 Jacobian's smallest singular value: Misra1a's estimates agree with NIST's to 1e-8, Lanczos3's six correlated ones (scaled
-Fisher condition 7e8) to 4e-7, 2e-6 of their standard errors (docs/fitting.md). After a fit,
+Fisher condition 7e8) to 5e-7, 3e-6 of their standard errors (docs/fitting.md). After a fit,
 ``solver_effect`` says how far tolerances a hundred times tighter would move the estimates.
 """
 
