@@ -27,13 +27,19 @@ def test_compiled_templates_are_kept_per_environment_and_follow_the_source(tmp_p
     assert md.get_template("report.md.j2").render(x="_a_") == "two \\_a\\_\n"
 
 
-def test_a_cache_folder_that_cannot_be_written_only_costs_the_compile(tmp_path, monkeypatch):
+def test_a_cache_folder_that_cannot_be_used_falls_back_to_a_private_one(tmp_path, monkeypatch):
+    from odelab.cachedir import take_notes
+
     blocked = tmp_path / "file"
     blocked.write_text("not a folder")
     monkeypatch.setenv("ODELAB_CACHE_DIR", str(blocked))
+    take_notes()
     _, md = environments()
-    assert md.bytecode_cache is None
-    assert md.get_template("report.md.j2").filename.endswith("report.md.j2")  # compiled, not kept
+    folder = md.bytecode_cache.folder  # a private temporary cache (odelab.cachedir), mode 0700
+    assert not str(folder).startswith(str(blocked)) and (folder.parent.parent.stat().st_mode & 0o777) == 0o700
+    assert md.get_template("report.md.j2").filename.endswith("report.md.j2")
+    assert blocked.read_text() == "not a folder"
+    assert any("is a file, not a folder" in n and "private temporary cache" in n for n in take_notes())
 
 
 def pytest_fail():

@@ -229,6 +229,14 @@ def _run_pool(cases, jobs, opts, done):
     from odelab.experiment.runner import run_case  # noqa: F401
 
     _seed(cases)
+    if any((opts.get("backend") or getattr(c.problem, "backend", "python")) != "python" for c in cases):
+        from odelab.solvers.compiled.cache import compiled_folder
+
+        try:  # checked once, here: the workers inherit the verdict (and a private cache, if one is needed)
+            compiled_folder()
+        except InputError:
+            pass  # each case says so
+        done = _with_notes(done)
     # The workers are forked here, before the caller starts any thread (a progress bar's), so
     # that no lock can be inherited held.
     pool = ProcessPoolExecutor(max_workers=min(jobs, len(cases)), mp_context=multiprocessing.get_context("fork"),
@@ -247,6 +255,22 @@ def _run_pool(cases, jobs, opts, done):
         pool.shutdown(wait=True)
 
     return results()
+
+
+def _with_notes(done):
+    """``done``, adding this process's pending notes (odelab.cachedir) to the first case that
+    finishes: taken before forking, so that the workers do not each repeat them."""
+    from odelab.cachedir import take_notes
+
+    notes = take_notes()
+
+    def first_gets_notes(item):
+        if notes and not isinstance(item, CaseError):
+            item.warnings.extend(notes)
+            notes.clear()
+        done(item)
+
+    return first_gets_notes
 
 
 def _stop_pool(pool) -> None:

@@ -96,6 +96,10 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
     if u is None and p.input_fn is not None:
         u = p.input_fn(t)
     y = p.output_fn(t, x, u) if p.output_fn is not None else None
+    from odelab.cachedir import take_notes
+
+    # a cache that could not be used or an entry compiled again (odelab.cachedir): said once, with this case
+    warnings = [*warnings, *take_notes()]
     result = CaseResult(case=case, status=status, message=message, stats=stats, elapsed=elapsed, t=t, x=x, u=u,
                         y=y, warnings=list(warnings), events=events, event_marks=marks, backend=ran)
     if p.fit is not None:  # the experiment's [fit], estimated before its cases ran (experiment/fit.py)

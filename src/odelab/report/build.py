@@ -291,6 +291,9 @@ def build_report(
         written.append(path)
     if "md" in chosen:
         _remove_stale_figures(out, {figure.path for figure in figures})
+    from odelab.cachedir import take_notes
+
+    warnings.extend(take_notes())  # a cache folder not used, cached figures or templates made again
     return ReportResult(paths=tuple(written), warnings=tuple(warnings))
 
 

@@ -8,14 +8,15 @@ drawing it; a re-run case changes its arrays, hence its key, and only its figure
 
 The PNGs are kept under the user's cache folder (``$ODELAB_CACHE_DIR``, else
 ``$XDG_CACHE_HOME/odelab``, else ``~/.cache/odelab``) in ``figures/``, and can be deleted at any time.
+The cache is untrusted (:mod:`odelab.cachedir`): each PNG is sealed with its SHA-256, and one
+that does not match its seal (truncated, or not written by odelab) is drawn again, never
+embedded.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import hashlib
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -69,32 +70,21 @@ def figure_key(spec) -> str:
     return h.hexdigest()
 
 
-def _folder() -> Path:
-    from odelab.solvers.compiled.cache import cache_dir
+def _folder() -> Path | None:
+    from odelab.cachedir import cache_folder
 
-    return cache_dir() / "figures"
+    return cache_folder("figures")
 
 
 def load(key: str) -> bytes | None:
-    """The cached PNG for ``key``, or None."""
-    try:
-        return (_folder() / f"{key}.png").read_bytes()
-    except OSError:
-        return None
+    """The cached PNG for ``key`` if it is whole (it matches its seal), or None."""
+    from odelab.cachedir import read_entry
+
+    return read_entry(_folder(), f"{key}.png", "figure")
 
 
 def store(key: str, png: bytes) -> None:
-    """Keep ``png`` under ``key`` (atomically; a cache that cannot be written is skipped)."""
-    try:
-        folder = _folder()
-        folder.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=folder, prefix=".fig.", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(png)
-            os.replace(tmp, folder / f"{key}.png")
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-    except OSError:
-        pass
+    """Keep ``png`` under ``key``, sealed (atomically; a cache that cannot be written is skipped)."""
+    from odelab.cachedir import write_entry
+
+    write_entry(_folder(), f"{key}.png", png)

@@ -226,33 +226,34 @@ def _bytecode_cache(kind: str):
     0.1 s of every build. One folder per environment (HTML and Markdown compile the same text
     differently) and per version of this file (where the environments are set up); Jinja
     checks each template's source against its entry, so an edited template is compiled again.
-    A cache folder that cannot be written is skipped (the templates are compiled each time)."""
+
+    The entries are marshalled code, run when loaded: the cache is untrusted
+    (:mod:`odelab.cachedir`). Its folder is checked, each entry is sealed with its SHA-256 and
+    loaded only if it matches; a damaged or foreign entry is compiled again. Without a usable
+    folder, no cache (the templates are compiled each time)."""
     import hashlib
 
-    from jinja2 import FileSystemBytecodeCache
+    from jinja2 import BytecodeCache
 
-    from odelab.solvers.compiled.cache import cache_dir
+    from odelab import cachedir
 
-    class QuietCache(FileSystemBytecodeCache):
+    class SealedCache(BytecodeCache):
+        def __init__(self, folder: Path):
+            self.folder = folder
+
         def load_bytecode(self, bucket) -> None:
+            data = cachedir.read_entry(self.folder, f"__jinja2_{bucket.key}.cache", "report template")
+            if data is None:
+                return
             try:
-                super().load_bytecode(bucket)
-            except (OSError, EOFError, ValueError, TypeError, pickle.UnpicklingError):  # a damaged entry
+                bucket.bytecode_from_string(data)
+            except Exception:  # noqa: BLE001 - sealed but unreadable (another Python): compile it
                 bucket.reset()
 
         def dump_bytecode(self, bucket) -> None:
-            try:
-                super().dump_bytecode(bucket)
-            except OSError:
-                pass
-
-    import pickle
+            cachedir.write_entry(self.folder, f"__jinja2_{bucket.key}.cache", bucket.bytecode_to_string())
 
     stamp = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:16]
-    folder = cache_dir() / "templates" / f"{kind}-{stamp}"
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError:
-        return None
-    return QuietCache(str(folder))
+    folder = cachedir.cache_folder(f"templates/{kind}-{stamp}")
+    return None if folder is None else SealedCache(folder)
 

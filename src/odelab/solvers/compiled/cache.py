@@ -4,9 +4,17 @@ Two kinds of module live in the cache folder: the stepping loops (``kernels.py``
 for every system) and one generated right-hand side per system. Each file is named by the
 SHA-256 of its text and of the numba, numpy and Python versions, so a changed system, a
 changed loop or an upgraded numba never reuses a stale build. A file is written once
-(atomically) and imported from there; numba's own ``cache=True`` keeps the machine code
-beside it in ``__pycache__``, so a second run of the same system loads in a fraction of a
-second instead of compiling again, and a new system compiles only its right-hand side.
+(atomically); numba's own ``cache=True`` keeps the machine code beside it in ``__pycache__``,
+so a second run of the same system loads in a fraction of a second instead of compiling
+again, and a new system compiles only its right-hand side.
+
+The cache is untrusted (:mod:`odelab.cachedir`): its folder is checked before use (the
+user's own, writable by no one else; else a private temporary one, with a note). The module is
+executed from the text odelab generated, in memory, never from the file or a ``.pyc`` found
+there (the file is only what numba's cache keys its machine code by). numba's index and data
+files (``.nbi``, pickles; ``.nbc``) are sealed with their SHA-256 when numba writes them and
+checked against the seal before numba reads them: a damaged, foreign or unsealed entry is
+deleted and compiled again, with a note, and never unpickled.
 
 Cache folder: ``$ODELAB_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/odelab``, else
 ``~/.cache/odelab``; builds go in its ``compiled/`` subfolder and can be deleted at any time.
@@ -15,7 +23,6 @@ Cache folder: ``$ODELAB_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/odelab``, els
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 import os
 import platform
 import sys
@@ -23,19 +30,28 @@ import tempfile
 from pathlib import Path
 from types import ModuleType
 
-__all__ = ["cache_dir", "is_built", "kernels_text", "load_kernels", "load_module", "module_digest"]
+from odelab import cachedir
+
+__all__ = ["cache_dir", "compiled_folder", "guard_numba_cache", "is_built", "kernels_text", "load_kernels", "load_module", "module_digest"]
 
 _KERNELS = (Path(__file__).with_name("kernels.py"), Path(__file__).with_name("kernels_events.py"))
 _LOADED: dict[str, ModuleType] = {}
 
 
 def cache_dir() -> Path:
-    """Where compiled modules are kept (see the module docstring)."""
-    explicit = os.environ.get("ODELAB_CACHE_DIR")
-    if explicit:
-        return Path(explicit)
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "odelab"
+    """The configured cache root (see the module docstring); :func:`compiled_folder` is the checked folder."""
+    return cachedir.cache_root()
+
+
+def compiled_folder() -> Path:
+    """The checked folder of the compiled modules (numba's files in its ``__pycache__``)."""
+    pycache = cachedir.cache_folder("compiled/__pycache__")
+    if pycache is None:
+        from odelab.exceptions import InputError
+
+        raise InputError("the compiled backend has no folder for its modules (the cache folder and a temporary "
+                         "one could not be used; see the note); use backend \"python\".", key="backend")
+    return pycache.parent
 
 
 def module_text(prelude: str, rhs: str) -> str:
@@ -60,11 +76,14 @@ def is_built(text: str, prefix: str = "odelab_compiled", function: str | None = 
     """Whether the module with this source is in the cache with numba's machine code (of
     ``function``, or of any function) beside it, so that loading it compiles nothing."""
     name = f"{prefix}_{module_digest(text)[:24]}"
-    folder = cache_dir() / "compiled"
+    try:
+        folder = compiled_folder()
+    except ValueError:  # no usable folder: nothing is built
+        return False
     if not (folder / f"{name}.py").is_file():
         return False
     pattern = f"{name}.{function}-*.nbi" if function else f"{name}.*.nbi"
-    return any((folder / "__pycache__").glob(pattern))
+    return any(p.with_name(p.name + cachedir.SEAL_SUFFIX).is_file() for p in (folder / "__pycache__").glob(pattern))
 
 
 def kernels_text() -> str:
@@ -73,27 +92,108 @@ def kernels_text() -> str:
 
 
 def load_module(text: str, prefix: str = "odelab_compiled") -> ModuleType:
-    """Import the module with this source, writing it to the cache on first use."""
+    """Run the module with this source (from ``text``, in memory), writing its file to the
+    cache on first use so that numba keeps its machine code there."""
     digest = module_digest(text)
     module = _LOADED.get(digest)
     if module is not None:
         return module
-    folder = cache_dir() / "compiled"
-    folder.mkdir(parents=True, exist_ok=True)
+    folder = compiled_folder()
     name = f"{prefix}_{digest[:24]}"
     path = folder / f"{name}.py"
-    if not path.is_file() or path.read_text(encoding="utf-8") != text:
+    data = text.encode("utf-8")
+    found = _read(path)
+    if found != data:
+        if found is not None:  # never run: the text is ours, the file only keys numba's cache
+            cachedir.note(f"the cached module {path.name} was not the one odelab wrote (damaged or edited): "
+                          "written and compiled again")
         fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{name}.", suffix=".tmp")
         try:
-            with os.fdopen(fd, "w", encoding="utf-8") as fh:
-                fh.write(text)
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(data)
             os.replace(tmp, path)  # concurrent writers write the same text: last one wins, harmlessly
         except BaseException:
             Path(tmp).unlink(missing_ok=True)
             raise
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
+    guard_numba_cache()
+    code = compile(text, str(path), "exec")  # never a .pyc: the bytecode is made from our text
+    module = ModuleType(name)
+    module.__file__ = str(path)
     sys.modules[name] = module
-    spec.loader.exec_module(module)
+    try:
+        exec(code, module.__dict__)
+    except BaseException:
+        sys.modules.pop(name, None)
+        raise
     _LOADED[digest] = module
     return module
+
+
+def _read(path: Path) -> bytes | None:
+    try:
+        return path.read_bytes()
+    except OSError:
+        return None
+
+
+def _ours(path: str) -> bool:
+    """An entry of one of odelab's compiled modules (numba names them after the module)."""
+    return os.path.basename(path).startswith(("odelab_compiled_", "odelab_kernels_"))
+
+
+def _trusted(path: str) -> bool:
+    return cachedir.unsafe(Path(os.path.dirname(path))) is None
+
+
+def guard_numba_cache() -> None:
+    """Make numba seal the index and data files of odelab's modules when it writes them, and
+    load them only if they match their seal and lie in a folder of the user's own (else it
+    compiles again, as for an empty cache). Installed once per process; numba's other caches
+    are left as they are."""
+    from numba.core import caching
+
+    cls = caching.IndexDataCacheFile
+    if getattr(cls, "_odelab_guarded", False):
+        return
+    load_index, save_index = cls._load_index, cls._save_index
+    load_data, save_data = cls._load_data, cls._save_data
+    import pickle
+
+    def _load_index(self):
+        path = self._index_path
+        if _ours(path) and os.path.lexists(path):
+            if not _trusted(path) or cachedir.verify(Path(path), "numba index") is None:
+                return {}
+            try:
+                return load_index(self)
+            except (pickle.UnpicklingError, EOFError, ValueError, TypeError, AttributeError, ImportError):
+                cachedir.note(f"the cached numba index {os.path.basename(path)} could not be read: compiled "
+                              "again")
+                return {}
+        return load_index(self)
+
+    def _save_index(self, overloads):
+        save_index(self, overloads)
+        if _ours(self._index_path):
+            cachedir.seal(Path(self._index_path))
+
+    def _load_data(self, name):
+        path = self._data_path(name)
+        if _ours(path):
+            if not _trusted(path) or cachedir.verify(Path(path), "numba machine code file") is None:
+                raise FileNotFoundError(path)  # numba's load() then compiles again
+            try:
+                return load_data(self, name)
+            except (pickle.UnpicklingError, EOFError, ValueError, TypeError, AttributeError, ImportError):
+                raise FileNotFoundError(path) from None
+        return load_data(self, name)
+
+    def _save_data(self, name, data):
+        save_data(self, name, data)
+        path = self._data_path(name)
+        if _ours(path):
+            cachedir.seal(Path(path))
+
+    cls._load_index, cls._save_index = _load_index, _save_index
+    cls._load_data, cls._save_data = _load_data, _save_data
+    cls._odelab_guarded = True
