@@ -373,6 +373,7 @@ def _dask_client(scheduler: str, Client):
     under a deadline of our own.
     """
     import asyncio
+    import threading
 
     where = f"the Dask scheduler at {scheduler!r}"
     fix = "Check the address (tcp://host:8786) and that `dask scheduler` is running there."
@@ -383,8 +384,19 @@ def _dask_client(scheduler: str, Client):
         comm = await asyncio.wait_for(connect(scheduler, timeout=DASK_CONNECT_SECONDS), DASK_CONNECT_SECONDS)
         await comm.close()
 
+    def probe():  # in a thread of its own: the caller may already run an event loop (Jupyter)
+        try:
+            asyncio.run(handshake())
+        except BaseException as exc:  # noqa: BLE001 - handed to the caller
+            failed.append(exc)
+
+    failed: list[BaseException] = []
+    thread = threading.Thread(target=probe, name="odelab-dask-probe", daemon=True)
+    thread.start()
+    thread.join()
     try:
-        asyncio.run(handshake())
+        if failed:
+            raise failed[0]
         client = Client(scheduler, timeout=DASK_CONNECT_SECONDS)
     except (OSError, TimeoutError, asyncio.TimeoutError, ValueError, TypeError) as exc:
         why = str(exc) or f"no answer within {DASK_CONNECT_SECONDS:g} s"
