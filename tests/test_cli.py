@@ -26,6 +26,22 @@ def expected_message(path: Path) -> str:
     return first[len("# expect: "):]
 
 
+def corpus_header(path: Path) -> tuple[str, int, list[str], str | None]:
+    """A corpus file's expected message fragment, exit code, extra `odelab run` arguments and
+    text that must not appear: ``# expect: <fragment>``, then optionally ``# exit: 1`` (an
+    honest failure: a stored failed case), ``# args: --limit states=50`` (tight budgets keep
+    the corpus fast) and ``# absent: root:`` (content of a file that must not be quoted)."""
+    code, args, absent = 2, [], None
+    for line in path.read_text().splitlines()[1:5]:
+        if line.startswith("# exit: "):
+            code = int(line[len("# exit: "):])
+        elif line.startswith("# args: "):
+            args = line[len("# args: "):].split()
+        elif line.startswith("# absent: "):
+            absent = line[len("# absent: "):]
+    return expected_message(path), code, args, absent
+
+
 def test_version_and_help():
     result = invoke("--version")
     assert result.exit_code == 0 and result.output.startswith("odelab 0.")
@@ -149,13 +165,26 @@ def test_failed_integration_exits_1_and_keeps_partial_results(tmp_path):
 
 @pytest.mark.parametrize("path", BAD, ids=lambda p: p.stem)
 def test_bad_file_gives_one_clear_message_and_exit_2(path, tmp_path):
+    """Exit 2 with one clear message and nothing stored; or (``# exit: 1``) an honest failure:
+    the message, and a stored failed case with its partial result. Never a traceback, never a
+    raw control character."""
+    import re
+
     runs = tmp_path / "runs"
-    result = invoke("run", path, "--runs", runs)
-    assert result.exit_code == 2, result.output
-    assert expected_message(path) in result.output
-    assert path.name in result.output
-    assert "Traceback" not in result.output
-    assert not runs.exists() or not any(runs.rglob("*.json"))
+    message, code, args, absent = corpus_header(path)
+    result = invoke("run", path, "--runs", runs, *args)
+    assert result.exit_code == code, result.output
+    assert message in result.output or " ".join(message.split()) in " ".join(result.output.split())  # wrapped
+    assert absent is None or absent not in result.output
+    assert "Traceback" not in result.output and result.exception is None or isinstance(result.exception, SystemExit)
+    assert not re.search("[\x00-\x08\x0b-\x1f\x7f]", result.output), result.output
+    if code == 2:
+        assert path.name in result.output
+        assert not runs.exists() or not any(runs.rglob("*.json"))
+    else:
+        records = [json.loads(p.read_text()) for p in runs.rglob("result.json")]
+        assert records and all(r["status"] == "failed" and r["points"] >= 1 for r in records), records
+    assert len(result.output) < 2000, len(result.output)  # a message, not a listing
 
 
 def test_special_bad_inputs(tmp_path):

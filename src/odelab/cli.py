@@ -185,9 +185,10 @@ def _fit_all(loaded, bad, validate_with):
 
 
 MAX_STEPS_HELP = ("Budget of steps per solve: an adaptive solve stops there, a fixed-step one over it is refused "
-                  "before it runs (0: no limit).")
+                  "before it runs, a file's own max_steps is capped by it (0: no limit).")
 LIMIT_HELP = ("Raise (or lower) a work or memory budget, NAME=N: points (2000000 output points per case), refine "
-              "(100), cases (1000 per file), amplitudes (100), table_rows (10000); 0: no limit. Repeatable.")
+              "(100), cases (1000 per file), amplitudes (100), table_rows (10000), events (10000 per case), states "
+              "(5000 per system); 0: no limit. Repeatable.")
 
 
 def _limits(max_steps: int, limit: list[str] | None, err):

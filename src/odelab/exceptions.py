@@ -18,7 +18,21 @@ __all__ = [
     "ExperimentError",
     "OdelabWarning",
     "SolverWarning",
+    "few",
 ]
+
+
+def few(names, *, shown: int = 6, sep: str = ", ", quote: bool = False) -> str:
+    """A few of ``names`` and how many in all: "x0, x1, x2, ... (476,000 in all)".
+
+    Messages name what is wrong; a list of half a million names (or a loop through 10,000
+    blocks) is not a message. Lists up to ``shown + 2`` long are given whole.
+    """
+    names = list(names)
+    text = [repr(n) if quote else str(n) for n in names[:shown if len(names) > shown + 2 else len(names)]]
+    if len(names) > len(text):
+        return f"{sep.join(text)}{sep}... ({len(names):,} in all)"
+    return sep.join(text)
 
 
 class OdelabError(Exception):

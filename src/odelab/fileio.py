@@ -8,7 +8,7 @@ import os
 import tempfile
 from pathlib import Path
 
-__all__ = ["atomic_write", "umask"]
+__all__ = ["atomic_write", "spreadsheet_cell", "umask"]
 
 
 @functools.cache
@@ -41,3 +41,23 @@ def atomic_write(path: Path, data: str | bytes) -> None:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
+
+
+_FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
+
+
+def spreadsheet_cell(value):
+    """A CSV cell a spreadsheet shows as text, never runs as a formula (OWASP's CSV injection advice).
+
+    A text cell starting with ``= + - @``, a tab or a carriage return (``=HYPERLINK(...)``,
+    ``-2+3``) gets a leading single quote; numbers, and text that is a plain number (``-3``,
+    ``-1e-4``), are left alone: they are data, not formulas.
+    """
+    if not isinstance(value, str) or not value.startswith(_FORMULA_START):
+        return value
+    try:
+        float(value)
+    except ValueError:
+        return "'" + value
+    return value if value.strip() == value and not value.lower().lstrip("+-").startswith(("nan", "inf")) \
+        else "'" + value

@@ -565,6 +565,15 @@ class Terms(Signal):
         return ExactForm.of(Piece(-math.inf, self.start, ()), Piece(self.start, math.inf, self.terms))
 
 
+def _quoted_line(line: str, rows_so_far: list) -> str:
+    """A bad line of a table file, quoted (shortened) only when earlier lines were samples: a file
+    that is not a table at all (a path pointed at /etc/passwd) has none of its content quoted."""
+    if not rows_so_far:
+        return ("text, and so did the line before it: the file is not a table of samples (two numeric "
+                "columns t, u); check `file`")
+    return repr(line if len(line) <= 60 else line[:57] + "...")
+
+
 @dataclass(frozen=True, eq=False)
 class Table(Signal):
     """Linear interpolation of samples (t_i, u_i), held constant outside [t_0, t_last].
@@ -624,6 +633,8 @@ class Table(Signal):
 
     @classmethod
     def from_csv(cls, path: str | Path, *, label: str | None = None, max_rows: int | None = None) -> Table:
+        # (messages quote a line only once the file has shown itself a table: a path pointed at
+        # /etc/shadow must not print a line of it)
         """Read two columns (t, u) from a CSV file, with an optional header line.
 
         Commas, semicolons, tabs or spaces separate the columns; blank lines and lines that
@@ -657,12 +668,13 @@ class Table(Signal):
                     header = cells
                     continue
                 raise InputError(
-                    f"line {number}: expected two numbers (t, u); got {stripped!r}.",
+                    f"line {number}: expected two numbers (t, u); got {_quoted_line(stripped, times)}.",
                     source=str(path),
                 ) from None
             if len(numbers) != 2:
                 raise InputError(
-                    f"line {number}: expected two columns (t, u); got {len(numbers)}: {stripped!r}.",
+                    f"line {number}: expected two columns (t, u); got {len(numbers)}"
+                    f"{': ' + _quoted_line(stripped, times) if times else ''}.",
                     source=str(path),
                 )
             times.append(numbers[0])

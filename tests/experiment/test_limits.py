@@ -78,7 +78,7 @@ def test_limit_raises_a_budget_for_one_run(tmp_path):
 
 @pytest.mark.parametrize("text, message", [
     ("pointz=3", "`--limit` is 'pointz=3'; write NAME=N with NAME one of steps, points, refine, cases, amplitudes, "
-                 "table_rows (0: no limit), e.g. --limit points=5000000."),
+                 "table_rows, events, states (0: no limit), e.g. --limit points=5000000."),
     ("points", "`--limit` is 'points'; write NAME=N"),
     ("points=-1", "`--limit points` must be a whole number >= 0 (0: no limit); got '-1'."),
     ("points=lots", "`--limit points` must be a whole number >= 0 (0: no limit); got 'lots'."),

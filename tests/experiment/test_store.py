@@ -235,7 +235,20 @@ def test_the_run_step_budget_says_how_to_lift_it(tmp_path):
     assert result.status == "failed" and result.stats.nsteps == 5
     assert result.message.endswith(
         "It was odelab run's step budget that stopped it (--max-steps, 5 steps): lift it with --max-steps 50 "
-        "(or --max-steps 0 for no limit), or set max_steps in [solver].")
+        "(or --max-steps 0 for no limit).")
+
+
+@pytest.mark.parametrize("asked", [0, 10**12])
+def test_a_file_cannot_lift_the_run_step_budget(asked):
+    """[solver] max_steps = 0 ("no limit") or 10^12 runs within odelab run's --max-steps, and says so."""
+    import dataclasses
+
+    case = load_experiment(ROOT / "experiments" / "rigid_body.toml").cases[0]
+    problem = dataclasses.replace(case.problem, options={**case.problem.options, "max_steps": asked})
+    result = run_case(dataclasses.replace(case, problem=problem), max_steps=5)
+    assert result.status == "failed" and result.stats.nsteps == 5
+    assert f"[solver] asks max_steps = {asked:,}" in result.message
+    assert "a file cannot lift the budget of whoever runs it" in result.message
 
 
 def test_the_whole_block_csv_is_the_value_by_value_text_and_round_trips(tmp_path):

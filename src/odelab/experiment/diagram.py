@@ -133,9 +133,26 @@ def _block(name: str, spec: dict, params: dict[str, float]):
     return block
 
 
+def _declared_size(kind, spec: dict) -> tuple[str, int] | None:
+    """A size a block's parameters declare before anything is built: a demux's ``outputs`` (its
+    ports), a transfer function's order (its states; its realisation's A is order x order)."""
+    if kind == "demux":
+        n = spec.get("outputs")
+        return ("outputs", n) if isinstance(n, int) and not isinstance(n, bool) else None
+    if kind == "transfer-fcn" and isinstance(spec.get("den"), list):
+        return "den", len(spec["den"]) - 1
+    return None
+
+
 def build_diagram(model: schema.Experiment, params: dict[str, float], path: Path, t0: float, *,
-                  max_rows: int | None = None) -> Built:
-    """A system from [blocks]: linear diagrams become StateSpace systems, others NonlinearSystem."""
+                  max_rows: int | None = None, limits=None) -> Built:
+    """A system from [blocks]: linear diagrams become StateSpace systems, others NonlinearSystem.
+
+    ``limits`` (the run's budgets) bounds the states and ports the blocks declare, checked
+    before the blocks are built (a demux of 10^12 outputs, 10,000 integrators)."""
+    from odelab.experiment.limits import DEFAULT_LIMITS, check_count
+
+    limits = limits or DEFAULT_LIMITS
     from odelab.systems.diagram.compile import CompiledDiagram
     from odelab.systems.diagram.graph import wire
 
@@ -156,6 +173,11 @@ def build_diagram(model: schema.Experiment, params: dict[str, float], path: Path
                               "outputs = { y = \"sensor\" }.", key="system.outputs")
     outputs = dict(system.outputs or {})
     for out, ref in outputs.items():
+        # names are identifiers, as everywhere else: "a\nb,c" would be stored, then break the
+        # trajectory table's header and be skipped by the report
+        if not (isinstance(out, str) and out.isascii() and out.isidentifier()):
+            raise ExperimentError(f"`system.outputs`: {out!r} is not a valid output name; use ASCII letters, digits "
+                                  "and `_`, starting with a letter (e.g. `y`, `omega`).", key="system.outputs")
         if not isinstance(ref, str):
             raise ExperimentError(f"`system.outputs.{out}` must name a block (or block.port); got {_got(ref)}.",
                                   key=f"system.outputs.{out}")
@@ -171,11 +193,18 @@ def build_diagram(model: schema.Experiment, params: dict[str, float], path: Path
             hint = f" Did you mean {close[0]!r}?" if close else ""
             raise ExperimentError(f"`{key}.type` is {_got(kind)}; block types are {', '.join(types)}.{hint}",
                                   key=f"{key}.type")
+        size = _declared_size(kind, spec)
+        if size is not None:
+            what = "ports" if size[0] == "outputs" else "states (the transfer function's order)"
+            check_count("states", size[1], f"{key}.{size[0]}", "", limits, asked=f"declares {size[1]:,} {what}")
         try:
             blocks[name] = (_source(name, spec, path, params, max_rows) if kind in SIGNAL_KEYS
                             else _block(name, spec, params))
         except InputError as exc:
             raise exc.located(key=key) from None
+    nstates = sum(b.nstates for b in blocks.values())
+    check_count("states", nstates, "blocks", "", limits,
+                asked=f"hold {nstates:,} states in {sum(1 for b in blocks.values() if b.nstates):,} blocks")
     compiled = CompiledDiagram(wire(blocks, outputs), states=system.states, t0=t0,
                                zero_crossing=model.solver.zero_crossing)  # DiagramError: keyed
     if compiled.hybrid and model.events is not None:

@@ -65,13 +65,21 @@ def _direction(value, key: str) -> int:
                           "work).", key=key)
 
 
-def compile_events(section: dict[str, Any], states: tuple[str, ...], params: dict[str, float]) -> tuple[EventSet, dict]:
-    """Check and compile an [events] section; returns the event set and its resolved form."""
+def compile_events(section: dict[str, Any], states: tuple[str, ...], params: dict[str, float],
+                   limits=None) -> tuple[EventSet, dict]:
+    """Check and compile an [events] section; returns the event set and its resolved form.
+
+    ``events.max_events`` is held to the run's ``events`` budget (each event restarts the
+    solver: a Zeno cascade allowed a million events runs for hours)."""
+    from odelab.experiment.limits import DEFAULT_LIMITS, check_count
+
     ex = expr()
     max_events = section.get("max_events", DEFAULT_MAX_EVENTS)
     if isinstance(max_events, bool) or not isinstance(max_events, int) or max_events < 1:
         raise ExperimentError(f"`events.max_events` must be a whole number >= 1; got {max_events!r}.",
                               key="events.max_events")
+    check_count("events", max_events, "events.max_events", "", limits or DEFAULT_LIMITS,
+                asked=f"is {max_events:,}")
     names: list[str] = []
     whens: list[Any] = []
     terminal: list[bool] = []
@@ -149,6 +157,10 @@ def compile_events(section: dict[str, Any], states: tuple[str, ...], params: dic
         resets[i] = apply
     exact: dict[int, Callable] = {}
     for i, text in exact_texts.items():
+        if "k" in params:
+            raise ExperimentError(f"`events.{names[i]}.exact` is the time of occurrence `k` (k = 0, 1, 2, ...), and "
+                                  "[parameters] also defines `k`: rename the parameter (e.g. `k_spring`) so that "
+                                  "`k` in the expression is the occurrence.", key=f"events.{names[i]}.exact")
         fn = ex.compile_expression(text, names=["k", *params], key=f"events.{names[i]}.exact")
 
         def exact_time(k, _fn=fn):

@@ -5,7 +5,9 @@ cases or a 200,000-row input table; without a budget each ends in a MemoryError 
 minutes. Each request is estimated from the file alone, before the memory is allocated or the
 solver started, and compared with a budget. The budgets are generous for a lab (a 1-million-
 step run fits) and are raised by whoever runs the file, never by the file itself:
-``odelab run --max-steps N`` and ``odelab run --limit NAME=N`` (``0``: no limit).
+``odelab run --max-steps N`` and ``odelab run --limit NAME=N`` (``0``: no limit). A file's
+own ``solver.max_steps`` is capped by ``--max-steps`` (its ``0``, "no limit", too): a file
+cannot lift the budget of whoever runs it.
 
 ======================  ==========  =======================================================
 budget (``--limit``)    default     what it bounds
@@ -17,10 +19,15 @@ budget (``--limit``)    default     what it bounds
                                     fixed-step grid, span / max_step x refine): memory,
                                     about 100 bytes per point and quantity in all
 ``refine``              100         ``solver.refine`` (MATLAB's Refine; its default is 4)
-``cases``               1,000       ``[[case]]`` tables in one file
+``cases``               1,000       cases in one file: its ``[[case]]`` tables times its
+                                    sweep's values times its ``[[problem]]`` tables, counted
+                                    before anything is expanded
 ``amplitudes``          100         ``linearize.amplitudes`` (each is two solves)
 ``table_rows``          10,000      rows of an input table (each is a breakpoint at which
                                     the solver restarts)
+``events``              10,000      ``events.max_events`` (each event restarts the solver)
+``states``              5,000       states of one system, and blocks and ports of a diagram
+                                    (a linear model's A is states x states)
 ======================  ==========  =======================================================
 """
 
@@ -33,7 +40,7 @@ import numpy as np
 
 from odelab.exceptions import ExperimentError, InputError
 
-__all__ = ["Limits", "DEFAULT_LIMITS", "parse_limit", "check_count", "check_solve"]
+__all__ = ["Limits", "DEFAULT_LIMITS", "parse_limit", "check_count", "check_solve", "capped_max_steps"]
 
 
 @dataclass(frozen=True)
@@ -46,6 +53,8 @@ class Limits:
     cases: int = 1_000
     amplitudes: int = 100
     table_rows: int = 10_000
+    events: int = 10_000
+    states: int = 5_000
 
     def allows(self, name: str, value: float) -> bool:
         limit = getattr(self, name)
@@ -55,7 +64,8 @@ class Limits:
 DEFAULT_LIMITS = Limits()
 
 _WHAT = {"steps": "steps per solve", "points": "output points per case", "refine": "for refine",
-         "cases": "cases per file", "amplitudes": "amplitudes per study", "table_rows": "rows per input table"}
+         "cases": "cases per file", "amplitudes": "amplitudes per study", "table_rows": "rows per input table",
+         "events": "events per case", "states": "states (or blocks, or ports) per system"}
 
 
 def parse_limit(text: str, limits: Limits = DEFAULT_LIMITS) -> Limits:
@@ -136,3 +146,15 @@ def check_solve(*, method_kind: str, tspan: np.ndarray, options: dict, refine_de
         if not limits.allows("points", points):
             raise _refuse("solver.max_step", f"= {max_step:g} with refine {refine} stores at least {points:.3g} "
                           "output points", "points", points, limits, fix=" (or lower refine)")
+
+
+def capped_max_steps(asked: int | None, budget: int | None) -> tuple[int | None, bool]:
+    """The ``max_steps`` a solve gets: the file's ``asked`` (None: not set; 0: no limit) within
+    odelab run's ``budget`` (None or 0: no budget). Returns it and whether the budget cut it."""
+    if not budget:
+        return asked, False
+    if asked is None:
+        return budget, False
+    if asked == 0 or asked > budget:
+        return budget, True
+    return asked, False

@@ -61,7 +61,9 @@ def run_linearization_case(case: Case, *, max_steps: int | None = None) -> CaseR
     fixed = _mapping(spec.fixed, p.states, "linearize.fixed", params)
     options = dict(p.options)
     if max_steps and "h" not in options:
-        options.setdefault("max_steps", max_steps)
+        from odelab.experiment.limits import capped_max_steps
+
+        options["max_steps"] = capped_max_steps(options.get("max_steps"), max_steps)[0]
 
     start = time.perf_counter()
     notes: list[str] = []

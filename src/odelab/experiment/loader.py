@@ -20,7 +20,7 @@ from pydantic import BaseModel, ValidationError
 from odelab.exceptions import ExperimentError, InputError
 from odelab.experiment import schema
 from odelab.experiment.cases import Case, LoadedExperiment, Problem
-from odelab.experiment.fields import check_keys, constant, expr
+from odelab.experiment.fields import check_keys, constant, expr, mathtext_problem
 from odelab.experiment.limits import DEFAULT_LIMITS, Limits, check_count, check_solve
 from odelab.experiment.reading import read_toml
 
@@ -295,7 +295,7 @@ def load_experiments(path: str | Path, *, limits: Limits = DEFAULT_LIMITS) -> li
             raise ExperimentError(f"[[problem]] {pname!r} sets `case`, `sweep`, `study` or `problem`; those belong "
                                   "to the whole file (outside [[problem]]).", source=src, key=f"problem[{i}]")
         merged = {**copy.deepcopy(data), **{k: v for k, v in problem.items() if k != "name"}}
-        out.append(_load(path, merged, file_hash, f"{name}_{pname}", limits))
+        out.append(_load(path, merged, file_hash, f"{name}_{pname}", limits, copies=len(problems)))
     return out
 
 
@@ -312,7 +312,8 @@ def _dotted_states(table):
     return out
 
 
-def _load(path: Path, data: dict, file_hash: str, name, limits: Limits) -> LoadedExperiment:
+def _load(path: Path, data: dict, file_hash: str, name, limits: Limits, copies: int = 1) -> LoadedExperiment:
+    """One experiment; ``copies`` is the file's number of [[problem]] tables (the case budget is the file's)."""
     src = str(path)
     if isinstance(data.get("system"), dict) and data["system"].get("kind") == "network":
         for section in ("initial", "units"):
@@ -335,13 +336,21 @@ def _load(path: Path, data: dict, file_hash: str, name, limits: Limits) -> Loade
         from odelab.experiment.sweep import expand_sweep
 
         try:
-            sweep = expand_sweep(data.pop("sweep"), data, [c for c in cases_raw if c is not None])
+            sweep = expand_sweep(data.pop("sweep"), data, [c for c in cases_raw if c is not None], limits=limits,
+                                 copies=copies)
         except InputError as exc:
             raise exc.located(source=src) from None
         cases_raw, swept = _sweep_cases(cases_raw, sweep.points())
     elif study_raw is not None:
         raise ExperimentError("[study] compares the cases of a [sweep]: add a [sweep] table, e.g. "
                               "\"solver.h\" = [0.1, 0.05, 0.025].", source=src, key="study")
+    elif copies > 1:
+        try:
+            check_count("cases", len(cases_raw) * copies, "problem", "", limits,
+                        asked=f"has {copies:,} [[problem]] tables times {len(cases_raw):,} case"
+                              f"{'s' if len(cases_raw) != 1 else ''}: {len(cases_raw) * copies:,} cases")
+        except InputError as exc:
+            raise exc.located(source=src) from None
 
     try:
         if sweep is not None:
@@ -542,6 +551,10 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
     if shared is not None and system.kind in ("state-space", "ode") and system.function is None \
             and model.blocks is None:
         share = ("system", id(system), params_key, model.linearize is not None)
+    if system.kind in ("ode", "state-space") and system.states and not limits.allows("states", len(system.states)):
+        # name the missing initial values first (that is the file's mistake), then the budget
+        check_keys(model.initial, tuple(system.states), "initial", "states", require_all=True)
+        check_count("states", len(system.states), "system.states", "states", limits)
     if share is not None and share in shared:
         built = shared[share][1]
     elif system.kind == "state-space":
@@ -552,7 +565,7 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
         from odelab.experiment.diagram import build_diagram
 
         built = build_diagram(model, params, path, constant(model.time.start, "time.start", params),
-                              max_rows=limits.table_rows or None)
+                              max_rows=limits.table_rows or None, limits=limits)
     elif system.kind == "network":
         from odelab.experiment.network import build_network
 
@@ -623,7 +636,8 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
     options = {k: v for k, v in model.solver.model_dump().items()
                if k not in ("method", "backend", "zero_crossing") and v is not None}
     backend = model.solver.backend
-    runtime_options = _state_options(options, states, params, dae=method.name in ("ode15s", "ode23t"))
+    runtime_options = _state_options(options, states, params, dae=method.name in ("ode15s", "ode23t"),
+                                     takes_dependence="mstate_dependence" in method.options)
     try:
         as_tspan(tspan)
         resolve_options(method, normalize_options(runtime_options, method), tspan, len(states))
@@ -650,7 +664,7 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
             raise ExperimentError(f"`reference.method` is {model.reference.method!r}, but with [events] the reference "
                                   "is \"exact\" (from [exact]) or \"none\"; event times can have exact values with "
                                   "`exact` in the event's table.", key="reference.method")
-        events, resolved["events"] = compile_events(model.events, states, params)
+        events, resolved["events"] = compile_events(model.events, states, params, limits)
     data = None
     if model.data is not None:
         from odelab.experiment.data import check_span, read_data
@@ -747,13 +761,20 @@ def _units(units: dict[str, str], states, inputs, outputs, params) -> dict[str, 
             hint = f" Did you mean {close[0]!r}?" if close else ""
             raise ExperimentError(f"`units.{name}`: {name!r} is not t, a state, an input, an output or a parameter "
                                   f"({', '.join(names)}).{hint}", key=f"units.{name}")
-        if not unit.strip() or len(unit) > 20 or any(c in unit for c in "\n\r\t"):
+        if not unit.strip() or len(unit) > 20 or not unit.isprintable():
             raise ExperimentError(f"`units.{name}` is {unit!r}; write a short unit on one line, e.g. "
                                   f"{name} = \"m\" or \"N\" or \"rad/s\".", key=f"units.{name}")
+        problem = mathtext_problem(unit)
+        if problem:
+            raise ExperimentError(f"`units.{name}` is {unit!r}, which matplotlib cannot draw as mathtext "
+                                  f"({problem}); write the unit as plain text (\"m/s^2\"), or as mathtext it "
+                                  f"parses (\"$m/s^2$\"), or escape a literal dollar as \\$.",
+                                  key=f"units.{name}")
     return dict(units)
 
 
-def _state_options(options: dict, states: tuple[str, ...], params: dict[str, float], dae: bool = False) -> dict:
+def _state_options(options: dict, states: tuple[str, ...], params: dict[str, float], dae: bool = False,
+                   takes_dependence: bool = True) -> dict:
     """[solver] options written with state names or expressions, made what the solver takes.
 
     ``nonnegative = ["h"]`` becomes 0-based indices; ``mass`` (a matrix of expressions of t, the
@@ -793,7 +814,8 @@ def _state_options(options: dict, states: tuple[str, ...], params: dict[str, flo
                 return np.asarray(_F(t, *y), dtype=float).reshape(_n, _n)
 
             out["mass"] = mass
-            out.setdefault("mstate_dependence", "weak")
+            if takes_dependence:  # the stiff solvers refuse a mass function themselves, naming the mass
+                out.setdefault("mstate_dependence", "weak")
     return out
 
 
@@ -850,6 +872,11 @@ def _check_analysis(spec: schema.Analysis, inputs, built, params) -> dict:
     if built.system is None:
         raise ExperimentError("[analysis] needs a state-space model, a diagram or a system of equations; a "
                               "`function` system cannot be analysed from the file.", key="analysis")
+    if not inputs:
+        raise ExperimentError("[analysis] computes the transfer functions from the system's inputs to its outputs "
+                              "(poles, stepinfo, Bode, margins), and this system has no inputs: declare one "
+                              "(inputs = [\"f\"] with [inputs.f], or a source block in a diagram), or remove "
+                              "[analysis].", key="analysis")
     u0 = {}
     for name, value in (spec.input or {}).items():
         if name not in inputs:
@@ -909,7 +936,12 @@ def _matlab_range(text: str, params: dict[str, float], limits: Limits) -> np.nda
     if d == 0 or (b - a) * d < 0:
         raise ExperimentError(f"`time.output` is {text!r}: the step {d:g} never reaches {b:g} from {a:g}; "
                               "give a step with the sign of stop - start.", key="time.output")
-    check_count("points", int(abs((b - a) / d)) + 1, "time.output", "output times", limits)
+    count = abs((b - a) / d) + 1 if math.isfinite(b - a) else math.inf
+    if not math.isfinite(count):  # a subnormal step, or a span past the largest float
+        raise ExperimentError(f"`time.output` is {text!r}: from {a:g} to {b:g} in steps of {d:g} is more output "
+                              "times than can be counted; take a larger step, or give time.points.",
+                              key="time.output")
+    check_count("points", int(count), "time.output", "output times", limits)
     return colon_range(a, d, b)
 
 

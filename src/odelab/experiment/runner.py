@@ -75,8 +75,11 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
 
         return run_linearization_case(case, max_steps=max_steps)
     options = dict(p.options)
+    capped = False
     if max_steps and "h" not in options:
-        options.setdefault("max_steps", max_steps)
+        from odelab.experiment.limits import capped_max_steps
+
+        options["max_steps"], capped = capped_max_steps(options.get("max_steps"), max_steps)
     start = time.perf_counter()
     events, marks = [], None
     ran = "python"
@@ -88,11 +91,14 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
         t, x, u, stats, status, message, warnings, ran = _integrate(p, p.tspan, p.method, options,
                                                                     backend or p.backend)
     elapsed = time.perf_counter() - start
-    if (status != "success" and max_steps and "max_steps" not in p.options and "h" not in p.options
+    if (status != "success" and max_steps and ("max_steps" not in p.options or capped) and "h" not in p.options
             and stats.nsteps >= max_steps):
-        message += (f" It was odelab run's step budget that stopped it (--max-steps, {max_steps} steps): lift it "
-                    f"with --max-steps {10 * max_steps} (or --max-steps 0 for no limit), or set max_steps in "
-                    "[solver].")
+        asked = p.options.get("max_steps")
+        why = (f" ([solver] asks max_steps = {asked:,}{' (no limit)' if asked == 0 else ''}, but a file cannot lift "
+               "the budget of whoever runs it)" if capped else "")
+        message += (f" It was odelab run's step budget that stopped it (--max-steps, {max_steps} steps){why}: lift "
+                    f"it with --max-steps {10 * max_steps if not capped or not asked else asked} (or --max-steps 0 "
+                    "for no limit).")
     if u is None and p.input_fn is not None:
         u = p.input_fn(t)
     y = p.output_fn(t, x, u) if p.output_fn is not None else None

@@ -260,6 +260,8 @@ def sweep_csv(record: dict[str, Any]) -> str:
     import csv
     import io
 
+    from odelab.fileio import spreadsheet_cell
+
     rows = record["rows"]
     keys = record["sweep"]["keys"]
     quantities = sorted({q for r in rows for q in r["max_abs"]})
@@ -267,13 +269,14 @@ def sweep_csv(record: dict[str, Any]) -> str:
     header += [f"{q}_{what}" for q in quantities for what in ("max_abs", "end_abs", "max_rel")]
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow(header)
+    writer.writerow([spreadsheet_cell(h) for h in header])
     for r in rows:
         cells = [r["case"], *(r["swept"].get(k) for k in keys), r["method"], r["status"], r["nsteps"], r["nfailed"],
                  r["nfevals"], r["elapsed_s"]]
         for q in quantities:
             cells += [r["max_abs"].get(q), r["end_abs"].get(q), r["max_rel"].get(q)]
-        writer.writerow(["" if c is None else repr(c) if isinstance(c, float) else c for c in cells])
+        writer.writerow(["" if c is None else repr(c) if isinstance(c, float) else spreadsheet_cell(c)
+                         for c in cells])
     return buf.getvalue()
 
 

@@ -146,12 +146,20 @@ def _range(spec: dict, key: str) -> list[float]:
         if log:
             a, b = math.log10(start), math.log10(stop)
             return [_round(10 ** (a + (b - a) * i / (count - 1))) for i in range(count)]
-        return [_round(start + (stop - start) * i / (count - 1)) for i in range(count)]
+        # a + (b - a) f overflows when b - a does (from = -1e308, to = 1e308): a (1 - f) + b f does not
+        return [_round(start + (stop - start) * i / (count - 1)) if math.isfinite(stop - start)
+                else _round(start * (1 - i / (count - 1)) + stop * (i / (count - 1))) for i in range(count)]
     if log:
         raise ExperimentError(f"`{where}`: `log = true` goes with `count`, not `step`.", key=where)
     if isinstance(step, bool) or not isinstance(step, (int, float)) or not math.isfinite(step) or step == 0:
         raise ExperimentError(f"`{where}.step` must be a non-zero number; got {step!r}.", key=where)
-    n = math.floor((stop - start) / step + 1e-9)
+    q = (stop - start) / step if math.isfinite(stop - start) else math.copysign(math.inf, (stop - start) * step)
+    if q > 0 and (not math.isfinite(q) or q + 1 > MAX_SWEEP_CASES):  # a subnormal step, or a span past the largest float
+        raise ExperimentError(f"`{where}` goes from {format_value(start)} to {format_value(stop)} with step "
+                              f"{format_value(step)}: {'more than ' if not math.isfinite(q) else ''}"
+                              f"{min(q, 1e308) + 1:.3g} values; a sweep is limited to {MAX_SWEEP_CASES} cases "
+                              "(take a larger step).", key=where)
+    n = math.floor(q + 1e-9) if q >= 0 else -1
     if n < 0:
         raise ExperimentError(f"`{where}` goes from {format_value(start)} to {format_value(stop)} with step "
                               f"{format_value(step)}: no values (MATLAB's {format_value(start)}:{format_value(step)}:"
@@ -215,7 +223,8 @@ def _flatten(table: dict, prefix: str = ""):
             yield path, value
 
 
-def expand_sweep(spec: Any, base: dict, case_overrides: list[dict] | None = None) -> Sweep:
+def expand_sweep(spec: Any, base: dict, case_overrides: list[dict] | None = None, *, limits=None,
+                 copies: int = 1) -> Sweep:
     """Parse and check a ``[sweep]`` table (``spec``) against the experiment it sweeps.
 
     Raises
@@ -255,10 +264,6 @@ def expand_sweep(spec: Any, base: dict, case_overrides: list[dict] | None = None
                 if bad:
                     raise ExperimentError(f"`{where}` holds {bad[0]!r}: swept values must be finite.",
                                           key=where)
-            if mode == "product" and len({format_value(v) for v in items}) != len(items):
-                dup = next(v for i, v in enumerate(items) if format_value(v) in {format_value(w) for w in items[:i]})
-                raise ExperimentError(f"`{where}` lists {format_value(dup)} twice: each value once.",
-                                      key=where)
         else:
             raise ExperimentError(f"`{where}` must be a list of values or a range such as "
                                   f"{{ from = 1, to = 10, count = 10 }}; got {value!r}.", key=where)
@@ -275,15 +280,38 @@ def expand_sweep(spec: Any, base: dict, case_overrides: list[dict] | None = None
             raise ExperimentError(f"`sweep.mode` is \"zip\", so every list needs the same length; {detail}. "
                                   "Make them equal, or use mode = \"product\".", key="sweep.mode")
         total = len(values[0])
-        combos = [tuple(format_value(v) for v in combo) for combo in zip(*values)]
-        for i, combo in enumerate(combos):
-            if combo in combos[:i]:
-                raise ExperimentError(f"`sweep` (mode = \"zip\") has entries {combos.index(combo) + 1} and {i + 1} "
-                                      f"equal ({', '.join(combo)}): each case once.", key="sweep")
     else:
         total = math.prod(len(v) for v in values)
-    total *= max(1, len(case_overrides or []))
-    if total > MAX_SWEEP_CASES:
-        raise ExperimentError(f"`sweep` expands to {total} cases; the limit is {MAX_SWEEP_CASES}. Sweep fewer values "
-                              "or split the experiment.", key="sweep")
+    # the budgets before anything is expanded or compared: counting is cheap, a case is not
+    cases = max(1, len(case_overrides or []))
+    if total * cases > MAX_SWEEP_CASES:
+        raise ExperimentError(f"`sweep` expands to {total * cases} cases; the limit is {MAX_SWEEP_CASES}. Sweep fewer "
+                              "values or split the experiment.", key="sweep")
+    if limits is not None:
+        from odelab.experiment.limits import check_count
+
+        parts = [f"{total:,} sweep values"] + ([f"{cases:,} [[case]] tables"] if cases > 1 else []) + (
+            [f"{copies:,} [[problem]] tables"] if copies > 1 else [])
+        count = total * cases * copies
+        check_count("cases", count, "sweep", "", limits,
+                    asked=f"makes {count:,} cases ({' times '.join(parts)})" if len(parts) > 1 else
+                    f"makes {count:,} cases")
+    # each value (each zip entry) once: a dict of what has been seen, linear in the sweep's size
+    if mode == "zip":
+        seen: dict[tuple, int] = {}
+        for i, combo in enumerate(zip(*values)):
+            shown = tuple(format_value(v) for v in combo)
+            if shown in seen:
+                raise ExperimentError(f"`sweep` (mode = \"zip\") has entries {seen[shown] + 1} and {i + 1} "
+                                      f"equal ({', '.join(shown)}): each case once.", key="sweep")
+            seen[shown] = i
+    else:
+        for key, items in zip(keys, values):
+            seen_values: dict[str, int] = {}
+            for i, v in enumerate(items):
+                shown = format_value(v)
+                if shown in seen_values:
+                    raise ExperimentError(f"`{_where(key)}` lists {shown} twice: each value once (values "
+                                          f"{seen_values[shown] + 1} and {i + 1} are equal).", key=_where(key))
+                seen_values[shown] = i
     return Sweep(keys=tuple(keys), values=tuple(values), mode=mode, store=store)

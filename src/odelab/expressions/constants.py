@@ -53,8 +53,9 @@ def check_identifier(
     if not name:
         raise InputError(f"{where}a {what} name must not be empty", key=key, source=source)
     if not name.isascii() or not name.isidentifier():
+        shown = f"`{name}`" if name.isprintable() else repr(name)  # a newline in a name stays on one line
         raise InputError(
-            f"{where}`{name}` is not a valid {what} name; use ASCII letters, digits and `_`, "
+            f"{where}{shown} is not a valid {what} name; use ASCII letters, digits and `_`, "
             "starting with a letter (e.g. `x1`, `omega`)",
             key=key,
             source=source,

@@ -35,8 +35,11 @@ def is_matrix_string(text: object) -> bool:
 
 def _split_row(row: str) -> list[str]:
     """A row's elements: split at top-level commas, and at spaces MATLAB reads as separators."""
+    # Linear in the row's length: the last non-space character of the current element is kept,
+    # never recomputed by joining the element so far (a 200,000-term row took minutes).
     elements: list[str] = []
     current: list[str] = []
+    last = ""  # the current element's last non-space character ("" while it is empty)
     depth = 0
     i, n = 0, len(row)
     while i < n:
@@ -47,28 +50,29 @@ def _split_row(row: str) -> list[str]:
             depth -= 1
         if depth == 0 and c == ",":
             elements.append("".join(current))
-            current = []
+            current, last = [], ""
             i += 1
             continue
         if depth == 0 and c.isspace():
             j = i
             while j < n and row[j].isspace():
                 j += 1
-            before = "".join(current).rstrip()
             after = row[j:j + 1]
             after2 = row[j + 1:j + 2]
-            if not before or not after:
+            if not last or not after:
                 pass  # leading or trailing space
-            elif before[-1] in _OPERATOR_BEFORE or after in _OPERATOR_AFTER:
+            elif last in _OPERATOR_BEFORE or after in _OPERATOR_AFTER:
                 current.append(" ")  # `a * b`, `a (` ... one element
             elif after in "+-" and (after2.isspace() or after2 == ""):
                 current.append(" ")  # `a - b`: a binary minus
             else:  # `a b`, `a -b`: a new element (MATLAB's rule)
                 elements.append("".join(current))
-                current = []
+                current, last = [], ""
             i = j
             continue
         current.append(c)
+        if not c.isspace():
+            last = c
         i += 1
     elements.append("".join(current))
     return [e.strip() for e in elements if e.strip()]
@@ -107,6 +111,9 @@ def colon_range(start: float, step: float, stop: float) -> np.ndarray:
     if step == 0 or not all(math.isfinite(v) for v in (start, step, stop)):
         raise ValueError("the step of a range must be a finite, non-zero number")
     q = (stop - start) / step
+    if not math.isfinite(q):
+        raise ValueError("the range has more values than can be counted (a tiny step, or a span past the largest "
+                         "float); take a larger step")
     if q < 0:
         return np.array([])
     n = round(q) if abs(q - round(q)) <= 1e-10 * max(1.0, abs(q)) else math.floor(q)

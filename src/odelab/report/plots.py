@@ -121,6 +121,16 @@ def method_style(method: str) -> LineStyle:
     return LineStyle(method_color(method), marker, dash, 1.1)
 
 
+def drawable(text: str) -> str:
+    """``text`` as matplotlib can draw it: mathtext it cannot parse (a hand-edited result's
+    ``$\\hspace$``, a case named ``a$b$\\foo``) is shown as plain text, its ``$`` escaped."""
+    from odelab.experiment.fields import mathtext_problem
+
+    if not text or "$" not in text or mathtext_problem(text) is None:
+        return text
+    return text.replace("\\$", "$").replace("$", "\\$")
+
+
 def axis_label(name: str, unit: str | None = None) -> str:
     """``x (m)``; the name alone when no unit is known."""
     return f"{name} ({unit})" if unit else name
@@ -228,14 +238,14 @@ def _draw_panel(ax, panel: Panel, columns: int = 1) -> None:
         # marked lines: by point count alone (sparsest on top), always under a reference line
         zorder = 2.0 + 0.5 * rank[id(line)] if id(line) in rank else line.zorder
         hollow = {"markerfacecolor": "none", "markeredgewidth": 0.9} if marker not in (None, ".") else {}
-        ax.plot(x, y, linestyle=line.linestyle, marker=marker, color=line.color, label=line.label,
+        ax.plot(x, y, linestyle=line.linestyle, marker=marker, color=line.color, label=drawable(line.label),
                 linewidth=line.linewidth, markersize=line.markersize, zorder=zorder, **hollow)
         drawn += 1
     for ref in panel.reflines:
         if ref.value is None or not math.isfinite(ref.value):
             continue
         draw = ax.axhline if ref.axis == "y" else ax.axvline
-        draw(ref.value, color=ref.color, linestyle=ref.linestyle, linewidth=1.2, label=ref.label, zorder=1)
+        draw(ref.value, color=ref.color, linestyle=ref.linestyle, linewidth=1.2, label=drawable(ref.label), zorder=1)
     if log_x:
         ax.set_xscale("log")
     if log_y:
@@ -244,9 +254,9 @@ def _draw_panel(ax, panel: Panel, columns: int = 1) -> None:
     # characters that fit over one panel: titles wrap rather than run off the figure
     size = 9.5 if columns <= 2 else 8.5
     width = max(18, int((90 if columns <= 3 else 84) / max(columns, 1)))
-    ax.set_title("\n".join(textwrap.wrap(panel.title, width)) if panel.title else "", fontsize=size)
-    ax.set_xlabel(panel.xlabel)
-    ax.set_ylabel(panel.ylabel)
+    ax.set_title(drawable("\n".join(textwrap.wrap(panel.title, width))) if panel.title else "", fontsize=size)
+    ax.set_xlabel(drawable(panel.xlabel))
+    ax.set_ylabel(drawable(panel.ylabel))
     ax.grid(True, which="major", color="#DDDDDD", linewidth=0.6)
     if log_y or log_x:
         ax.grid(True, which="minor", color="#F0F0F0", linewidth=0.4)

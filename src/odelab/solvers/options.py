@@ -136,6 +136,17 @@ def _not_for_method(canonical: str, name: str, method: Method) -> str:
             f"ralston, rk3, rk4); {method.name} chooses its own steps: use `rtol`/`atol`, "
             "`max_step` or `initial_step` instead."
         )
+    if canonical in ("mass", "mstate_dependence"):
+        # say what is wrong with the mass, not which option name the solver lacks
+        from odelab.solvers.registry import METHODS
+
+        takes = [m for m, spec in METHODS.items() if canonical in spec.options]
+        if canonical == "mass":
+            return (f"`{name}` (M y' = f): {method.name} solves y' = f only, with no mass matrix; the solvers that "
+                    f"take a mass are {', '.join(takes)}.")
+        return (f"`{name}` describes a mass that depends on t or the states, but {method.name} takes a constant mass "
+                f"matrix only; a mass M(t, y) is solved by {', '.join(takes)} (remove `{name}` for a constant "
+                "mass).")
     if method.kind == "fixed":
         return (
             f"`{name}` does not apply to {method.name}, a fixed-step method: it takes only the "

@@ -155,16 +155,21 @@ class CompiledDiagram:
         n, m, p = len(self.states), len(self.inputs), len(self.outputs)
         A, B = np.zeros((n, n)), np.zeros((n, m))
         C, D = np.zeros((p, n)), np.zeros((p, m))
-        for j in range(n):
-            e = np.zeros(n)
-            e[j] = 1.0
-            A[:, j] = self._dynamics(0.0, e, np.zeros(m))
-            C[:, j] = self._output(0.0, e, np.zeros(m))
-        for j in range(m):
-            e = np.zeros(m)
-            e[j] = 1.0
-            B[:, j] = self._dynamics(0.0, np.zeros(n), e)
-            D[:, j] = self._output(0.0, np.zeros(n), e)
+        # Many unit vectors per evaluation (the blocks work on columns, as in output_many): one
+        # evaluation per column made a diagram of 10,000 integrators quadratic in Python calls.
+        chunk = 256
+        for into, other, target_x in ((A, C, True), (B, D, False)):
+            width = n if target_x else m
+            for j0 in range(0, width, chunk):
+                k = min(chunk, width - j0)
+                e = np.zeros((width, k))
+                e[np.arange(j0, j0 + k), np.arange(k)] = 1.0
+                x, u = (e, np.zeros((m, k))) if target_x else (np.zeros((n, k)), e)
+                into[:, j0:j0 + k] = self._dynamics(0.0, x, u).reshape(n, k)
+                if p:
+                    vals = self._ports(0.0, x, u, False)
+                    other[:, j0:j0 + k] = np.vstack([np.broadcast_to(vals[q], (1, k))
+                                                    for q in self.wiring.outputs.values()])
         return A, B, C, D
 
     def _state_space(self):

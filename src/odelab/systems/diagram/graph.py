@@ -82,14 +82,15 @@ def find_loop(edges: dict[str, list[str]], nodes: list[str], declared: list[str]
     """One cycle among ``nodes`` (each has a successor among them), in signal-flow order,
     starting from the block declared first."""
     inside = set(nodes)
-    start = min(nodes, key=declared.index)
+    position = {n: i for i, n in enumerate(declared)}
+    start = min(nodes, key=position.__getitem__)
     path, seen = [start], {start: 0}
     node = start
     while True:
-        node = min((n for n in edges[node] if n in inside), key=declared.index)
+        node = min((n for n in edges[node] if n in inside), key=position.__getitem__)
         if node in seen:
             cycle = path[seen[node]:]
-            first = min(cycle, key=declared.index)
+            first = min(cycle, key=position.__getitem__)
             i = cycle.index(first)
             return cycle[i:] + cycle[:i]
         seen[node] = len(path)
@@ -135,27 +136,42 @@ def wire(blocks: Mapping[str, Block], outputs: Mapping[str, str]) -> Wiring:
             for src in dict.fromkeys(s for s, _ in feeds):
                 edges[src].append(name)
                 indegree[name] += 1
-    ready = [n for n in declared if indegree[n] == 0]
+    from collections import deque
+
+    ready = deque(n for n in declared if indegree[n] == 0)
     order: list[str] = []
     while ready:
-        node = ready.pop(0)
+        node = ready.popleft()
         order.append(node)
         for nxt in edges[node]:
             indegree[nxt] -= 1
             if indegree[nxt] == 0:
                 ready.append(nxt)
     if len(order) < len(blocks):
-        left = [n for n in declared if n not in order]
-        # Keep only nodes on cycles: drop those whose feedthrough successors are all done.
-        changed = True
-        while changed:
-            changed = False
-            for n in list(left):
-                if not any(m in left for m in edges[n]):
-                    left.remove(n)
-                    changed = True
-        loop = find_loop(edges, left, declared)
-        text = " -> ".join([*loop, loop[0]])
+        done = set(order)
+        left = {n for n in declared if n not in done}
+        # Keep only nodes on cycles: drop those whose feedthrough successors are all done
+        # (a worklist over the reversed edges: linear in the diagram's size).
+        succ_left = {n: sum(1 for m in edges[n] if m in left) for n in left}
+        preds: dict[str, list[str]] = {n: [] for n in left}
+        for n in left:
+            for m in edges[n]:
+                if m in left:
+                    preds[m].append(n)
+        drop = deque(n for n in left if succ_left[n] == 0)
+        while drop:
+            n = drop.popleft()
+            left.discard(n)
+            for p in preds[n]:
+                if p in left:
+                    succ_left[p] -= 1
+                    if succ_left[p] == 0:
+                        drop.append(p)
+        loop = find_loop(edges, [n for n in declared if n in left], declared)
+        if len(loop) <= 12:
+            text = " -> ".join([*loop, loop[0]])
+        else:  # a few blocks and the count: a loop through 10,000 blocks is not a message
+            text = " -> ".join([*loop[:6], "...", *loop[-2:], loop[0]]) + f" ({len(loop):,} blocks in the loop)"
         raise DiagramError(f"algebraic loop: {text}; break it with an integrator (or another block with state "
                            "and no direct feedthrough: a strictly proper transfer-fcn, a state-space block with "
                            "D = 0).", key=f"blocks.{loop[0]}")
