@@ -56,7 +56,17 @@ class ControlView:
 
 
 def render_dot(dot: str) -> tuple[bytes | None, str]:
-    """PNG bytes of DOT text by Graphviz's ``dot``, or None and the reason."""
+    """PNG bytes of DOT text by Graphviz's ``dot``, or None and the reason.
+
+    Only DOT of the shape odelab writes reaches Graphviz (see
+    :func:`~odelab.systems.diagram.draw.dot_problem`): a stored drawing edited by hand to
+    embed a local file (``image="/path.png"``) is left out, with the reason."""
+    from odelab.systems.diagram.draw import dot_problem
+
+    why = dot_problem(dot)
+    if why:
+        return None, (f"The stored drawing of this diagram is not drawn: {why} (was result.json edited by "
+                      "hand?). Run the experiment again to store a fresh one.")
     exe = shutil.which("dot")
     if exe is None:
         return None, ("Graphviz is not installed (no `dot` program), so the diagram is not drawn; install it "

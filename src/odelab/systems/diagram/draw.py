@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from odelab.systems.diagram.graph import Wiring
 
-__all__ = ["to_dot", "dot_string"]
+__all__ = ["to_dot", "dot_string", "dot_problem"]
 
 _SHAPES = {"sum": "circle", "gain": "triangle", "integrator": "box", "saturation": "box", "dead-zone": "box",
            "product": "circle", "mux": "box", "demux": "box", "fcn": "box", "state-space": "box",
@@ -89,3 +89,68 @@ def _block_label(name: str, block) -> str:
     if kind == "fcn":
         return f"{name}\n{block.params['expression']}"
     return f"{name}\n{block.describe()}"
+
+
+# --- checking DOT text read back from a results folder ---------------------------------------
+#
+# A stored run's drawing is DOT text in result.json, which anyone can edit; Graphviz reads
+# attributes that embed local files (image=, shapefile=, fontpath=) or write them. The report
+# draws only DOT of the shape to_dot writes: its fixed header lines, nodes and edges between
+# quoted names, and attributes from this list with quoted or plain values.
+
+import re as _re
+
+_Q = r'"(?:[^"\\\n]|\\.)*"'
+_ATTRS = {"label", "shape", "style", "fillcolor", "width", "fixedsize", "xlabel", "orientation", "margin",
+          "taillabel", "headlabel"}
+_PLAIN = _re.compile(r"[A-Za-z0-9.#]{1,40}")
+_ATTR = _re.compile(rf"\s*([a-z]+)=({_Q}|[A-Za-z0-9.#]{{1,40}})\s*")
+_NODE = _re.compile(rf"  ({_Q})(?: -> ({_Q}))?(?: \[(.*)\])?;")
+_FIXED = {"digraph diagram {", "}", "  rankdir=LR; ratio=0.4;", '  node [fontname="Helvetica", fontsize=11];',
+          '  edge [fontname="Helvetica", fontsize=10, arrowsize=0.7];'}
+_TITLE = _re.compile(rf"  label={_Q}; labelloc=t;")
+MAX_DOT_CHARS = 2_000_000
+
+
+def _attributes(text: str) -> str | None:
+    """Why a bracketed attribute list is not one to_dot writes (None if it is)."""
+    rest = text
+    while rest:
+        m = _ATTR.match(rest)
+        if m is None:
+            return f"attribute list {text[:60]!r}"
+        if m.group(1) not in _ATTRS:
+            return f"attribute `{m.group(1)}`"
+        rest = rest[m.end():]
+        if rest.startswith(","):
+            rest = rest[1:]
+        elif rest:
+            return f"attribute list {text[:60]!r}"
+    return None
+
+
+def dot_problem(text) -> str | None:
+    """Why stored DOT text is not a drawing :func:`to_dot` writes (None if it is).
+
+    Anything else (an ``image="/path.png"`` added by hand, an HTML label, a subgraph) makes
+    the report leave the drawing out, with this reason, rather than hand it to Graphviz."""
+    if not isinstance(text, str):
+        return "it is not text"
+    if len(text) > MAX_DOT_CHARS:
+        return f"it is {len(text):,} characters long"
+    lines = text.split("\n")
+    if lines and lines[-1] == "":
+        lines.pop()
+    if not lines or lines[0] != "digraph diagram {" or lines[-1] != "}":
+        return "it does not start and end as odelab's drawings do"
+    for number, line in enumerate(lines[1:-1], start=2):
+        if line in _FIXED or _TITLE.fullmatch(line):
+            continue
+        m = _NODE.fullmatch(line)
+        if m is None:
+            return f"line {number} is not a node or an edge as odelab writes them"
+        if m.group(3) is not None:
+            why = _attributes(m.group(3))
+            if why:
+                return f"line {number} has {why}, which odelab does not write"
+    return None

@@ -1,0 +1,175 @@
+"""Round 3 of hostile input (issue 25, point 4): the fault scenarios that are not one bad file.
+
+The bad files themselves (budgets, ranges, names, messages) are in tests/assets/bad with their
+expected message and exit code; these are the faults around them: what is written (sweep.csv,
+the report's drawing), what is read back (a hand-edited result.json), and the shared mechanisms
+(diagram matrices, matrix strings) checked against their slow, obvious versions.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from odelab.cli import app
+
+ROOT = Path(__file__).resolve().parents[2]
+runner = CliRunner()
+
+
+def run(*args):
+    return runner.invoke(app, [str(a) for a in args])
+
+
+SWEPT = """
+[parameters]
+k = 1
+[system]
+states = ["y"]
+[system.equations]
+y = "-k*y"
+[initial]
+y = 1
+[time]
+stop = 1
+[reference]
+method = "none"
+[sweep]
+"parameters.k" = [1, '-2+3', "-3", '+4*cos(0)', '@1+0' ]
+"""
+
+
+def test_sweep_csv_cells_are_never_live_formulas(tmp_path):
+    """OWASP's CSV-injection advice: a text cell starting = + - @ tab CR gets a leading quote;
+    numbers (and text that is a plain number, "-3") stay as they are."""
+    from odelab.fileio import spreadsheet_cell
+
+    (tmp_path / "swept.toml").write_text(SWEPT.replace("'@1+0' ", "'1+0'"))
+    result = run("run", tmp_path / "swept.toml", "--runs", tmp_path / "runs")
+    assert result.exit_code == 0, result.output
+    rows = list(csv.reader(io.StringIO((tmp_path / "runs" / "swept" / "sweep.csv").read_text())))
+    column = [r[1] for r in rows[1:]]
+    assert column == ["1", "'-2+3", "-3", "'+4*cos(0)", "1+0"]
+    for cell in ("=HYPERLINK(\"http://x\")", "+x", "-x", "@SUM(A1)", "\tx", "\rx", "-1+2", "-nan", "-inf"):
+        assert spreadsheet_cell(cell) == "'" + cell
+    for cell in ("-3", "-1e-4", "+2.5", 3, -3.0, "abc", "k=-2"):
+        assert spreadsheet_cell(cell) == cell
+
+
+def _diagram_dot(name="figure1.toml"):
+    from odelab.experiment.loader import load_experiment
+    from odelab.experiment.runner import diagram_record
+
+    return diagram_record(load_experiment(ROOT / "experiments" / name).cases[0].problem)["dot"]
+
+
+@pytest.mark.parametrize("name", ["figure1.toml", "feedback_pi.toml"])
+def test_the_report_draws_only_dot_as_odelab_writes_it(name):
+    from odelab.report.control import render_dot
+    from odelab.systems.diagram.draw import dot_problem
+
+    dot = _diagram_dot(name)
+    assert dot_problem(dot) is None
+    edits = {
+        "image": dot.replace("shape=box", 'shape=box, image="/etc/passwd"', 1),
+        "a new node": dot.replace("\n}", '\n  "x" [image="/tmp/a.png"];\n}'),
+        "html label": dot.replace('label="', "label=<<b>x</b>>, xlabel=\"", 1),
+        "a subgraph": dot.replace("\n}", "\n  subgraph s { a }\n}"),
+        "shapefile": dot.replace("shape=box", 'shapefile="/etc/hosts"', 1),
+        "fontpath": dot.replace("rankdir=LR;", 'rankdir=LR; fontpath="/etc";'),
+    }
+    for what, text in edits.items():
+        assert dot_problem(text), what
+        png, note = render_dot(text)
+        assert png is None and "is not drawn" in note and "edited by hand" in note, what
+
+
+def test_diagram_matrices_many_columns_at_once_equal_one_column_at_a_time():
+    """matrices() evaluates 256 unit vectors per pass (10,000 integrators were quadratic): the
+    same A, B, C, D, bit for bit, as one evaluation per column, through a gain matrix, a mux,
+    a demux, a transfer function and a state-space block."""
+    from odelab.experiment.loader import load_experiment
+
+    (ROOT / "tests" / "assets").exists()
+    text = """
+[system]
+kind = "diagram"
+outputs = { y = "plant.y", z = "dm.2", w = "tf" }
+[blocks]
+r = { type = "step", time = 0 }
+r2 = { type = "sine", amplitude = 1, frequency = 1 }
+e = { type = "sum", signs = "+-", inputs = ["r", "plant.y"] }
+mx = { type = "mux", inputs = ["e", "r2"] }
+K = { type = "gain", gain = [[1, 2], [3, 4]], input = "mx" }
+dm = { type = "demux", outputs = 2, input = "K" }
+tf = { type = "transfer-fcn", num = [1, 2], den = [1, 3, 2], input = "dm.1" }
+i1 = { type = "integrator", input = "dm.2" }
+s2 = { type = "sum", signs = "++", inputs = ["tf", "i1"] }
+[blocks.plant]
+type = "state-space"
+A = [[0, 1], [-3, -4]]
+B = [[0], [1]]
+C = [[10, 0]]
+outputs = ["y"]
+states = ["x", "v"]
+input = "s2"
+[time]
+stop = 1
+"""
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "lin.toml"
+        path.write_text(text)
+        d = load_experiment(path).cases[0].problem.diagram
+    A, B, C, D = d.matrices()
+    n, m = len(d.states), len(d.inputs)
+    one = np.eye(n)
+    assert np.array_equal(A, np.column_stack([d._dynamics(0.0, one[j], np.zeros(m)) for j in range(n)]))
+    assert np.array_equal(C, np.column_stack([d._output(0.0, one[j], np.zeros(m)) for j in range(n)]))
+    assert np.array_equal(B, np.column_stack([d._dynamics(0.0, np.zeros(n), np.eye(m)[j]) for j in range(m)]))
+    assert np.array_equal(D, np.column_stack([d._output(0.0, np.zeros(n), np.eye(m)[j]) for j in range(m)]))
+    assert A.shape == (5, 5) and np.any(A != 0) and np.any(B != 0)
+
+
+def test_a_long_diagram_chain_builds_its_matrices_exactly():
+    """600 integrators in a chain (more than two chunks of 256): A is the shift matrix."""
+    import tempfile
+
+    from odelab.experiment.loader import load_experiment
+
+    n = 600
+    blocks = ['src = { type = "step", time = 0 }'] + [
+        f'i{i} = {{ type = "integrator", input = "{"src" if i == 0 else f"i{i - 1}"}" }}' for i in range(n)]
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "chain.toml"
+        path.write_text('[system]\nkind = "diagram"\noutputs = { y = "i599" }\n[blocks]\n' + "\n".join(blocks)
+                        + '\n[time]\nstop = 1\n[reference]\nmethod = "none"\n')
+        d = load_experiment(path).cases[0].problem.diagram
+    A, B, C, D = d.matrices()
+    assert np.array_equal(A, np.eye(n, k=-1)) and B[0, 0] == 1 and B[1:].sum() == 0
+    assert C[0, n - 1] == 1 and C.sum() == 1 and D.sum() == 0
+
+
+def test_matlab_matrix_split_is_the_same_on_long_rows():
+    from odelab.expressions.matlab import split_matrix
+
+    assert split_matrix("[0 1; -k/m -b/m]") == [["0", "1"], ["-k/m", "-b/m"]]
+    assert split_matrix("[a - b, c -d e * f]") == [["a - b", "c", "-d", "e * f"]]
+    row = " ".join(["-1"] * 20000)
+    assert split_matrix(f"[{row}]") == [["-1"] * 20000]
+    assert split_matrix("[" + " * ".join(["x"] * 20000) + "]") == [[" * ".join(["x"] * 20000)]]
+
+
+def test_unparsable_mathtext_is_drawn_as_plain_text():
+    from odelab.report.plots import drawable
+
+    assert drawable("x (m)") == "x (m)" and drawable("y ($m/s^2$)") == "y ($m/s^2$)"
+    assert drawable("y ($\\hspace$)") == "y (\\$\\hspace\\$)"
+    assert drawable("$5/kg") == "$5/kg"  # one $: matplotlib draws it as text already
