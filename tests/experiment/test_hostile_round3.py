@@ -173,3 +173,55 @@ def test_unparsable_mathtext_is_drawn_as_plain_text():
     assert drawable("x (m)") == "x (m)" and drawable("y ($m/s^2$)") == "y ($m/s^2$)"
     assert drawable("y ($\\hspace$)") == "y (\\$\\hspace\\$)"
     assert drawable("$5/kg") == "$5/kg"  # one $: matplotlib draws it as text already
+
+
+@pytest.fixture(scope="module")
+def stored(tmp_path_factory):
+    """The bouncing ball and Figure 1 (a diagram), run once and stored."""
+    runs = tmp_path_factory.mktemp("stored") / "runs"
+    result = run("run", ROOT / "experiments" / "bouncing_ball.toml", ROOT / "experiments" / "figure1.toml",
+                 "--runs", runs)
+    assert result.exit_code == 0, result.output
+    return runs
+
+
+EDITS = [
+    ("bouncing_ball", ["events", 0, "state", "h"], "abc", "`events[0].state.h` must be a number; got 'abc'"),
+    ("bouncing_ball", ["events", 0, "t"], 1e308, "`events[0].t` is 1e+308, outside the run's time span [0, 10]"),
+    ("bouncing_ball", ["events", 0, "exact_t"], -1e300, "`events[0].exact_t` must be a finite time"),
+    ("bouncing_ball", ["events", 0, "reset", "v"], [1], "`events[0].reset.v` must be a number"),
+    ("bouncing_ball", ["events", 0, "occurrence"], "zero", "`events[0].occurrence` must be a whole number"),
+    ("figure1", ["extra", "diagram", "dot"], 5, "`extra.diagram.dot` must be str; got int"),
+    ("figure1", ["extra", "diagram", "A"], [["x"]], "`extra.diagram.A[0][0]` must be a number; got 'x'"),
+    ("figure1", ["extra", "diagram", "A"], [[1.0]], "`extra.diagram.A` is not 2 x 2 (states x states)"),
+    ("figure1", ["extra", "diagram", "states"], "x", "`extra.diagram.states` must be a list; got str"),
+]
+
+
+@pytest.mark.parametrize("experiment, path, value, message", EDITS, ids=[".".join(map(str, e[1])) for e in EDITS])
+def test_a_hand_edited_result_json_is_skipped_with_the_reason(stored, tmp_path, experiment, path, value, message):
+    import shutil
+
+    from odelab.report.collect import collect_runs
+
+    runs = tmp_path / "runs"
+    shutil.copytree(stored, runs)
+    folder = next((runs / experiment).iterdir())
+    record = json.loads((folder / "result.json").read_text())
+    node = record
+    for part in path[:-1]:
+        node = node[part]
+    node[path[-1]] = value
+    (folder / "result.json").write_text(json.dumps(record))
+    groups, warnings = collect_runs(runs)
+    assert [w for w in warnings if message in w and str(folder) in w], warnings
+    kept = {(g.name, r.case) for g in groups for r in g.runs}
+    other = "figure1" if experiment == "bouncing_ball" else "bouncing_ball"
+    assert (experiment, folder.name) not in kept and any(name == other for name, _ in kept)
+
+
+def test_the_stored_runs_odelab_writes_pass_the_checks(stored):
+    from odelab.report.collect import collect_runs
+
+    groups, warnings = collect_runs(stored)
+    assert not warnings and sum(len(g.runs) for g in groups) == 4

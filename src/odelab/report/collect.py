@@ -210,6 +210,7 @@ def parse_record(record: dict[str, Any]) -> StoredRun:
     for key, value in (("versions", versions), ("config", config), ("extra", extra)):
         if not isinstance(value, dict):
             raise ValueError(f"`{key}` must be a table")
+    check_extra(extra)
     status = _str(record, "status", required=True)
     return StoredRun(
         experiment=_str(record, "experiment", required=True),
@@ -237,29 +238,124 @@ def parse_record(record: dict[str, Any]) -> StoredRun:
         extra=extra,
         trajectory=trajectory,
         folder=Path(str(record.get("folder", ""))),
-        events=parse_events(record.get("events")),
+        events=parse_events(record.get("events"), (float(trajectory["t"][0]), float(trajectory["t"][-1]))
+                            if trajectory["t"].size else None),
         stats=dict(stats),
     )
 
 
-def parse_events(raw) -> tuple[dict, ...]:
-    """Check result.json's ``events``: a list of tables with a name, a time and a state."""
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def parse_events(raw, span: tuple[float, float] | None = None) -> tuple[dict, ...]:
+    """Check result.json's ``events``: a list of tables with a name, a time and a state.
+
+    Every state and reset value is a number, and the event and exact times are finite and (with
+    ``span``, the trajectory's first and last time) inside the run: a hand-edited
+    ``"h": "abc"`` or ``"t": 1e308`` is a record odelab did not write, skipped with the reason."""
     if raw is None:
         return ()
     if not isinstance(raw, list):
         raise ValueError("`events` must be a list")
+    lo, hi = (min(span), max(span)) if span else (-math.inf, math.inf)
+    slack = 1e-9 * max(1.0, abs(lo), abs(hi)) if span else 0.0
     out = []
     for i, e in enumerate(raw):
-        if not (isinstance(e, dict) and isinstance(e.get("name"), str) and isinstance(e.get("t"), (int, float))
-                and not isinstance(e.get("t"), bool) and isinstance(e.get("state"), dict)):
+        if not (isinstance(e, dict) and isinstance(e.get("name"), str) and _is_number(e.get("t"))
+                and isinstance(e.get("state"), dict)):
             raise ValueError(f"`events[{i}]` must be a table with a name, a time t and a state")
-        for key in ("exact_t",):
-            if key in e and (isinstance(e[key], bool) or not isinstance(e[key], (int, float))):
-                raise ValueError(f"`events[{i}].{key}` must be a number")
-        if "reset" in e and not isinstance(e["reset"], dict):
-            raise ValueError(f"`events[{i}].reset` must be a table")
+        if not (math.isfinite(e["t"]) and lo - slack <= e["t"] <= hi + slack):
+            raise ValueError(f"`events[{i}].t` is {e['t']!r}, outside the run's time span [{lo:g}, {hi:g}]")
+        if "exact_t" in e and not _is_number(e["exact_t"]):
+            raise ValueError(f"`events[{i}].exact_t` must be a number; got {e['exact_t']!r:.40}")
+        if "exact_t" in e and not (math.isfinite(e["exact_t"])
+                                   and abs(e["exact_t"]) <= 1e6 * max(1.0, abs(lo) if span else 1e300, abs(hi))):
+            raise ValueError(f"`events[{i}].exact_t` must be a finite time near the run's span; got {e['exact_t']!r}")
+        for key in ("index", "occurrence"):
+            if key in e and not (isinstance(e[key], int) and not isinstance(e[key], bool) and 0 <= e[key] < 2**31):
+                raise ValueError(f"`events[{i}].{key}` must be a whole number; got {e[key]!r}")
+        for key in ("state", "reset"):
+            if key not in e:
+                continue
+            if not isinstance(e[key], dict):
+                raise ValueError(f"`events[{i}].{key}` must be a table")
+            bad = next((k for k, v in e[key].items() if not _is_number(v)), None)
+            if bad is not None:
+                raise ValueError(f"`events[{i}].{key}.{bad}` must be a number; got {e[key][bad]!r}")
         out.append(e)
     return tuple(out)
+
+
+# The shapes of what odelab stores under ``extra`` and the report reads: a type, a list of one
+# shape ([shape]), a table of known keys ({key: shape}; other keys are let through), or a table
+# of any keys with one shape ({str: shape}). A record of another shape was not written by odelab.
+_NUM = "number"
+_MAYBE = "number or null"
+_NAMES = [str]
+_MATRIX = [[_NUM]]
+_COMPLEX = {"re": _NUM, "im": _NUM}
+_EXTRA_SHAPES = {
+    "diagram": {"linear": bool, "dot": str, "states": _NAMES, "inputs": _NAMES, "outputs": _NAMES, "A": _MATRIX,
+                "B": _MATRIX, "C": _MATRIX, "D": _MATRIX},
+    "analysis": {
+        "states": _NAMES, "inputs": _NAMES, "outputs": _NAMES, "A": _MATRIX, "B": _MATRIX, "C": _MATRIX,
+        "D": _MATRIX,
+        "operating_point": {"x": {str: _NUM}, "u": {str: _NUM}, "residual": _MAYBE},
+        "transfer_functions": [{"output": str, "input": str, "num": [_NUM], "den": [_NUM], "text": _NAMES,
+                                "dc_gain": _MAYBE}],
+        "poles": [{"re": _NUM, "im": _NUM, "wn": _MAYBE, "zeta": _MAYBE}],
+        "zeros": {str: [_COMPLEX]},
+        "step_info": [{"output": str, "input": str, str: _MAYBE}],
+        "margins": [{"output": str, "input": str, str: _MAYBE}],
+        "bode": {"w": [_NUM], "channels": [{"output": str, "input": str, "magnitude_db": [_MAYBE],
+                                            "phase_deg": [_MAYBE]}]},
+        "loop": {"at": str, "num": [_NUM], "den": [_NUM], "text": _NAMES, "bode": {"w": [_NUM],
+                 "magnitude_db": [_MAYBE], "phase_deg": [_MAYBE]}, str: _MAYBE},
+    },
+}
+
+
+def _check_shape(value, shape, where: str) -> None:
+    if shape == _NUM or shape == _MAYBE:
+        if not (_is_number(value) or (shape == _MAYBE and value is None)):
+            raise ValueError(f"`{where}` must be a number; got {value!r:.40}")
+    elif isinstance(shape, type):
+        if not isinstance(value, shape) or (shape is not bool and isinstance(value, bool)):
+            raise ValueError(f"`{where}` must be {shape.__name__}; got {type(value).__name__}")
+    elif isinstance(shape, list):
+        if not isinstance(value, list):
+            raise ValueError(f"`{where}` must be a list; got {type(value).__name__}")
+        for i, item in enumerate(value):
+            _check_shape(item, shape[0], f"{where}[{i}]")
+    elif isinstance(shape, dict):
+        if not isinstance(value, dict):
+            raise ValueError(f"`{where}` must be a table; got {type(value).__name__}")
+        rest = shape.get(str)
+        for key, item in value.items():
+            if key in shape:
+                _check_shape(item, shape[key], f"{where}.{key}")
+            elif rest is not None:
+                _check_shape(item, rest, f"{where}.{key}")
+
+
+def _check_matrices(d: dict, where: str) -> None:
+    """A, B, C, D of a stored linear model: states x states, states x inputs, outputs x ..."""
+    dims = {"A": ("states", "states"), "B": ("states", "inputs"), "C": ("outputs", "states"),
+            "D": ("outputs", "inputs")}
+    for name, (rows, cols) in dims.items():
+        if name in d and isinstance(d.get(rows), list) and isinstance(d.get(cols), list):
+            M = d[name]
+            if len(M) != len(d[rows]) or any(len(r) != len(d[cols]) for r in M):
+                raise ValueError(f"`{where}.{name}` is not {len(d[rows])} x {len(d[cols])} ({rows} x {cols})")
+
+
+def check_extra(extra: dict) -> None:
+    """``extra["diagram"]`` and ``extra["analysis"]`` of the shape odelab writes (ValueError if not)."""
+    for key, shape in _EXTRA_SHAPES.items():
+        if key in extra:
+            _check_shape(extra[key], shape, f"extra.{key}")
+            _check_matrices(extra[key], f"extra.{key}")
 
 
 
