@@ -101,13 +101,17 @@ def _block_label(name: str, block) -> str:
 import re as _re
 
 _Q = r'"(?:[^"\\\n]|\\.)*"'
-_ATTRS = {"label", "shape", "style", "fillcolor", "width", "fixedsize", "xlabel", "orientation", "margin",
-          "taillabel", "headlabel"}
+_ATTRS = {"label", "shape", "style", "fillcolor", "width", "height", "fixedsize", "xlabel", "orientation", "margin",
+          "taillabel", "headlabel", "dir", "arrowhead", "arrowsize", "fontsize"}
 _PLAIN = _re.compile(r"[A-Za-z0-9.#]{1,40}")
 _ATTR = _re.compile(rf"\s*([a-z]+)=({_Q}|[A-Za-z0-9.#]{{1,40}})\s*")
-_NODE = _re.compile(rf"  ({_Q})(?: -> ({_Q}))?(?: \[(.*)\])?;")
-_FIXED = {"digraph diagram {", "}", "  rankdir=LR; ratio=0.4;", '  node [fontname="Helvetica", fontsize=11];',
-          '  edge [fontname="Helvetica", fontsize=10, arrowsize=0.7];'}
+_NODE = _re.compile(rf"  ({_Q})(?: (?:->|--) ({_Q}))?(?: \[(.*)\])?;")
+# the fixed lines of the two drawings odelab writes: block diagrams (to_dot) and networks
+# (odelab.systems.network.draw.network_dot)
+_HEADERS = ("digraph diagram {", "graph network {")
+_FIXED = {"}", "  rankdir=LR; ratio=0.4;", '  node [fontname="Helvetica", fontsize=11];',
+          '  edge [fontname="Helvetica", fontsize=10, arrowsize=0.7];', "  rankdir=LR; nodesep=0.3; ranksep=1.2;",
+          '  edge [fontname="Helvetica", fontsize=10];'}
 _TITLE = _re.compile(rf"  label={_Q}; labelloc=t;")
 MAX_DOT_CHARS = 2_000_000
 
@@ -141,7 +145,7 @@ def dot_problem(text) -> str | None:
     lines = text.split("\n")
     if lines and lines[-1] == "":
         lines.pop()
-    if not lines or lines[0] != "digraph diagram {" or lines[-1] != "}":
+    if not lines or lines[0] not in _HEADERS or lines[-1] != "}":
         return "it does not start and end as odelab's drawings do"
     for number, line in enumerate(lines[1:-1], start=2):
         if line in _FIXED or _TITLE.fullmatch(line):
