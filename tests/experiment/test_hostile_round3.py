@@ -225,3 +225,28 @@ def test_the_stored_runs_odelab_writes_pass_the_checks(stored):
 
     groups, warnings = collect_runs(stored)
     assert not warnings and sum(len(g.runs) for g in groups) == 4
+
+
+def test_a_large_sweep_is_summarised_and_its_first_cases_shown(tmp_path, monkeypatch):
+    """More stored cases than MAX_SHOWN_CASES: one paragraph over every case (statuses, the range
+    of the errors with the cases where they are, steps) and the first cases in the tables and
+    figures (5,000 cases drew 5,000 panels: 124 s, 7 MB of HTML)."""
+    from odelab.report import content
+    from odelab.report.collect import collect_runs
+
+    (tmp_path / "swept.toml").write_text(SWEPT.replace('method = "none"', 'method = "exact"').replace(
+        "[sweep]", '[exact]\ny = "exp(-k*t)"\n[sweep]\nstore = "all"').replace(
+        "[1, '-2+3', \"-3\", '+4*cos(0)', '@1+0' ]", "[1, 2, 3, 4, 5]"))
+    result = run("run", tmp_path / "swept.toml", "--runs", tmp_path / "runs")
+    assert result.exit_code == 0, result.output
+    monkeypatch.setattr(content, "MAX_SHOWN_CASES", 3)
+    groups, warnings = collect_runs(tmp_path / "runs")
+    assert not warnings and len(groups[0].runs) == 5
+    sections, _ = content.build_sections(groups)
+    section = sections[0]
+    assert [c.run.case for c in section.cases] == ["k=1", "k=2", "k=3"]
+    note = next(n for n in section.notes if "stored cases" in n)
+    assert note.startswith("This experiment has 5 stored cases: 5 succeeded, 0 failed.")
+    errors = sorted((r.errors["y"].headline, r.case) for r in groups[0].runs)
+    assert f"ranges from {errors[0][0]:.3e} ({errors[0][1]}) to {errors[-1][0]:.3e} ({errors[-1][1]})" in note
+    assert "show the first 3 cases; every case is in sweep.csv in" in note

@@ -450,6 +450,40 @@ def _lab_note(groups: dict[str, ExperimentRuns], anchors: dict[str, str]) -> Lab
     return LabNote(entries, missing)
 
 
+#: An experiment with more stored cases than this (a large sweep) is summarised: counts and the
+#: range of its errors over every case, then its first cases in the figures and tables (a report
+#: of 5,000 cases drew 5,000 panels: 124 s and 7 MB of HTML). Every case is in sweep.csv.
+MAX_SHOWN_CASES = 12
+
+
+def _large_summary(group: ExperimentRuns) -> str:
+    """One paragraph over every stored case of a large experiment: statuses, error ranges, where the rest is."""
+    runs = group.runs
+    failed = [r for r in runs if not r.ok]
+    parts = [f"This experiment has {len(runs):,} stored cases: {len(runs) - len(failed):,} succeeded, "
+             f"{len(failed):,} failed" + (f" (first: {', '.join(r.case for r in failed[:3])})" if failed else "") + "."]
+    names = sorted({n for r in runs for n in r.errors})
+    for name in names[:6]:
+        values = [(r.errors[name].headline, r.case) for r in runs if name in r.errors
+                  and r.errors[name].headline is not None]
+        if not values:
+            continue
+        values.sort()
+        median = values[len(values) // 2][0]
+        parts.append(f"The relative error of {name} ranges from {values[0][0]:.3e} ({values[0][1]}) to "
+                     f"{values[-1][0]:.3e} ({values[-1][1]}), median {median:.3e}, over {len(values):,} cases.")
+    steps = [r.nsteps for r in runs if r.nsteps is not None]
+    if steps:
+        parts.append(f"Steps per case: {min(steps):,} to {max(steps):,}.")
+    folder = runs[0].folder.parent if str(runs[0].folder) not in ("", ".") else None
+    if folder is not None and (folder / "sweep.csv").is_file():
+        where = f"sweep.csv in {folder} (one row per case)"
+    else:
+        where = f"the results folder {folder} (one folder per case)" if folder is not None else "the results folder"
+    parts.append(f"The figures and tables below show the first {MAX_SHOWN_CASES} cases; every case is in {where}.")
+    return " ".join(parts)
+
+
 def build_sections(groups: list[ExperimentRuns]) -> tuple[list[Section], list[str]]:
     """The report's sections, one per experiment in the given order, and any warnings."""
     warnings: list[str] = []
@@ -462,6 +496,10 @@ def build_sections(groups: list[ExperimentRuns]) -> tuple[list[Section], list[st
     for group in every:
         runs = group.runs
         anchor = anchors[group.name]
+        summary = None
+        if len(runs) > MAX_SHOWN_CASES:  # a large sweep: summarised, its first cases shown
+            summary = _large_summary(group)
+            runs = runs[:MAX_SHOWN_CASES]
         shown, referenced = plot_quantities(runs)
         units = units_of(runs[0])
         groups = setups(runs)
@@ -484,7 +522,8 @@ def build_sections(groups: list[ExperimentRuns]) -> tuple[list[Section], list[st
             name=group.name, anchor=anchor, title=group.title, description=group.description, source=group.source,
             file_hashes=group.file_hashes, created=sorted({r.created for r in runs if r.created}),
             versions=sorted({", ".join(f"{k} {v}" for k, v in r.versions.items()) for r in runs if r.versions}),
-            notes=list(group.notes), reference_text="; ".join(REFERENCE_TEXT.get(k, k) for k in kinds),
+            notes=list(group.notes) + ([summary] if summary else []),
+            reference_text="; ".join(REFERENCE_TEXT.get(k, k) for k in kinds),
             cases=cases, layout=layout)
         section.solution_figure = solution_figure(anchor, groups, shown, layout, units)
         if not all(r.reference == "linearization" for r in runs):  # else the amplitude study shows the error
