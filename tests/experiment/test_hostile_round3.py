@@ -250,3 +250,28 @@ def test_a_large_sweep_is_summarised_and_its_first_cases_shown(tmp_path, monkeyp
     errors = sorted((r.errors["y"].headline, r.case) for r in groups[0].runs)
     assert f"ranges from {errors[0][0]:.3e} ({errors[0][1]}) to {errors[-1][0]:.3e} ({errors[-1][1]})" in note
     assert "show the first 3 cases; every case is in sweep.csv in" in note
+
+
+def test_the_generated_code_of_a_wide_sum_is_flat():
+    """A sum of 300 inputs was one expression nested 300 deep ("too many nested parentheses"):
+    one statement per term now, in numpy's order, which Python's compiler takes."""
+    import tempfile
+
+    from odelab.experiment.loader import load_experiment
+
+    inputs = ", ".join('"src"' for _ in range(300))
+    text = (f'[system]\nkind = "diagram"\noutputs = {{ y = "x" }}\n[blocks]\nsrc = {{ type = "step", time = 0 }}\n'
+            f's = {{ type = "sum", signs = "{"+" * 300}", inputs = [{inputs}] }}\n'
+            's2 = { type = "saturation", lower = -1, upper = 1, input = "s", zero_crossing = false }\n'
+            'x = { type = "integrator", input = "s2" }\n[time]\nstop = 1\n')
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "wide.toml"
+        path.write_text(text)
+        fast = load_experiment(path).cases[0].problem.compiled
+    body = fast.body
+    assert max(line.count("(") for line in body) < 10
+    namespace: dict = {}
+    exec(compile("def rhs(t, _y, _p, _out, _u0=1.0):\n" + "\n".join(body), "rhs", "exec"), namespace)
+    out = np.zeros(1)
+    namespace["rhs"](0.0, np.zeros(1), np.concatenate([[0.0, 0.0], fast.values]), out)
+    assert out[0] == 1.0  # 300 x 1, saturated at 1

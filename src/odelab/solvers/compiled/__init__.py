@@ -39,6 +39,10 @@ PYTHON_ONLY_OPTIONS = ("events", "nonnegative", "mass", "output_fcn", "args")
 #: (about 0.3 s on the Python path), and takes it if the compile costs less than the rest.
 AUTO_STEPS = 10_000
 
+#: The largest generated right-hand side (CompiledSystem.size) the compiled engine compiles:
+#: numba (LLVM) compile time grows faster than the code; larger systems run on the Python engine.
+MAX_GENERATED_SIZE = 400
+
 #: Seconds a compile costs, measured on a 2-core machine (bench/bench_compiled.py), idle: the
 #: shared adaptive loop (once per machine), the events loop, one system's rhs, and loading a
 #: cached build (numba's import and the cache index).
@@ -143,12 +147,28 @@ class CompiledSystem:
                        terminal=np.array([1.0 if f else 0.0 for f in terminal], dtype=float),
                        direction=np.array(direction, dtype=float).reshape(len(whens)))
 
+    def size(self) -> int:
+        """How much code the generated right-hand side holds: statements of a diagram's body,
+        characters of the equations / 40 (a short equation per line); a linear system's loops
+        do not grow with it."""
+        if self.kind == "body":
+            return len(self.body)
+        if self.kind == "equations":
+            return sum(len(str(text)) for text, _ in self.equations) // 40 + len(self.equations)
+        return 0
+
     def why_not(self) -> str | None:
-        """Why this system cannot run compiled (an input the compiled engine cannot generate), or None."""
+        """Why this system cannot run compiled (an input the compiled engine cannot generate, or
+        generated code too large to compile in reasonable time), or None."""
         from odelab.solvers.compiled.inputs import why_not
 
         if self.unsupported:
             return self.unsupported
+        if self.size() > MAX_GENERATED_SIZE:
+            return (f"its generated right-hand side would hold about {self.size():,} statements, and numba's "
+                    f"compile time grows faster than the code (the compiled engine takes up to "
+                    f"{MAX_GENERATED_SIZE:,}: 900 states took 34 s to compile, 3,000 did not in 4 minutes); the Python "
+                    "engine runs it")
         if len(self.signals) != len(self.inputs):
             return "its inputs have no signals"
         for name, signal in zip(self.inputs, self.signals):

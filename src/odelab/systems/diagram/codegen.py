@@ -65,12 +65,18 @@ def diagram_source(diagram, data: list[float], offset: int) -> list[str]:
     def state(name: str, i: int) -> str:
         return f"_y[{diagram.slices[name].start + i}]"
 
+    def accumulate(first: str, terms) -> str:
+        """``first``, then each ``(op, term)`` applied left to right, one statement per term:
+        the order of numpy's sums, in flat code (a 5,000-input sum written as one nested
+        expression is too deep for Python's compiler)."""
+        acc = var(first)
+        for op, term in terms:
+            lines.append(f"    {acc} = {acc} {op} {term}")
+        return acc
+
     def linear_part(M: np.ndarray, row: int, values: list[str]) -> str:
         """numpy's tensordot of one row: sum_j M[row, j] * values[j], left to right from 0.0."""
-        text = "0.0"
-        for j, v in enumerate(values):
-            text = f"({text} + {number(M[row, j])} * {v})"
-        return text
+        return accumulate("0.0", (("+", f"{number(M[row, j])} * {v}") for j, v in enumerate(values)))
 
     for name in w.order:
         b = w.blocks[name]
@@ -80,15 +86,11 @@ def diagram_source(diagram, data: list[float], offset: int) -> list[str]:
         if isinstance(b, bk.Gain):
             port[(name, 0)] = var(f"{number(b.K)} * {ins[0]}")
         elif isinstance(b, bk.Sum):
-            text = f"{number(b.signs[0])} * {ins[0]}"
-            for s, v in zip(b.signs[1:], ins[1:]):
-                text = f"({text} {'+' if s > 0 else '-'} {v})"
-            port[(name, 0)] = var(text)
+            port[(name, 0)] = accumulate(f"{number(b.signs[0])} * {ins[0]}",
+                                         (("+" if s > 0 else "-", v) for s, v in zip(b.signs[1:], ins[1:])))
         elif isinstance(b, bk.Product):
-            text = ins[0] if b.ops[0] == "*" else f"(1.0 / {ins[0]})"
-            for op, v in zip(b.ops[1:], ins[1:]):
-                text = f"({text} {op} {v})"
-            port[(name, 0)] = var(text)
+            port[(name, 0)] = accumulate(ins[0] if b.ops[0] == "*" else f"(1.0 / {ins[0]})",
+                                         zip(b.ops[1:], ins[1:]))
         elif isinstance(b, bk.Saturation):
             lo, hi = number(b.lo), number(b.hi)
             v = ins[0]
