@@ -62,3 +62,65 @@ def test_odextend_continues_the_solution():
     whole = odelab.ode45(rigid, [0, 12], [0, 1, 1], **RIGID)
     np.testing.assert_allclose(longer(np.linspace(0, 12, 50)), whole(np.linspace(0, 12, 50)), atol=2e-3)
     np.testing.assert_array_equal(longer(5.0), first(5.0))  # dense output joined, not recomputed
+
+
+# --- [y, yp] = deval(sol, t): the slope of the interpolant (MATLAB's deval, second output) -----
+
+SLOPE_METHODS = ["ode23", "ode45", "ode78", "ode89", "ode113", "ode23t", "ode23tb"]  # those with dense output
+
+
+def _rigid_slope(t, y):
+    return np.array([y[1] * y[2], -y[0] * y[2], -0.51 * y[0] * y[1]])
+
+
+def _step_bounds(sol):
+    d = sol.interpolant
+    if hasattr(d, "t_ref"):  # ode113's AdamsDenseOutput (steps end at t_end)
+        return np.asarray(d.t), np.asarray(d.t_end)
+    return np.asarray(d.t), np.asarray(d.t) + np.asarray(d.h)
+
+
+@pytest.mark.parametrize("method", SLOPE_METHODS)
+def test_deval_returns_the_slope_of_the_interpolant(method):
+    import odelab
+
+    sol = odelab.solve(_rigid_slope, [0, 12], [0, 1, 1], method=method, rtol=1e-6, atol=1e-9)
+    starts, ends = _step_bounds(sol)
+    mids = (starts + ends) / 2
+    y, yp = odelab.deval(sol, mids, derivative=True)
+    assert y.shape == yp.shape == (mids.size, 3)
+    np.testing.assert_array_equal(y, odelab.deval(sol, mids))  # the states are deval's own
+    scale = np.abs(yp).max()
+    # the interpolant's derivative, against its central difference inside each step (second
+    # order in delta: delta^2 |y'''| plus eps |y| / delta of round-off)
+    delta = 1e-5 * (ends - starts)
+    plus, minus = odelab.deval(sol, mids + delta), odelab.deval(sol, mids - delta)
+    fd = (plus - minus) / (2 * delta[:, None])
+    roundoff = 16 * np.finfo(float).eps * np.abs(y).max() / delta[:, None]  # tiny first steps
+    assert (np.abs(yp - fd) <= 1e-6 * scale + roundoff).all()
+    # and an approximation of f(t, y(t)) on the interpolant, to about the tolerance's size
+    f = np.array([_rigid_slope(t, row) for t, row in zip(mids, y)])
+    assert np.abs(yp - f).max() <= 1e-3 * scale
+    # a scalar time gives one row of each
+    y1, yp1 = odelab.deval(sol, float(mids[3]), derivative=True)
+    np.testing.assert_array_equal(yp1, yp[3])
+
+
+@pytest.mark.parametrize("method", ["ode23", "ode45", "ode78", "ode89"])
+def test_deval_slope_at_the_start_of_each_step_is_f_there(method):
+    # a Runge-Kutta extension starts with slope K_0 = f(t_n, y_n) (ntrp23/ntrp45, Verner's):
+    # equal to f up to round-off of the stages' size
+    import odelab
+
+    from odelab.solvers.dense import basis_slopes
+
+    sol = odelab.solve(_rigid_slope, [0, 12], [0, 1, 1], method=method, rtol=1e-6, atol=1e-9)
+    d = sol.interpolant
+    starts, _ = _step_bounds(sol)
+    y, yp = odelab.deval(sol, starts, derivative=True)
+    f = np.array([_rigid_slope(t, row) for t, row in zip(starts, y)])
+    # round-off of the slope's terms at s = 0: |D'_j(0)| |K_j| summed (Verner's Chebyshev
+    # coefficients reach 32, their derivatives at -1 k^2 times that)
+    weights = np.abs(d.coefficients) @ np.abs(basis_slopes(0.0, d.coefficients.shape[1], d.basis))[:, 0]
+    terms = np.einsum("j,kjn->kn", weights, np.abs(d.K))
+    assert (np.abs(yp - f) <= 16 * np.finfo(float).eps * (terms + np.abs(f))).all()

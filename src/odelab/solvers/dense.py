@@ -80,7 +80,10 @@ def basis_slopes(s, columns: int, basis: str = "monomial") -> np.ndarray:
     """d/ds of :func:`basis_values`, shape (columns, k)."""
     s = np.atleast_1d(np.asarray(s, dtype=float))
     if basis == "monomial":
-        return np.arange(1, columns + 1)[:, None] * s[None, :] ** np.arange(columns)[:, None]
+        # (m + 1) s^m with s^m as a running product (numpy's ``**`` on arrays may use the CPU's
+        # vectorised pow, whose last bit differs from the C library's)
+        powers = np.cumprod(np.vstack([np.ones((1, s.size)), np.broadcast_to(s, (columns - 1, s.size))]), axis=0)
+        return np.arange(1, columns + 1)[:, None] * powers
     # d/ds T_k(2s - 1) = 2 k U_(k-1)(2s - 1), with U the Chebyshev polynomials of the second kind
     x = 2.0 * s - 1.0
     u = np.empty((columns, s.size))
@@ -274,7 +277,7 @@ def deval(sol, t, derivative: bool = False):
     ----------
     sol : Solution
         A solution of a method with dense output (ode23, ode45, ode78, ode89, ode113, ode23t,
-        ode23tb, ode15s, ode23s, or anything :func:`odelab.solve` ran with them).
+        ode23tb, or anything :func:`odelab.solve` ran with them).
     t : float or sequence of float
         Times inside ``[sol.t[0], sol.t[-1]]``.
     derivative : bool

@@ -189,7 +189,8 @@ def _locate(_ev, p, isterminal, direction, v, t, y, tnew, ynew, h, K, dense, t0,
 @_njit(cache=True, error_model="numpy")
 def _cut_slopes(t, te, h, K, dense, c):
     """odelab.solvers.dense.step_slopes at the nodes of [t, te]: the stages of the shortened step
-    (stage weights sum_m (m+1) x^m dense[k, m], then sum_k weight_k K_k, from index 0 up)."""
+    (stage weights sum_m (m+1) x^m dense[k, m], x^m a running product, then sum_k weight_k K_k,
+    from index 0 up)."""
     s = K.shape[0]
     n = K.shape[1]
     q = dense.shape[1]
@@ -199,8 +200,10 @@ def _cut_slopes(t, te, h, K, dense, c):
         x = ((t + (te - t) * c[i]) - t) / h
         for k in range(s):
             acc = 0.0
+            pw = 1.0
             for m in range(q):
-                acc += ((m + 1) * x ** float(m)) * dense[k, m]
+                acc += ((m + 1) * pw) * dense[k, m]
+                pw *= x
             weight[k] = acc
         for j in range(n):
             acc = 0.0
