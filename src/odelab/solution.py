@@ -101,14 +101,15 @@ class Solution:
     interpolant: Any = field(default=None, repr=False)
     setup: Any = field(default=None, repr=False)
 
-    def deval(self, t) -> np.ndarray:
+    def deval(self, t, derivative: bool = False):
         """The solution at ``t`` (a time or a sequence) from the method's interpolant (MATLAB's ``deval``).
 
-        Returns shape (n,) for one time, (k, n) for k times. See :func:`odelab.deval`.
+        Returns shape (n,) for one time, (k, n) for k times; with ``derivative=True`` the pair
+        ``(y, yp)``, MATLAB's ``[y, yp] = deval(sol, t)``. See :func:`odelab.deval`.
         """
         from odelab.solvers.dense import deval
 
-        return deval(self, t)
+        return deval(self, t, derivative=derivative)
 
     def __call__(self, t) -> np.ndarray:
         """``sol(t)`` is ``sol.deval(t)``."""
