@@ -172,7 +172,7 @@ def test_the_parity_documents_van_der_pol_counts_are_what_ode15s_gives():
     text = (Path(__file__).resolve().parents[2] / "docs" / "MATLAB-PARITY.md").read_text(encoding="utf-8")
     section = text[text.index("**ode15s**"):text.index("**ode23s**")]
     stated = {tuple(map(int, m)) for m in re.findall(
-        r"(\d+) steps, (\d+) failed\s+attempts, (\d+) evaluations, (\d+) Jacobians", section)}
+        r"(\d+) steps, (\d+) failed\s+attempts(?:\s*\([^)]*\))?,\s+(\d+) evaluations,\s+(\d+) Jacobians", section)}
     assert stated
     s = odelab.ode15s(lambda t, y: [y[1], 1000 * (1 - y[0] ** 2) * y[1] - y[0]], [0, 3000], [2, 0]).stats
     assert (s.nsteps, s.nfailed, s.nfevals, s.npds) in stated
