@@ -300,7 +300,7 @@ def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, st
                         err.print(f"[bold red]error:[/] {_escape(message)} (case {_escape(repr(case.name))})")
                         continue
                     results.append(result)
-                    any_failed |= result.status != "success" or result.extra.get("fit", {}).get("status") == "failed"
+                    any_failed |= result.unexpected_failure or result.extra.get("fit", {}).get("status") == "failed"
             except (KeyboardInterrupt, _Terminated) as exc:
                 if store:  # what finished: this experiment's cases so far, and any a pool finished out of order
                     done[0] += _store_interrupted(loaded, exp, results, getattr(exc, "finished", ()), runs, mat,

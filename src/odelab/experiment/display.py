@@ -68,7 +68,8 @@ def print_experiment(console: Console, exp, results, *, table: bool = False) -> 
     rows = []
     for r in results:
         s = r.stats
-        status = Text("ok", style="green") if r.status == "success" else Text("FAILED", style="bold red")
+        status = (Text("ok", style="green") if r.status == "success" else
+                  Text("stopped, as expected", style="yellow") if r.expected_stop else Text("FAILED", style="bold red"))
         method = r.method if r.backend == "python" else f"{r.method} ({r.backend})"
         head = [visible(r.case.name), method, str(r.t.size), str(s.nsteps),
                 "-" if s.nfailed is None else str(s.nfailed), str(s.nfevals)]
@@ -89,7 +90,9 @@ def print_experiment(console: Console, exp, results, *, table: bool = False) -> 
     undefined = []
     for r in results:
         if r.status != "success":
-            console.print(f"[red]{_shown(r.case.name)}: {_shown(r.message, lines=True)}[/]")
+            colour = "yellow" if r.expected_stop else "red"
+            said = " (expected: the file says expect = " + repr(r.case.config["expect"]) + ")" if r.expected_stop else ""
+            console.print(f"[{colour}]{_shown(r.case.name)}: {_shown(r.message, lines=True)}{said}[/]")
         for w in r.warnings:
             if w.startswith(UNDEFINED_NOTE):
                 counts = ", ".join(f"{n} {e.undefined}" for n, e in r.errors.items() if e.undefined)

@@ -41,6 +41,9 @@ NOTES: dict[str, str] = {
     "name": "The experiment's name (default: the file's name without .toml); runs are stored under runs/<name>/.",
     "title": "A one-line title, shown in the terminal and as the report's section heading.",
     "description": "A paragraph for the report, under the title.",
+    "expect": "How the case is expected to end: `max-steps` for a case that shows a solver stopped by its step "
+              "limit on purpose (reported as \"stopped, as expected\", not counted as a failed run), `failure` "
+              "for any failed integration; default `success`.",
     "parameters": "Named numbers or expressions of other parameters (`k = \"m*w^2\"`), usable in every expression "
                   "of the file, as MATLAB workspace variables. A parameter may shadow a constant such as `e`.",
     "parameters.<name>": "A number, or an expression of other parameters.",

@@ -540,6 +540,8 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
         resolved["title"] = model.title
     if model.description:
         resolved["description"] = model.description
+    if model.expect is not None:
+        resolved["expect"] = model.expect
     if params:
         resolved["parameters"] = dict(params)
 

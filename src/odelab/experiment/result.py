@@ -37,6 +37,23 @@ class CaseResult:
     backend: str = "python"  # the engine that ran: "python" or "compiled"
 
     @property
+    def expected_stop(self) -> bool:
+        """The case failed the way its file says it should (``expect = "max-steps"`` or ``"failure"``).
+
+        Such a case is stored as failed (its status is the solver's) but does not make the run fail:
+        it is reported as "stopped, as expected".
+        """
+        expect = self.case.config.get("expect")
+        if self.status == "success" or expect not in ("max-steps", "failure"):
+            return False
+        return expect == "failure" or "after max_steps = " in self.message
+
+    @property
+    def unexpected_failure(self) -> bool:
+        """A failed case that its file did not declare: what makes ``odelab run`` exit 1."""
+        return self.status != "success" and not self.expected_stop
+
+    @property
     def method(self) -> str:
         return self.case.problem.method
 

@@ -111,6 +111,9 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
     if p.fit is not None:  # the experiment's [fit], estimated before its cases ran (experiment/fit.py)
         result.extra["fit"] = p.fit
     _reference(result, max_steps)
+    if status == "success" and case.config.get("expect") in ("max-steps", "failure"):
+        result.warnings.append(f"the file expects this case to stop (expect = {case.config['expect']!r}), but it "
+                               "reached the end of its span: remove `expect` if that is now right.")
     if p.diagram is not None:
         result.extra["diagram"] = diagram_record(p)
     if getattr(p, "network", None) is not None:  # kind = "network": its drawing and derivation

@@ -180,6 +180,9 @@ class Experiment(_Section):
     name: StrictStr | None = None
     title: StrictStr | None = None
     description: StrictStr | None = None
+    # How the case is expected to end: "max-steps" marks a case that shows a solver stopped by
+    # its step limit on purpose (stiff.toml's ode45); "failure" any failed integration.
+    expect: Literal["success", "max-steps", "failure"] | None = None
     parameters: dict[str, Value] = Field(default_factory=dict)
     system: System
     initial: dict[str, Value] = Field(default_factory=dict)

@@ -137,6 +137,8 @@ def summary(result: CaseResult) -> dict[str, Any]:
         "backend": result.backend,
         "status": result.status,
         "message": result.message,
+        **({"expected": result.expected_stop, "expect": result.case.config["expect"]}
+           if result.case.config.get("expect") else {}),
         "points": int(result.t.size),
         "stats": result.stats.as_dict(),
         "reference": result.reference_kind,

@@ -82,6 +82,7 @@ class StoredRun:
     folder: Path
     events: tuple[dict, ...] = ()  # located events (result.json "events"), see report/events.py
     stats: dict[str, Any] = field(default_factory=dict)  # as stored, with the stiff solvers' npds, ndecomps...
+    expected: bool = False  # failed the way its file said it would (expect = "max-steps"): not a real failure
 
     @property
     def ok(self) -> bool:
@@ -241,6 +242,7 @@ def parse_record(record: dict[str, Any]) -> StoredRun:
         events=parse_events(record.get("events"), (float(trajectory["t"][0]), float(trajectory["t"][-1]))
                             if trajectory["t"].size else None),
         stats=dict(stats),
+        expected=record.get("expected") is True and status != "success",
     )
 
 
