@@ -47,7 +47,7 @@ FUNCTION_VALUES = [
 def test_the_language_lists():
     assert " ".join(FUNCTIONS) == (
         "sin cos tan asin acos atan atan2 sinh cosh tanh exp log log10 sqrt abs sign min max "
-        "floor ceil heaviside step where")  # fmt: skip
+        "floor ceil heaviside step where mod rem square sawtooth")  # fmt: skip
     assert dict(CONSTANTS) == {"pi": math.pi, "e": math.e}
     assert RESERVED == set(FUNCTIONS) | {"pi", "e", "t"}
 
@@ -207,7 +207,8 @@ HOSTILE = [  # (text, part of the message, column of the caret)
     ("t > 1 && x", "`&&` is not supported", 6),
     ("x \u2212 1", "character `\u2212` (U+2212) is not allowed; expressions are ASCII; write `-`", 2),
     ("x\x00", "control character U+0000", 1), ("   ", "empty expression", 0),
-    ("x +", "syntax error: invalid syntax", 3), ("sin(x", "syntax error: '(' was never closed", 3),
+    ("x +", "syntax error: an operator or an operand is missing or out of place here", 3),
+    ("sin(x", "syntax error: a bracket is opened here and never closed: add the closing bracket", 3),
     ("x^2 +* 3", "syntax error", 5),  # the column is mapped back through `^` -> `**`
     ("  x^2^3", "chained powers", 3), ("x\n+ y^2 $", "syntax error", 8),
     ("omgea", "unknown name `omgea`; did you mean `omega`? Known names: t, x, v, omega, pi, e", 0),
@@ -231,7 +232,8 @@ def test_errors_carry_key_and_source():
         parse_expression("x^", key="system.equations.x", source="lab.toml")
     err = info.value
     assert (err.key, err.source, err.expression, err.column) == ("system.equations.x", "lab.toml", "x^", 2)
-    assert str(err) == "lab.toml: `system.equations.x`: syntax error: invalid syntax\n    x^\n      ^"
+    assert str(err) == ("lab.toml: `system.equations.x`: syntax error: an operator or an operand is missing or out of "
+                        "place here\n    x^\n      ^")
 
 
 def test_huge_and_deep_expressions_are_rejected_cleanly():

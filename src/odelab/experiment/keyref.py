@@ -610,3 +610,74 @@ def unknown_keys(data: dict, prefix: str = "") -> list[str]:
         if isinstance(value, dict) and (entry.children or typed) and not path.startswith("sweep"):
             out += unknown_keys(value, path)
     return out
+
+
+# Names a MATLAB or Simulink user writes by habit that odelab spells or handles differently:
+# the unknown-key message adds what to write instead.
+MATLAB_NOTES: dict[str, str] = {
+    "stats": "The step statistics are always printed and stored (steps, failed attempts, function "
+             "evaluations, and the stiff solvers' Jacobians, LU decompositions and solves): remove `Stats`.",
+    "outputfcn": "An OutputFcn is Python code, which an experiment file cannot hold: every output is stored in "
+                 "trajectory.csv; in Python, odelab.ode45(..., OutputFcn=f) takes one.",
+    "events": "Write each event as an [events.<name>] table with `when`, `direction` and `terminal`.",
+    "jacobian": "An analytic Jacobian goes under [system] as `jacobian = [[...]]`; by default odelab derives the "
+                "exact one from the equations.",
+    "jpattern": "The exact Jacobian of an equation system is derived, so no sparsity pattern is needed.",
+    "duty": "Simulink's Pulse Generator gives the pulse width as a percentage of the period; odelab's `width` is "
+            "the fraction of the period: 50 % is width = 0.5.",
+    "pulsewidth": "Simulink's Pulse Generator gives the pulse width as a percentage of the period; odelab's "
+                  "`width` is the fraction of the period: 50 % is width = 0.5.",
+    "width_percent": "The pulse's `width` is the fraction of the period the pulse is on: 50 % is width = 0.5.",
+    "steptime": "The step's time is `time`.",
+    "amp": "The amplitude is `amplitude`.",
+    "freq": "The frequency is `frequency`, in rad/s.",
+    "tspan": "The span goes in [time]: `start`, `stop` and optionally `output` (\"0:0.1:10\").",
+    "y0": "Initial values go in [initial], one per state name.",
+    "options": "Solver options go straight into [solver] (rtol, atol, or MATLAB's RelTol, AbsTol...).",
+}
+
+
+def keys_at(parent: str, node=None) -> tuple[str, ...]:
+    """The keys a table at ``parent`` takes ("" for the top level), for messages.
+
+    ``node`` is the table as written: a signal's or block's keys depend on its ``type``.
+    """
+    if not parent:
+        return tuple(e.path for e in entries() if "." not in e.path)
+    parts = parent.split(".")
+    kind = node.get("type") if isinstance(node, dict) else None
+    if len(parts) == 2 and parts[0] in ("inputs", "blocks") and isinstance(kind, str):
+        for table in (f"{parts[0]}.{kind}", f"inputs.{kind}", f"blocks.{kind}"):
+            entry = find(table)
+            if entry is not None and entry.children:
+                extra = ("type",) if parts[0] == "inputs" else ("type", "input", "inputs")
+                return (*extra, *entry.children)
+    entry = find(parent)
+    return entry.children if entry is not None else ()
+
+
+def unknown_key_message(key: str, node=None) -> str:
+    """``unknown key `KEY`.`` with the closest valid key, the valid keys, and a note for MATLAB habits."""
+    parent, _, leaf = key.rpartition(".")
+    known = [k for k in keys_at(parent, node) if not k.startswith("<")]
+    spellings = list(known)
+    if parent == "solver":
+        spellings += [m for path, names in _MATLAB.items() for m in names]
+    close = difflib.get_close_matches(leaf, spellings, n=1, cutoff=0.6)
+    if not close:
+        close = [k for k in spellings if k.lower() == leaf.lower().replace("_", "")][:1]
+    text = f"unknown key `{key}`."
+    note = MATLAB_NOTES.get(leaf.lower())
+    if note:
+        text += f" {note}"
+    elif close:
+        text += f" Did you mean `{close[0]}`?"
+    if known:
+        where = f"[{parent}]" if parent else "the top level"
+        kind = node.get("type") if isinstance(node, dict) else None
+        if isinstance(kind, str) and parent.count(".") == 1 and parent.split(".")[0] in ("inputs", "blocks"):
+            where = f"[{parent}] (type {kind!r})"
+        text += f" Known keys in {where}: {', '.join(known)}."
+        if parent == "solver":
+            text += " MATLAB's odeset names (RelTol, AbsTol, MaxStep, InitialStep, Refine, NormControl, ...) work too."
+    return text

@@ -12,7 +12,7 @@ import hashlib
 import math
 import re
 from pathlib import Path
-from typing import Any, get_args, get_origin
+from typing import Any
 
 import numpy as np
 from pydantic import BaseModel, ValidationError
@@ -147,36 +147,17 @@ def _key(loc) -> str:
     return ".".join(parts)
 
 
-def _model_fields_at(loc) -> list[str]:
-    """Field names of the schema model that holds the key at ``loc`` (for did-you-mean)."""
-    model: Any = schema.Experiment
-    for seg in loc[:-1]:
-        if isinstance(seg, int):
-            continue
-        if isinstance(model, type) and issubclass(model, BaseModel):
-            info = model.model_fields.get(seg)
-            if info is None:
-                return []
-            model = _first_model(info.annotation)
+def _node_at(data: Any, loc) -> Any:
+    """The table of ``data`` at ``loc`` (as the file wrote it), or None."""
+    node = data
+    for seg in loc:
+        if isinstance(node, dict) and seg in node:
+            node = node[seg]
+        elif isinstance(node, list) and isinstance(seg, int) and 0 <= seg < len(node):
+            node = node[seg]
         else:
-            model = _first_model(model)
-        if model is None:
-            return []
-    if isinstance(model, type) and issubclass(model, BaseModel):
-        return [info.alias or name for name, info in model.model_fields.items()]  # as the file spells them
-    return []
-
-
-def _first_model(annotation):
-    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-        return annotation
-    for arg in get_args(annotation):
-        found = _first_model(arg)
-        if found is not None:
-            return found
-    if get_origin(annotation) is dict:
-        return _first_model(get_args(annotation)[1])
-    return None
+            return None
+    return node
 
 
 def _describe(value) -> str:
@@ -211,13 +192,9 @@ def schema_error(exc: ValidationError, *, source: str, case: str | None, data: A
         kinds = {e["type"] for e in errs}
         err = errs[0]
         if "extra_forbidden" in kinds:
-            known = _model_fields_at(err["loc"])
-            leaf = str(err["loc"][-1])
-            close = difflib.get_close_matches(leaf, known, n=1, cutoff=0.6)
-            where = key.rsplit(".", 1)[0] if "." in key else "the top level"
-            hint = f" Did you mean `{close[0]}`?" if close else ""
-            allowed = f" Known keys in {'[' + where + ']' if '.' in key else where}: {', '.join(known)}." if known else ""
-            lines.append(f"unknown key `{key}`.{hint}{allowed}")
+            from odelab.experiment.keyref import unknown_key_message
+
+            lines.append(unknown_key_message(key, _node_at(data, err["loc"][:-1])))
         elif "missing" in kinds:
             hint = _REQUIRED_HINT.get(key) or _REQUIRED_HINT.get(key.rsplit(".", 1)[-1], "")
             lines.append(f"`{key}` is required" + (f": {hint}." if hint else "."))

@@ -311,9 +311,37 @@ def _parse_tree(reader: _Reader) -> ast.Expression:
         hint = syntax_hint(reader.text, reader.key)
         if hint is not None:  # a MATLAB habit: say what to write instead of Python's message
             raise reader.error(hint, column=0) from None
-        raise reader.error(f"syntax error: {exc.msg}", offset) from None
+        raise reader.error(f"syntax error: {_plain_syntax(exc.msg, reader.text)}", offset) from None
     except (RecursionError, MemoryError):
         raise reader.error(_too_deep_message(), column=0) from None
+
+
+# Python's parser messages, in the expression language's words (no Python term reaches a user).
+_SYNTAX_WORDS = (
+    ("was never closed", "a bracket is opened here and never closed: add the closing bracket"),
+    ("unmatched", "a closing bracket with no opening one"),
+    ("does not match opening parenthesis", "the brackets do not match: each ( needs a ), each [ a ]"),
+    ("invalid decimal literal", "a number runs into a name: write `2*x`, not `2x`"),
+    ("leading zeros", "a number cannot start with 0 (write 7, not 007)"),
+    ("forgot a comma", "two values stand side by side: put an operator between them (`a*b`, not `a b`)"),
+    ("invalid character", "this character is not part of the expression language (use + - * / ^ and ASCII names)"),
+    ("unexpected EOF", "the expression ends too early: an operand is missing at the end"),
+    ("invalid syntax", "an operator or an operand is missing or out of place here"),
+)
+
+
+def _plain_syntax(message: str, text: str) -> str:
+    """What Python's ``SyntaxError`` message means, said without Python's words."""
+    if "string literal" in message or "unterminated" in message:
+        if "'" in text:
+            return ("a quote or prime (') is not part of the expression language: a derivative is the equation's "
+                    "left-hand side (under [system.equations], `y = \"...\"` is dy/dt), and the transpose of a "
+                    "matrix is written out")
+        return "text in quotes is not allowed inside an expression"
+    for fragment, words in _SYNTAX_WORDS:
+        if fragment in message:
+            return words
+    return "this is not a valid expression"
 
 
 def _too_deep_message() -> str:
@@ -401,10 +429,9 @@ def _check_call(reader: _Reader, node: ast.Call) -> list[ast.AST]:
         )
     arity, got = _ARITY[name], len(node.args)
     if isinstance(arity, tuple):
-        if got < arity[0]:
-            raise reader.error(
-                f"`{name}` takes {arity[0]} or more arguments; got {got}", func.col_offset
-            )
+        if got < arity[0] or (arity[1] is not None and got > arity[1]):
+            takes = f"{arity[0]} or more" if arity[1] is None else f"{arity[0]} or {arity[1]}"
+            raise reader.error(f"`{name}` takes {takes} arguments; got {got}", func.col_offset)
     elif got != arity:
         plural = "argument" if arity == 1 else "arguments"
         what = " (condition, value if true, value if false)" if name == "where" else ""
