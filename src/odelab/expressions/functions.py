@@ -47,6 +47,36 @@ def _where(condition, a, b):
     return np.where(condition, a, b)
 
 
+def _mod(a, m):
+    """MATLAB's ``mod``: a - floor(a/m) m, with the sign of m; ``mod(a, 0)`` is a."""
+    m = np.asarray(m, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(m == 0, a, np.mod(a, np.where(m == 0, 1.0, m)))
+
+
+def _rem(a, b):
+    """MATLAB's ``rem``: a - fix(a/b) b, with the sign of a; ``rem(a, 0)`` is NaN (C's fmod, exact)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.fmod(np.asarray(a, dtype=float), np.asarray(b, dtype=float))
+
+
+def _square(t, duty=50.0):
+    """MATLAB's ``square``: period 2 pi, +1 for the first ``duty`` percent of each period, else -1."""
+    phase = np.mod(t, 2.0 * math.pi)
+    return np.where(phase < 2.0 * math.pi * np.asarray(duty, dtype=float) / 100.0, 1.0, -1.0)
+
+
+def _sawtooth(t, width=1.0):
+    """MATLAB's ``sawtooth``: period 2 pi, rising from -1 to 1 over the first ``width`` of each
+    period and falling back to -1 over the rest (``width = 0.5`` is a triangle wave)."""
+    w = np.asarray(width, dtype=float)
+    phase = np.mod(t, 2.0 * math.pi)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rising = phase / (math.pi * w) - 1.0
+        falling = 1.0 - (phase - 2.0 * math.pi * w) / (math.pi * (1.0 - w))
+    return np.where((phase < 2.0 * math.pi * w) | (w >= 1.0), rising, falling)
+
+
 #: The functions an expression may call, by name (the real-valued implementations).
 FUNCTIONS: Mapping[str, Callable[..., Any]] = MappingProxyType(
     {
@@ -73,6 +103,10 @@ FUNCTIONS: Mapping[str, Callable[..., Any]] = MappingProxyType(
         "heaviside": _heaviside,
         "step": _step,
         "where": _where,
+        "mod": _mod,
+        "rem": _rem,
+        "square": _square,
+        "sawtooth": _sawtooth,
     }
 )
 
@@ -84,7 +118,7 @@ RESERVED: frozenset[str] = frozenset(FUNCTIONS) | frozenset(CONSTANTS) | {"t"}
 
 # number of arguments: exact, or (minimum, None) for variadic functions
 _ARITY: dict[str, int | tuple[int, None]] = {name: 1 for name in FUNCTIONS}
-_ARITY.update(atan2=2, where=3, min=(2, None), max=(2, None))
+_ARITY.update(atan2=2, where=3, min=(2, None), max=(2, None), mod=2, rem=2, square=(1, 2), sawtooth=(1, 2))
 
 _FUNCTION_LIST = ", ".join(FUNCTIONS)
 
@@ -159,6 +193,31 @@ def _complex_pick(better):
     return pick
 
 
+def _complex_mod(a, m, *, fix=False):
+    """mod and rem are a - k m with k = floor(a/m) (fix for rem) constant between jumps."""
+    ar, mr = np.real(a), np.real(m)
+    value = _rem(ar, mr) if fix else _mod(ar, mr)
+    ai, mi = np.imag(a), np.imag(m)
+    if not (np.any(ai) or np.any(mi)):
+        return value
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k = np.trunc(ar / mr) if fix else np.floor(ar / mr)
+    slope_m = np.where(mi == 0, 0.0, -k * mi)
+    return value + 1j * (ai + slope_m)
+
+
+def _complex_sawtooth(t, width=1.0):
+    tr, ti = np.real(t), np.imag(t)
+    w = np.real(width)
+    value = _sawtooth(tr, w)
+    if not np.any(ti):
+        return value
+    phase = np.mod(tr, 2.0 * math.pi)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slope = np.where((phase < 2.0 * math.pi * w) | (w >= 1.0), 1.0 / (math.pi * w), -1.0 / (math.pi * (1.0 - w)))
+    return value + 1j * np.where(ti == 0, 0.0, slope * ti)
+
+
 def _complex_where(condition, a, b):
     return np.where(np.real(condition), a, b)
 
@@ -188,6 +247,10 @@ _COMPLEX_FUNCTIONS: dict[str, Callable[..., Any]] = {
     "heaviside": _on_real_part(_heaviside),
     "step": _on_real_part(_step),
     "where": _complex_where,
+    "mod": _complex_mod,
+    "rem": lambda a, b: _complex_mod(a, b, fix=True),
+    "square": _on_real_part(_square),
+    "sawtooth": _complex_sawtooth,
 }
 assert _COMPLEX_FUNCTIONS.keys() == FUNCTIONS.keys()
 

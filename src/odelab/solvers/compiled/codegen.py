@@ -28,7 +28,8 @@ _NUMPY = {
     "atan2": "arctan2", "sinh": "sinh", "cosh": "cosh", "tanh": "tanh", "exp": "exp", "log": "log",
     "log10": "log10", "sqrt": "sqrt", "abs": "abs", "sign": "sign", "floor": "floor", "ceil": "ceil",
 }
-_HELPERS = {"heaviside": "_heaviside", "step": "_step", "where": "_where", "min": "_min", "max": "_max"}
+_HELPERS = {"heaviside": "_heaviside", "step": "_step", "where": "_where", "min": "_min", "max": "_max",
+            "mod": "_mod", "rem": "_rem", "square": "_square", "sawtooth": "_sawtooth"}
 assert set(_NUMPY) | set(_HELPERS) == set(FUNCTIONS)
 
 PRELUDE = '''\
@@ -70,6 +71,29 @@ def _max(a, b):
     if a != a or b != b:
         return a + b
     return a if a >= b else b
+
+
+@_njit(cache=True, error_model="numpy", inline="always")
+def _mod(a, m):
+    return a if m == 0.0 else _np.mod(a, m)
+
+
+@_njit(cache=True, error_model="numpy", inline="always")
+def _rem(a, b):
+    return _np.fmod(a, b)
+
+
+@_njit(cache=True, error_model="numpy", inline="always")
+def _square(t, duty=50.0):
+    return 1.0 if _np.mod(t, 2.0 * _np.pi) < 2.0 * _np.pi * duty / 100.0 else -1.0
+
+
+@_njit(cache=True, error_model="numpy", inline="always")
+def _sawtooth(t, width=1.0):
+    phase = _np.mod(t, 2.0 * _np.pi)
+    if phase < 2.0 * _np.pi * width or width >= 1.0:
+        return phase / (_np.pi * width) - 1.0
+    return 1.0 - (phase - 2.0 * _np.pi * width) / (_np.pi * (1.0 - width))
 '''
 
 
