@@ -535,7 +535,11 @@ def validate(
         from odelab.terminal import shown
 
         cases = [c for exp in exps for c in exp.cases]
-        names = ", ".join(c.name for c in cases[:20]) + (f", ... ({len(cases) - 20} more)" if len(cases) > 20 else "")
+        # names of a sweep hold ", " themselves ("h=0.05, method=rk4"): quote each, join with "; "
+        sep = "; " if any(", " in c.name for c in cases) else ", "
+        quote = (lambda n: f'"{n}"') if sep == "; " else (lambda n: n)
+        names = sep.join(quote(c.name) for c in cases[:20]) + (f"{sep}... ({len(cases) - 20} more)"
+                                                               if len(cases) > 20 else "")
         out.print(f"ok: {_escape(str(file))} ({len(cases)} case{'s' if len(cases) != 1 else ''}: "
                   f"{shown(names)})")
     raise typer.Exit(EXIT_INPUT if bad else EXIT_OK)

@@ -52,3 +52,15 @@ def test_a_prime_is_explained_without_pythons_words(tmp_path):
     text = message(tmp_path, '[system]\nstates = ["y"]\n[system.equations]\ny = "y\'"\n[time]\nstop = 1\n')
     assert "a quote or prime (') is not part of the expression language" in text
     assert "string literal" not in text and "detected at line" not in text
+
+
+def test_validate_quotes_sweep_case_names_that_hold_commas():
+    from pathlib import Path
+
+    from typer.testing import CliRunner
+
+    from odelab.cli import app
+
+    path = Path(__file__).resolve().parents[2] / "experiments" / "convergence.toml"
+    out = CliRunner().invoke(app, ["validate", str(path)]).output
+    assert '"method=euler, h=0.1"; "method=euler, h=0.05"; ' in out

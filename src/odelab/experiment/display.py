@@ -79,6 +79,12 @@ def print_experiment(console: Console, exp, results, *, table: bool = False) -> 
             cells = head if i == 0 else [""] * len(head)
             extra = [pointwise_text(e)] if peak else []
             rows.append([*cells, visible(name), fmt(e.max_abs), headline_text(e), *extra, status if i == 0 else ""])
+    marked = False
+    if peak and not fits(console, columns, rows):  # narrow terminal: "of peak" becomes a mark
+        marked = True
+        at = [name for name, _ in columns].index("rel error")
+        rows = [[*row[:at], row[at].replace(" of peak", " *") if isinstance(row[at], str) else row[at],
+                 *row[at + 1:]] for row in rows]
     print_grid(console, columns, rows, wrap=("pointwise max |f - y| / |f|",))
     kinds = {r.reference_kind for r in results if r.errors}
     if kinds:
@@ -86,7 +92,9 @@ def print_experiment(console: Console, exp, results, *, table: bool = False) -> 
                  "exact": "the exact solution in \\[exact]", "lti": "the exact LTI response (matrix exponential)",
                  "high-accuracy": "a high-accuracy solve", "data": "the measurements in \\[data] (at their times)"}
         console.print("[dim]errors against " + "; ".join(names.get(k, k) for k in sorted(kinds)) + ". "
-                      + (HEADLINE_NOTE if peak else POINTWISE_NOTE) + "[/]")
+                      + (HEADLINE_NOTE.replace("marked 'of peak'", "marked * (of peak)").replace(
+                             "beside it", "listed after the table") if marked else
+                         HEADLINE_NOTE if peak else POINTWISE_NOTE) + "[/]")
     undefined = []
     for r in results:
         if r.status != "success":
@@ -122,6 +130,15 @@ def print_experiment(console: Console, exp, results, *, table: bool = False) -> 
             print_linearization(console, r.case.name, r.extra["linearization"])
         if table and r.errors:
             print_point_table(console, r)
+
+
+def fits(console: Console, columns, rows) -> bool:
+    """Whether the table's cells, each on one line, fit the console's width as they are."""
+    widths = [cell_len(name) for name, _ in columns]
+    for row in rows:
+        for i, cell in enumerate(row):
+            widths[i] = max(widths[i], cell_len(cell.plain if isinstance(cell, Text) else str(cell)))
+    return sum(widths) + 2 * (len(widths) - 1) <= console.width
 
 
 def print_grid(console: Console, columns, rows, *, wrap=()) -> None:
@@ -164,12 +181,81 @@ def print_grid(console: Console, columns, rows, *, wrap=()) -> None:
         return
     from rich.table import Table
 
+    # Too wide for the terminal. Text columns (left-aligned: case, method, quantity, status) keep
+    # their cells whole, so an ode45 row never reads "ode…"; numeric columns give way instead:
+    # their headers break at spaces or shorten ("fevals" to "fev"), their cells wrap at spaces
+    # ("2.728e-05 of peak" on two lines). The free-text columns in ``wrap`` wrap too, or, if even
+    # that leaves no room, follow the table as lines of their own.
+    def words(text: str) -> int:
+        return max((cell_len(w) for w in _camel(text).split()), default=1)
+
+    def layout(short: bool):
+        titles = [_SHORT.get(name, name) if short else name for name, _ in columns]
+        widths = []
+        for i, (name, justify) in enumerate(columns):
+            plain = [row[i].plain for row in cells if i < len(row)]
+            whole = max((cell_len(p) for p in plain), default=1)
+            cell = whole if justify != "right" else max((words(p) for p in plain), default=1)
+            widths.append(max(cell, words(titles[i]) if justify == "right" else cell_len(titles[i])))
+        return titles, widths
+
+    keep = [i for i, (name, _) in enumerate(columns) if name not in wrap]
+    for short in (False, True):
+        titles, widths = layout(short)
+        fixed = sum(widths[i] for i in keep) + 2 * (len(keep) - 1)
+        if fixed + 14 * (len(columns) - len(keep)) <= console.width:
+            break
+    below = [i for i in range(len(columns)) if i not in keep] if fixed + 14 * (len(columns) - len(keep)) > console.width \
+        else []
+    shown = [i for i in range(len(columns)) if i not in below]
     table = Table(show_edge=False, pad_edge=False, header_style="bold", box=None)
-    for name, justify in columns:
-        table.add_column(Text(name), justify=justify, no_wrap=name not in wrap)
+    for i in shown:
+        name, justify = columns[i]
+        if name in wrap:
+            table.add_column(Text(titles[i]), justify=justify, overflow="fold", min_width=12)
+        elif justify == "right":
+            table.add_column(Text(_break_header(titles[i], widths[i])), justify=justify, min_width=widths[i],
+                             max_width=max(widths[i], max((cell_len(r[i].plain) for r in cells if i < len(r)),
+                                                          default=1)))
+        else:
+            table.add_column(Text(titles[i]), justify=justify, no_wrap=True, min_width=widths[i])
     for row in cells:
-        table.add_row(*row)
+        table.add_row(*(row[i] for i in shown if i < len(row)))
     console.print(table)
+    labels = [i for i in keep if columns[i][1] == "left" and i < min(below, default=0)]
+    for i in below:
+        current: list[str] = [""] * len(labels)
+        lines = []
+        for row in cells:
+            current = [row[j].plain or current[k] for k, j in enumerate(labels)]
+            if i < len(row) and row[i].plain.strip():
+                lines.append(f"{' '.join(c for c in current if c)}: {row[i].plain}")
+        if lines:
+            console.print(Text(f"{columns[i][0]}:", style="bold"))
+            for line in lines:
+                console.print(Text("  " + line))
+
+
+# Numeric columns' titles when a table must fit a narrow terminal.
+_SHORT = {"points": "pts", "failed": "fail", "fevals": "fev", "evaluations": "evals", "quantity": "qty"}
+
+
+def _camel(name: str) -> str:
+    """MATLAB's CamelCase titles with a space where a line may break (SettlingTime: Settling Time)."""
+    import re
+
+    return re.sub(r"(?<=[a-z])(?=[A-Z])", " ", name)
+
+
+def _break_header(name: str, width: int) -> str:
+    """A column title broken at spaces (and CamelCase joints) into lines of at most ``width`` characters."""
+    lines: list[str] = []
+    for word in (_camel(name) if cell_len(name) > width else name).split():
+        if lines and cell_len(lines[-1]) + 1 + cell_len(word) <= width:
+            lines[-1] += " " + word
+        else:
+            lines.append(word)
+    return "\n".join(lines)
 
 
 def print_point_table(console: Console, r) -> None:
@@ -229,14 +315,10 @@ def print_analysis(console: Console, case: str | None, info: dict) -> None:
                               + ", ".join(f"{z['re']:.4g}{z['im']:+.4g}j" if z["im"] else f"{z['re']:.4g}"
                                           for z in zs))
     if "step_info" in info:
-        t = Table(show_edge=False, box=None, header_style="bold", pad_edge=False)
         cols = ("RiseTime", "SettlingTime", "Overshoot", "Undershoot", "Peak", "PeakTime", "SteadyStateValue")
-        t.add_column("step", justify="left")
-        for c in cols:
-            t.add_column(c, justify="right")
-        for s in info["step_info"]:
-            t.add_row(f"{_shown(s['input'])} -> {_shown(s['output'])}", *(_num(s[c]) for c in cols))
-        console.print(t)
+        print_grid(console, [("step", "left"), *((c, "right") for c in cols)],
+                   [[f"{_shown(s['input'])} -> {_shown(s['output'])}", *(_num(s[c]) for c in cols)]
+                    for s in info["step_info"]])
     loop = info.get("loop")
     if loop:
         num, den = loop["text"]
