@@ -548,7 +548,8 @@ def validate(
 @app.command(cls=_Command)
 def new(
     file: Annotated[Path, typer.Argument(help="The experiment file to write.", show_default=False, metavar="FILE")],
-    kind: Annotated[str, typer.Option("--kind", help="ode, state-space or python.", metavar="KIND")] = "ode",
+    kind: Annotated[str, typer.Option("--kind", help="ode, state-space, diagram, python, sweep or study (every "
+                                      "starter in odelab/templates).", metavar="KIND")] = "ode",
     force: Annotated[bool, typer.Option("--force", help="Overwrite an existing file.")] = False,
 ) -> None:
     """Write a commented starter experiment file."""

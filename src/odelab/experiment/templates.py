@@ -7,11 +7,19 @@ from pathlib import Path
 
 __all__ = ["KINDS", "write_template"]
 
-KINDS = ("ode", "state-space", "python")
+def _folder():
+    return resources.files("odelab").joinpath("templates")
+
+
+# One starter per file in odelab/templates/: a new kind of starter is one new file. The system
+# kinds first, in the order a course meets them, then the rest alphabetically.
+_ORDER = ("ode", "state-space", "diagram", "network", "python", "sweep", "study")
+KINDS = tuple(sorted((p.name[:-5] for p in _folder().iterdir() if p.name.endswith(".toml")),
+                     key=lambda k: (_ORDER.index(k) if k in _ORDER else len(_ORDER), k)))
 
 
 def _read(name: str) -> str:
-    return resources.files("odelab").joinpath("templates", name).read_text(encoding="utf-8")
+    return _folder().joinpath(name).read_text(encoding="utf-8")
 
 
 def write_template(file: Path, kind: str, *, force: bool = False) -> list[Path]:
