@@ -219,6 +219,10 @@ def error_figure(stem: str, groups: list[SetUp], names: list[str], layout: str,
             panels.append(Panel(f"error, {case_label(r)}", t_label, ylabel, tuple(lines), yscale="log", note=note,
                                 legend_outside=True))
     else:
+        # One panel per set-up and quantity, in the solution figure's order, also for a set-up
+        # with no reference (an empty panel that says so): with_error_row puts panel g under
+        # set-up g, and a skipped one would put another case's errors under this one.
+        drawn = False
         for g in groups:
             for name in names:
                 lines, label = [], POINTWISE_LABEL
@@ -227,10 +231,14 @@ def error_figure(stem: str, groups: list[SetUp], names: list[str], layout: str,
                     if values is not None and r.t.size:
                         style, role = _member_style(g, r, kind)
                         lines.append(_line(r.t, values, case_label(r, g.prefix), style, zorder=2 + i))
-                if lines:
-                    title = _title(g.label) if g.label else f"error of {name}"
-                    panels.append(Panel(title, t_label, f"{name}: {label}", tuple(lines), yscale="log", note=note,
-                                        legend=len(groups) == 1))
+                drawn = drawn or bool(lines)
+                title = _title(g.label) if g.label else f"error of {name}"
+                empty = not any(name in r.errors for r in g.runs)
+                panels.append(Panel(title, t_label, f"{name}: {label}", tuple(lines), yscale="log",
+                                    note="no reference for this set-up: no error to show" if empty else note,
+                                    legend=len(groups) == 1))
+        if not drawn:
+            panels = []
     if not panels:
         return None
     columns = 1 if len(panels) == 1 else min(len(panels), 3)

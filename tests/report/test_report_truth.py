@@ -1,0 +1,60 @@
+"""The report states only what is true of the data: each error panel sits under its own
+set-up's response (checked from the figure's own data), a case with no reference shows no
+error, and so on."""
+
+from __future__ import annotations
+
+from odelab.report.collect import collect_runs
+from odelab.report.content import build_sections
+
+from .conftest import odelab_run
+
+# Two set-ups of one diagram that differ in input and span; the second has no reference.
+TWO_SETUPS = """title = "A saturating PI loop, two set-ups"
+[parameters]
+Kp = 2
+[system]
+kind = "diagram"
+outputs = { y = "plant" }
+[blocks]
+ref   = { type = "step", time = 0, final = 1 }
+err   = { type = "sum", signs = "+-", inputs = ["ref", "plant"] }
+act   = { type = "gain", gain = "Kp", input = "err" }
+plant = { type = "transfer-fcn", num = [1], den = [1, 1], input = "act" }
+[time]
+stop = 10
+[solver]
+method = "ode45"
+
+[[case]]
+name = "linear"
+
+[[case]]
+name = "saturating"
+time.stop = 0.56
+blocks.ref = { type = "step", time = 0, final = 3 }
+reference.method = "none"
+"""
+
+
+def test_each_error_panel_is_its_own_set_ups(tmp_path):
+    path = tmp_path / "two_setups.toml"
+    path.write_text(TWO_SETUPS)
+    runs = tmp_path / "runs"
+    assert odelab_run([path], runs).exit_code == 0
+    groups, _ = collect_runs(runs)
+    (section,) = build_sections(groups)[0]
+    spec = section.solution_figure
+    columns = spec.columns
+    assert columns == 2
+    panels = spec.panels
+    response, error = panels[:columns], panels[columns:2 * columns]
+    assert all(p.yscale == "log" for p in error) and all(p.yscale != "log" for p in response)
+    for top, bottom in zip(response, error):
+        top_end = max(float(line.x.max()) for line in top.lines)
+        if bottom.lines:  # the error under a response covers that response's span, not another's
+            assert max(float(line.x.max()) for line in bottom.lines) == top_end
+    spans = [max(float(line.x.max()) for line in p.lines) for p in response]
+    saturating = spans.index(0.56)
+    assert error[saturating].lines == () and "no reference" in error[saturating].note
+    assert error[1 - saturating].lines and max(float(line.y.max()) for line in error[1 - saturating].lines) > 0
