@@ -58,3 +58,41 @@ def test_each_error_panel_is_its_own_set_ups(tmp_path):
     saturating = spans.index(0.56)
     assert error[saturating].lines == () and "no reference" in error[saturating].note
     assert error[1 - saturating].lines and max(float(line.y.max()) for line in error[1 - saturating].lines) > 0
+
+
+PENDULUM = """title = "A pendulum, not stiff"
+[system]
+states = ["theta", "w"]
+[system.equations]
+theta = "w"
+w = "-sin(theta)"
+[initial]
+theta = 0.5
+w = 0
+[time]
+stop = 5
+[reference]
+method = "none"
+[[case]]
+name = "ode45"
+solver.method = "ode45"
+[[case]]
+name = "ode15s"
+solver.method = "ode15s"
+"""
+
+
+def test_a_non_stiff_problem_gets_no_claim_of_stiffness(tmp_path):
+    path = tmp_path / "pendulum.toml"
+    path.write_text(PENDULUM)
+    runs = tmp_path / "runs"
+    assert odelab_run([path], runs).exit_code == 0
+    groups, _ = collect_runs(runs)
+    (section,) = build_sections(groups)[0]
+    view = section.stiffness
+    steps = {row["method"]: row["nsteps"] for row in view.rows}
+    assert steps["ode45"] < steps["ode15s"]  # the data: the explicit method is the cheaper one
+    assert not view.stiff and view.title == "Explicit and stiff solvers on this problem"
+    assert "This problem is not stiff" in view.summary and f"ode45 {steps['ode45']}" in view.summary
+    text = view.summary + (view.figure.caption if view.figure else "")
+    assert "orders of magnitude" not in text and "stability limit" not in text
