@@ -96,3 +96,25 @@ def test_a_non_stiff_problem_gets_no_claim_of_stiffness(tmp_path):
     assert "This problem is not stiff" in view.summary and f"ode45 {steps['ode45']}" in view.summary
     text = view.summary + (view.figure.caption if view.figure else "")
     assert "orders of magnitude" not in text and "stability limit" not in text
+
+
+def test_an_overshoot_of_a_response_still_moving_is_marked(tmp_path):
+    from pathlib import Path
+
+    from odelab.report.studies import study_sections
+
+    text = (Path(__file__).resolve().parents[2] / "experiments" / "damping.toml").read_text()
+    text = text.replace("stop = 40 ", "stop = 6 ").replace('{ from = 0.5, to = 8, count = 16 }', "[0.5, 4]")
+    path = tmp_path / "damping.toml"
+    path.write_text(text)
+    runs = tmp_path / "runs"
+    assert odelab_run([path], runs).exit_code == 0
+    import json
+
+    record = json.loads((runs / "damping" / "sweep.json").read_text())
+    metrics = {r["case"]: r["metrics"]["y"] for r in record["rows"]}
+    assert metrics["b=0.5"]["settled"] is False and metrics["b=4"]["settled"] is True
+    (section,), _ = study_sections([record], set())
+    rows = {row[0]: row for row in section.rows}
+    assert rows["b=0.5"][4].endswith(" *") and not rows["b=4"][4].endswith("*")
+    assert any(note.startswith("* not settled by the end of the span (b=0.5)") for note in section.notes)

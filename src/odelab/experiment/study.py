@@ -127,8 +127,21 @@ def _metrics(result) -> dict[str, dict[str, float]]:
         else:
             overshoot = 100.0 * (final - float(np.min(v))) / -rise
         out[name] = {"final": final, "max": peak, "min": float(np.min(v)), "t_max": float(result.t[int(np.argmax(v))]),
-                     "overshoot_percent": overshoot}
+                     "overshoot_percent": overshoot, "settled": _settled(result.t, v, rise)}
     return out
+
+
+# A response counts as settled when it stays within 2 % of the change (stepinfo's band) of its
+# last value over the last tenth of the span: then "overshoot beyond the final value" means what
+# stepinfo means; otherwise the last value is not yet the steady state and the report says so.
+SETTLED_BAND = 0.02
+
+
+def _settled(t: np.ndarray, v: np.ndarray, rise: float) -> bool:
+    if t.size < 2 or not rise:
+        return True
+    tail = v[t >= t[-1] - 0.1 * (t[-1] - t[0])]
+    return bool(np.max(np.abs(tail - v[-1])) <= SETTLED_BAND * abs(rise))
 
 
 def is_quadrature(problem) -> bool:

@@ -172,12 +172,25 @@ def _parameter_sweep(record: dict, section: StudySection) -> None:
                        "every case's numbers are in sweep.csv next to sweep.json.")
     section.header = ["case", "status", "steps", "fevals"] + ([f"{quantity} {label}" for _, label in _METRICS]
                                                                if quantity else [])
+    unsettled = []
+    for r in rows:
+        m = (r.get("metrics") or {}).get(quantity, {}) if quantity else {}
+        if m.get("settled") is False:
+            unsettled.append(r["case"])
     for r in rows[:60]:
         m = (r.get("metrics") or {}).get(quantity, {}) if quantity else {}
-        section.rows.append([r["case"], r["status"], _g(r.get("nsteps"), 8), _g(r.get("nfevals"), 8)]
-                            + [_g(m.get(k)) for k, _ in _METRICS][:len(section.header) - 4])
+        cells = [_g(m.get(k)) for k, _ in _METRICS][:len(section.header) - 4]
+        if cells and m.get("settled") is False:
+            cells[0] += " *"  # the overshoot is measured against a value that is still moving
+        section.rows.append([r["case"], r["status"], _g(r.get("nsteps"), 8), _g(r.get("nfevals"), 8)] + cells)
     if len(rows) > 60:
         section.notes.append(f"the table shows the first 60 of {len(rows)} cases")
+    if unsettled:
+        shown = ", ".join(unsettled[:5]) + (f" and {len(unsettled) - 5} more" if len(unsettled) > 5 else "")
+        section.notes.append(f"* not settled by the end of the span ({shown}): over its last tenth the response still "
+                             f"moves by more than 2 % of the change, so its overshoot is measured against a value "
+                             "that is not yet the steady state (stepinfo's, from the DC gain, can differ): "
+                             "lengthen [time] stop")
     if not numeric or quantity is None:
         return
     x_key = numeric[0]
