@@ -118,3 +118,59 @@ def test_an_overshoot_of_a_response_still_moving_is_marked(tmp_path):
     rows = {row[0]: row for row in section.rows}
     assert rows["b=0.5"][4].endswith(" *") and not rows["b=4"][4].endswith("*")
     assert any(note.startswith("* not settled by the end of the span (b=0.5)") for note in section.notes)
+
+
+ROBERTSON = """title = "Robertson's kinetics"
+[system]
+states = ["y1", "y2", "y3"]
+[system.equations]
+y1 = "-0.04*y1 + 1e4*y2*y3"
+y2 = "0.04*y1 - 1e4*y2*y3 - 3e7*y2^2"
+y3 = "3e7*y2^2"
+[initial]
+y1 = 1
+y2 = 0
+y3 = 0
+[time]
+stop = 4e10
+[solver]
+method = "ode15s"
+rtol = 1e-4
+atol = 1e-10
+[reference]
+method = "none"
+{plot}
+"""
+
+
+def _section(tmp_path, text, name="robertson"):
+    path = tmp_path / f"{name}.toml"
+    path.write_text(text)
+    runs = tmp_path / "runs"
+    result = odelab_run([path], runs)
+    assert result.exit_code == 0, result.output
+    groups, _ = collect_runs(runs)
+    return build_sections(groups)[0][0]
+
+
+def test_a_process_over_many_decades_gets_a_log_time_axis_and_scaled_quantities(tmp_path):
+    section = _section(tmp_path, ROBERTSON.format(plot="[plot]\nscale = { y2 = 1e4 }"))
+    (panel,) = section.solution_figure.panels
+    assert panel.xscale == "log" and "time axis is logarithmic" in section.solution_figure.caption
+    y2 = next(line for line in panel.lines if line.label.startswith("10^4 y2"))
+    assert 0.3 < float(max(y2.y)) < 0.4  # y2 peaks at 3.65e-5 (Hairer & Wanner)
+    (tmp_path / "linear").mkdir()
+    linear = _section(tmp_path / "linear", ROBERTSON.format(plot='[plot]\nt_scale = "linear"'))
+    assert linear.solution_figure.panels[0].xscale == "linear"
+
+
+def test_a_case_cut_short_says_where_it_stopped(tmp_path):
+    text = ('[parameters]\nmu = 1000\n[system]\nstates = ["x", "v"]\n[system.equations]\nx = "v"\n'
+            'v = "mu*(1 - x^2)*v - x"\n[initial]\nx = 2\nv = 0\n[time]\nstop = 3000\n[reference]\nmethod = "none"\n'
+            '[[case]]\nname = "ode45"\nsolver.method = "ode45"\nsolver.max_steps = 300\nexpect = "max-steps"\n'
+            '[[case]]\nname = "ode15s"\nsolver.method = "ode15s"\n')
+    section = _section(tmp_path, text, "vdp")
+    labels = [line.label for p in section.solution_figure.panels for line in p.lines]
+    stopped = [label for label in labels if "stopped at t = " in label]
+    assert stopped and all(label.startswith("ode45") for label in stopped)
+    assert section.solution_figure.panels[0].xscale == "linear"  # van der Pol moves over the whole span

@@ -165,6 +165,13 @@ NOTES: dict[str, str] = {
                 "parameters; odelab derives the state equations (docs/networks.md).",
     "elements.<name>": "One element: `type`, `nodes = [a, b]` (or `node = a`), `nodes2` for a coupling, and the "
                        "type's parameters (numbers or expressions of [parameters]).",
+    "plot": "How the report draws the solution: the time axis's scale and display multipliers per quantity.",
+    "plot.t_scale": "The time axis: `log` (a process over many decades, such as Robertson's kinetics over "
+                    "[0, 4e10]), `linear`, or `auto` (log when most output times lie in the first thousandth of the "
+                    "span).",
+    "plot.scale": "Display multipliers, e.g. `{ y2 = 1e4 }` draws 10^4 y2 (labelled so), for a quantity far "
+                  "smaller than the others; the stored values are not changed.",
+    "plot.scale.<name>": "The factor the report multiplies the quantity by.",
     "units": "A unit per time, state, input, output or parameter, shown on the report's axes (`x = \"m\"`).",
     "units.<name>": "The unit of <name>, as text (\"m/s\"), shown as \"x (m)\".",
     "events": "Zero-crossing events (MATLAB's Events), one table per event, and `max_events`.",

@@ -519,6 +519,8 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
         resolved["description"] = model.description
     if model.expect is not None:
         resolved["expect"] = model.expect
+    if model.plot is not None:
+        resolved["plot"] = _plain(model.plot.model_dump(exclude_none=True))
     if params:
         resolved["parameters"] = dict(params)
 

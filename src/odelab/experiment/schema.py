@@ -174,6 +174,13 @@ class Fit(_Section):
     max_solves: StrictInt = 500
 
 
+class Plot(_Section):
+    """[plot]: how the report draws the solution (never what is computed)."""
+
+    t_scale: Literal["auto", "linear", "log"] = "auto"  # auto: log when the output times span many decades
+    scale: dict[str, Number] | None = None  # display multipliers per quantity: y2 = 1e4 draws 10^4 y2
+
+
 class Experiment(_Section):
     """A whole experiment file, or one case after merging it over the base."""
 
@@ -195,6 +202,7 @@ class Experiment(_Section):
     analysis: Analysis | None = None
     blocks: dict[str, dict[str, Any]] | None = None  # kind = "diagram"; checked by experiment/diagram.py
     elements: dict[str, dict[str, Any]] | None = None  # kind = "network"; checked by systems/network
+    plot: Plot | None = None
     units: dict[str, StrictStr] | None = None  # [units]: x = "m", f = "N", t = "s": axis labels
     events: dict[str, Any] | None = None  # checked and compiled by experiment/events.py
     data: Data | None = None  # [data]: measurements, the reference of every case (experiment/data.py)

@@ -541,6 +541,10 @@ def build_sections(groups: list[ExperimentRuns]) -> tuple[list[Section], list[st
             merged = with_error_row(section.solution_figure, section.error_figure)
             if merged is not None:
                 section.solution_figure, section.error_figure = merged, None
+        from odelab.report.axes import apply_plot_settings
+
+        section.solution_figure = apply_plot_settings(section.solution_figure, runs)
+        section.error_figure = apply_plot_settings(section.error_figure, runs, scaled=False)
         for r in runs:
             for name in referenced:
                 cols = [r.column(c) for c in (name, f"{name}_ref", f"{name}_abs_err", f"{name}_rel_err")]
@@ -552,6 +556,8 @@ def build_sections(groups: list[ExperimentRuns]) -> tuple[list[Section], list[st
         from odelab.report.stiffness import stiffness_view
 
         section.stiffness = stiffness_view(anchor, runs, units)
+        if section.stiffness is not None:
+            section.stiffness.figure = apply_plot_settings(section.stiffness.figure, runs, scaled=False)
         for r in runs:
             lin = r.extra.get("linearization")
             if lin is None:

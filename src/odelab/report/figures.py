@@ -19,6 +19,7 @@ Error figures plot the quantity the headline measures (:data:`odelab.analysis.er
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
@@ -90,6 +91,11 @@ def _solver_lines(group: SetUp, name: str, kind: str, *, points: bool) -> list[L
             continue
         style, role = _member_style(group, r, kind)
         label = f"{role} ({r.method})" if role else case_label(r, group.prefix)
+        if r.status != "success":  # a case cut short says where it stopped, and is drawn on top
+            label += f", stopped at t = {float(r.t[-1]):.4g}"
+            lines.append(_line(r.t, y, f"{label} ({r.t.size} points)" if points else label,
+                               dataclasses.replace(style, linewidth=style.linewidth + 0.8), zorder=REFERENCE_ZORDER + 1))
+            continue
         lines.append(_line(r.t, y, f"{label}, {r.t.size} points" if points else label, style, zorder=2 + i))
     ref = _reference_line(group.runs, name, kind)
     return lines + ([ref] if ref is not None else [])
@@ -323,7 +329,6 @@ def stacked(solution: FigureSpec | None, error: FigureSpec | None, above: int = 
     """
     if solution is None or error is None or solution.columns != 1 or len(solution.panels) < above:
         return None
-    import dataclasses
 
     error_panels = tuple(dataclasses.replace(p, height=0.9) for p in error.panels)
     panels = solution.panels[:above] + error_panels + solution.panels[above:]
@@ -356,7 +361,6 @@ def with_error_row(solution: FigureSpec | None, error: FigureSpec | None) -> Fig
     k, rest = divmod(len(error.panels), columns)  # error panels come set-up by set-up, k quantities each
     if rest or k == 0 or len(solution.panels) < 2 * k * columns:
         return None
-    import dataclasses
 
     panels: tuple = ()
     for j in range(k):  # row j of the solution (quantity j), then its error row
