@@ -9,6 +9,8 @@ schema through :mod:`odelab.experiment.keyref`) and the command-line reference
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import odelab
 
 project = "odelab"
@@ -19,7 +21,7 @@ release = odelab.__version__
 extensions = ["myst_parser", "sphinx.ext.autodoc", "sphinx.ext.napoleon"]
 source_suffix = {".md": "markdown"}
 root_doc = "index"
-exclude_patterns = ["_build", "REPORT-STYLE.md"]
+exclude_patterns = ["_build", "_generated", "REPORT-STYLE.md"]
 myst_enable_extensions = ["deflist"]
 myst_heading_anchors = 3
 # Links from a page to files of the repository (experiments/..., bench/...) are not pages.
@@ -77,15 +79,78 @@ def _more_pages(index: str) -> str:
     here = Path(__file__).parent
     named = set(re.findall(r"^([\w./-]+)$", index, flags=re.M))
     pages = sorted(str(p.relative_to(here).with_suffix("")) for p in here.rglob("*.md")
-                   if "_build" not in p.parts and p.name != "REPORT-STYLE.md")
+                   if "_build" not in p.parts and "_generated" not in p.parts and p.name != "REPORT-STYLE.md")
     extra = [p for p in pages if p not in named and p != "index" and not p.startswith("crosswalk/matlab-habits")]
     if not extra:
         return ""
     return "```{toctree}\n:caption: More\n:maxdepth: 1\n\n" + "\n".join(extra) + "\n```\n"
 
 
+GALLERY = Path(__file__).parent / "_generated" / "gallery"
+
+
+def _build_gallery(app) -> None:
+    """Run every shipped experiment and draw its report's figures, for the gallery page.
+
+    The figures are the report's own (``odelab report``), copied into ``_generated/gallery``
+    (ignored by git) so that the page can show them; a shipped file that fails stops the build.
+    """
+    import shutil
+    import subprocess
+    import sys
+    import tempfile
+
+    root = Path(__file__).parent.parent
+    shutil.rmtree(GALLERY, ignore_errors=True)
+    GALLERY.mkdir(parents=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        runs, report = Path(tmp) / "runs", Path(tmp) / "report"
+        odelab = [sys.executable, "-m", "odelab.cli"]
+        run = subprocess.run([*odelab, "run", str(root / "experiments"), "--runs", str(runs), "--json"],
+                             capture_output=True, text=True, timeout=1200)
+        if run.returncode != 0:
+            raise RuntimeError(f"the gallery's `odelab run experiments/` exited {run.returncode}: {run.stderr[-2000:]}")
+        made = subprocess.run([*odelab, "report", "--runs", str(runs), "--out", str(report), "--format", "md"],
+                              capture_output=True, text=True, timeout=1200)
+        if made.returncode != 0:
+            raise RuntimeError(f"the gallery's `odelab report` exited {made.returncode}: {made.stderr[-2000:]}")
+        for png in sorted((report / "figures").glob("*.png")):
+            shutil.copy(png, GALLERY / png.name)
+        (GALLERY / "runs.json").write_text(run.stdout)
+
+
+def _gallery_page() -> str:
+    import json
+
+    root = Path(__file__).parent.parent
+    doc = json.loads((GALLERY / "runs.json").read_text())
+    figures = sorted(p.name for p in GALLERY.glob("*.png"))
+    lines = ["# Gallery", "",
+             "Every experiment file shipped in `experiments/`, run while this page was built, with the figures "
+             "`odelab report` draws for it. Each file is ready to copy: `odelab run experiments/NAME.toml`.", ""]
+    files: dict[str, list[dict]] = {}
+    for exp in doc["experiments"]:
+        files.setdefault(exp["file"], []).append(exp)
+    for file, exps in files.items():
+        path = Path(file)
+        title = exps[0]["title"] or path.stem
+        lines += [f"## {title}", "", f"`experiments/{path.name}`: "
+                  + ", ".join(f"{len(e['cases'])} case{'s' if len(e['cases']) != 1 else ''} ({e['name']})"
+                              for e in exps) + ".", ""]
+        for e in exps:
+            stem = e["name"].replace("_", "-").lower()
+            for name in figures:
+                if name.startswith(f"{e['name']}-") or name.startswith(f"{stem}-"):
+                    lines += [f"![{e['name']}: {name[:-4]}](_generated/gallery/{name})", ""]
+        rel = path.resolve().relative_to(root) if path.resolve().is_relative_to(root) else path
+        lines += ["```{literalinclude} " + f"../{rel}", ":language: toml", "```", ""]
+    return "\n".join(lines)
+
+
 def _generated(app, docname, source):
-    if docname == "index":
+    if docname == "gallery":
+        source[0] = _gallery_page()
+    elif docname == "index":
         source[0] = source[0].replace("<!-- odelab:more-pages", _more_pages(source[0]) + "<!-- odelab:more-pages")
     elif docname == "reference/keys":
         from odelab.experiment.keyref import markdown
@@ -101,5 +166,6 @@ def _plain_bars(app, what, name, obj, options, lines):
 
 
 def setup(app):
+    app.connect("builder-inited", _build_gallery)
     app.connect("source-read", _generated)
     app.connect("autodoc-process-docstring", _plain_bars)

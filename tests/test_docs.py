@@ -42,6 +42,10 @@ def test_the_site_builds_with_warnings_as_errors(tmp_path):
     cli = (tmp_path / "html" / "reference" / "cli.html").read_text()
     assert "solver.rtol" in keys and "RelTol" in keys and "inputs.pulse.width" in keys
     assert "odelab run" in cli and "--max-steps" in cli and "odelab explain" in cli
+    gallery = (tmp_path / "html" / "gallery.html").read_text()
+    for toml in sorted((ROOT / "experiments").glob("*.toml")):  # every shipped file, run during the build
+        assert f"experiments/{toml.name}" in gallery, toml.name
+    assert gallery.count("<img") >= len(list((ROOT / "experiments").glob("*.toml")))
 
 
 def _schema_paths(model, prefix=""):
