@@ -282,7 +282,9 @@ def _figure_legend(fig) -> None:
 
 
 _STYLE = {"font.size": 9, "axes.titlesize": 10, "axes.labelsize": 9, "xtick.labelsize": 8, "ytick.labelsize": 8,
-          "legend.fontsize": 8, "axes.spines.top": False, "axes.spines.right": False}
+          "legend.fontsize": 8, "axes.spines.top": False, "axes.spines.right": False,
+          # ticks such as 0.00025 as 2.5 with a 1e-4 above the axis: long tick labels crowd the margins
+          "axes.formatter.limits": (-3, 5)}
 
 
 def _pyplot():
