@@ -106,7 +106,8 @@ def _build_gallery(app) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         runs, report = Path(tmp) / "runs", Path(tmp) / "report"
         odelab = [sys.executable, "-m", "odelab.cli"]
-        run = subprocess.run([*odelab, "run", str(root / "experiments"), "--runs", str(runs), "--json"],
+        folders = sorted({str(p.parent) for p in (root / "experiments").rglob("*.toml")})  # networks/ too
+        run = subprocess.run([*odelab, "run", *folders, "--runs", str(runs), "--json"],
                              capture_output=True, text=True, timeout=1200)
         if run.returncode != 0:
             raise RuntimeError(f"the gallery's `odelab run experiments/` exited {run.returncode}: {run.stderr[-2000:]}")
@@ -134,7 +135,8 @@ def _gallery_page() -> str:
     for file, exps in files.items():
         path = Path(file)
         title = exps[0]["title"] or path.stem
-        lines += [f"## {title}", "", f"`experiments/{path.name}`: "
+        shown = path.resolve().relative_to(root) if path.resolve().is_relative_to(root) else path
+        lines += [f"## {title}", "", f"`{shown}`: "
                   + ", ".join(f"{len(e['cases'])} case{'s' if len(e['cases']) != 1 else ''} ({e['name']})"
                               for e in exps) + ".", ""]
         for e in exps:

@@ -225,7 +225,7 @@ def test_validate(tmp_path):
     assert result.exit_code == 2 and "Did you mean 'ode45'?" in result.output
 
 
-@pytest.mark.parametrize("kind", ["ode", "state-space", "python", "diagram", "sweep", "study"])
+@pytest.mark.parametrize("kind", ["ode", "state-space", "python", "diagram", "network", "sweep", "study"])
 def test_new_writes_a_starter_that_runs(kind, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     result = invoke("new", "exp.toml", "--kind", kind)
@@ -239,7 +239,7 @@ def test_new_writes_a_starter_that_runs(kind, tmp_path, monkeypatch):
 
 def test_new_rejects_unknown_kind(tmp_path):
     result = invoke("new", tmp_path / "x.toml", "--kind", "pde")
-    assert result.exit_code == 2 and "choose one of ode, state-space, diagram, python, sweep, study" in result.output
+    assert result.exit_code == 2 and "choose one of ode, state-space, diagram, network, python, sweep, study" in result.output
 
 
 def test_solvers_lists_every_method():

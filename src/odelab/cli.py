@@ -548,7 +548,7 @@ def validate(
 @app.command(cls=_Command)
 def new(
     file: Annotated[Path, typer.Argument(help="The experiment file to write.", show_default=False, metavar="FILE")],
-    kind: Annotated[str, typer.Option("--kind", help="ode, state-space, diagram, python, sweep or study (every "
+    kind: Annotated[str, typer.Option("--kind", help="ode, state-space, diagram, network, python, sweep or study (every "
                                       "starter in odelab/templates).", metavar="KIND")] = "ode",
     force: Annotated[bool, typer.Option("--force", help="Overwrite an existing file.")] = False,
 ) -> None:
