@@ -79,3 +79,41 @@ stop = 6
     assert out.exit_code == 0, out.output
     case = json.loads(out.output)["experiments"][0]["cases"][0]
     assert "zero crossings located: r (relay) 4" in case["warnings"]
+
+
+ROOT = __import__("pathlib").Path(__file__).resolve().parents[2]
+
+
+def test_the_shipped_speed_controller_is_c2ds_closed_loop_at_the_samples():
+    import control as ct
+
+    case = load_experiment(ROOT / "experiments" / "speed_control.toml").cases[0]
+    result = run_case(case)
+    assert result.status == "success"
+    p = case.problem.parameters
+    Ts = p["Ts"]
+    plant = ct.tf([p["K"]], [p["J"] * p["L"], p["J"] * p["R"] + p["b"] * p["L"], p["b"] * p["R"] + p["K"] ** 2])
+    z = ct.tf([1, 0], [1], Ts)
+    P, I, D, N = 100, 200, 10, 20
+    C = P + I * Ts / (z - 1) + D * N * (z - 1) / (z - 1 + N * Ts)
+    n = 31
+    expect = np.squeeze(ct.step_response(ct.feedback(C * ct.c2d(plant, Ts, "zoh"), 1), T=np.arange(n) * Ts).outputs)
+    speed = result.series()["speed"]
+    got = np.array([speed[np.flatnonzero(result.t == k * Ts)[-1]] for k in range(n)])
+    np.testing.assert_allclose(got, expect, rtol=0, atol=1e-7)  # the solver's rtol 1e-8 on a peak of 1.3
+    assert any(w.startswith("sample hits: 31") for w in result.warnings)
+
+
+def test_the_shipped_thermostat_switches_at_the_closed_form_times():
+    case = load_experiment(ROOT / "experiments" / "thermostat.toml").cases[0]
+    result = run_case(case)
+    heater = result.series()["heater"]
+    jumps = result.t[1:][np.diff(heater) != 0]
+    tau = 10.0
+    heat, cool = tau * np.log(10.5 / 9.5), tau * np.log(15.5 / 14.5)
+    expect = [tau * np.log(15 / 9.5)]
+    while len(expect) < jumps.size:
+        expect.append(expect[-1] + (cool if len(expect) % 2 else heat))
+    assert jumps.size == 10
+    # located on ode45's interpolant of a solution computed at rtol 1e-6
+    np.testing.assert_allclose(jumps, expect, rtol=0, atol=1e-5)

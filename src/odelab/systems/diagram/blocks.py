@@ -157,6 +157,14 @@ class Block:
         """The text of the block's node in the drawing (lines separated by newlines)."""
         return f"{name}\n{self.describe()}"
 
+    def node(self, name: str) -> tuple[str, str, dict]:
+        """How the drawing shows the block: (label, Graphviz shape, other node attributes)."""
+        return self.label(name), self.SHAPE, {}
+
+    def input_mark(self, i: int) -> str | None:
+        """The mark drawn at the head of the arrow into input ``i`` (a sum's sign), or None."""
+        return None
+
     # -- zero crossings (blocks with ZC = True) ---------------------------------------------------
 
     @property
@@ -231,6 +239,9 @@ class Source(Block):
     def describe(self) -> str:
         return self.label or self.kind
 
+    def node(self, name):
+        return f"{name}\n{self.describe()}", "box", {}
+
     def __repr__(self) -> str:
         return f"Source({self.signal!r})"
 
@@ -241,6 +252,9 @@ class Clock(Block):
     SOURCE = True
     TYPE = "clock"
     DOC = "the simulation time t"
+
+    def node(self, name):
+        return f"{name}\n{self.describe()}", "box", {}
 
     def outputs(self, t, x, u, cplx=False):
         return [np.reshape(np.asarray(t, dtype=float), (1,) + np.shape(t))]
@@ -283,6 +297,11 @@ class Gain(Block):
         text = self.params.get("_text", self.params["gain"])
         return f"gain {text}" if self.K.ndim == 0 else "gain K"
 
+    def node(self, name):
+        k = getattr(self, "texts", {}).get("gain", self.params["gain"])
+        label = f"{k}" if not isinstance(k, list) else "K"
+        return label, "triangle", {"orientation": 270, "margin": 0, "xlabel": name}
+
 
 class Sum(Block):
     """y = ±u1 ± u2 ...: Simulink's Sum with its list of signs (``"+--"``; ``|`` is a spacer)."""
@@ -318,6 +337,12 @@ class Sum(Block):
     def describe(self):
         return "sum " + "".join("+" if s > 0 else "-" for s in self.signs)
 
+    def node(self, name):
+        return "Σ", "circle", {"width": 0.45, "fixedsize": True, "xlabel": name}
+
+    def input_mark(self, i):
+        return "+" if self.signs[i] > 0 else "−"
+
 
 class Product(Block):
     """y = u1 * u2 ... (``ops = "*/"`` divides by the inputs marked /), elementwise."""
@@ -346,6 +371,11 @@ class Product(Block):
 
     def describe(self):
         return "product " + self.ops
+
+    SHAPE = "circle"
+
+    def input_mark(self, i):
+        return "÷" if self.ops[i] == "/" else None
 
 
 class _Limits(Block):
@@ -462,6 +492,9 @@ class Fcn(Block):
 
     def describe(self):
         return f"f(u) = {self.params['expression']}"
+
+    def label(self, name):
+        return f"{name}\n{self.params['expression']}"
 
 
 class Mux(Block):
@@ -698,6 +731,9 @@ class StateSpaceBlock(_Linear):
     def describe(self):
         return "state-space"
 
+    def label(self, name):
+        return f"{name}\nx' = Ax + Bu\ny = Cx + Du"
+
 
 class TransferFcn(_Linear):
     """Simulink's Transfer Fcn: num(s)/den(s), coefficients in descending powers, as MATLAB's
@@ -730,6 +766,11 @@ class TransferFcn(_Linear):
 
     def describe(self):
         return "transfer fcn"
+
+    def label(self, name):
+        num = " ".join(f"{c:g}" for c in self.num)
+        den = " ".join(f"{c:g}" for c in self.den)
+        return f"{name}\n[{num}] / [{den}]"
 
 
 def controller_canonical(num: np.ndarray, den: np.ndarray):
@@ -768,7 +809,10 @@ def block_class(type_name: str) -> type[Block]:
 
 
 # The blocks defined in their own modules join the registry here (after everything they import).
+from odelab.systems.diagram import discrete as _discrete  # noqa: E402
 from odelab.systems.diagram import switching as _switching  # noqa: E402
 
-for _cls in (_switching.Abs, _switching.Sign, _switching.Switch, _switching.Relay, _switching.MinMax):
+for _cls in (_discrete.PID, _switching.Abs, _switching.Sign, _switching.Switch, _switching.Relay, _switching.MinMax,
+             _discrete.ZeroOrderHold, _discrete.UnitDelay, _discrete.DiscreteTransferFcn, _discrete.DiscreteStateSpace,
+             _discrete.DiscretePID):
     register(_cls)

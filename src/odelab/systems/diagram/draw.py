@@ -1,5 +1,9 @@
 """A diagram as Graphviz DOT text (the report lays it out with Graphviz's ``dot``).
 
+Each block says how it is drawn (:meth:`~odelab.systems.diagram.blocks.Block.node`: its label,
+shape and node attributes; :meth:`~odelab.systems.diagram.blocks.Block.input_mark`: the mark at
+an input's arrow head, a sum's sign); this module only lays the nodes and edges out.
+
 Every name and label is escaped for a DOT double-quoted string (backslashes, quotes and line
 breaks), so a block name or a source's expression cannot change the drawing's structure; the
 drawing is rendered to PNG, so nothing from the file reaches the HTML as markup.
@@ -10,11 +14,6 @@ from __future__ import annotations
 from odelab.systems.diagram.graph import Wiring
 
 __all__ = ["to_dot", "dot_string", "dot_problem"]
-
-_SHAPES = {"sum": "circle", "gain": "triangle", "integrator": "box", "saturation": "box", "dead-zone": "box",
-           "product": "circle", "mux": "box", "demux": "box", "fcn": "box", "state-space": "box",
-           "transfer-fcn": "box", "clock": "box"}
-
 
 def dot_string(text: str) -> str:
     """``text`` as a DOT double-quoted string; a newline becomes a centred line break."""
@@ -32,17 +31,9 @@ def to_dot(wiring: Wiring, *, title: str | None = None) -> str:
     if title:
         lines.append(f"  label={dot_string(title)}; labelloc=t;")
     for name, block in wiring.blocks.items():
-        shape = "box" if block.SOURCE and getattr(block, "TYPE", "") != "clock" else _SHAPES.get(block.TYPE, "box")
+        label, shape, extra = block.node(name)
         style = ', style="rounded,filled", fillcolor="#eef3fb"' if block.SOURCE else ""
-        if block.TYPE == "sum":
-            label = "Σ"
-            extra = ', width=0.45, fixedsize=true, xlabel=' + dot_string(name)
-        elif block.TYPE == "gain":
-            extra = ", orientation=270, margin=0, xlabel=" + dot_string(name)
-            label = _block_label(name, block)
-        else:
-            extra = ""
-            label = _block_label(name, block)
+        extra = "".join(f", {k}={dot_string(v) if isinstance(v, str) else str(v).lower()}" for k, v in extra.items())
         lines.append(f"  {dot_string('b:' + name)} [label={dot_string(label)}, shape={shape}{style}{extra}];")
     for name, feeds in wiring.sources.items():
         block = wiring.blocks[name]
@@ -51,10 +42,9 @@ def to_dot(wiring: Wiring, *, title: str | None = None) -> str:
             ports = wiring.blocks[src].ports()
             if len(ports) > 1:
                 attrs.append(f"taillabel={dot_string(ports[port])}")
-            if block.TYPE == "sum":
-                attrs.append(f"headlabel={dot_string('+' if block.signs[i] > 0 else '−')}")
-            if block.TYPE == "product" and block.ops[i] == "/":
-                attrs.append(f"headlabel={dot_string('÷')}")
+            mark = block.input_mark(i)
+            if mark:
+                attrs.append(f"headlabel={dot_string(mark)}")
             attr = f" [{', '.join(attrs)}]" if attrs else ""
             lines.append(f"  {dot_string('b:' + src)} -> {dot_string('b:' + name)}{attr};")
     for out, (src, port) in wiring.outputs.items():
@@ -64,31 +54,6 @@ def to_dot(wiring: Wiring, *, title: str | None = None) -> str:
         lines.append(f"  {dot_string('b:' + src)} -> {dot_string('o:' + out)}{attr};")
     lines.append("}")
     return "\n".join(lines) + "\n"
-
-
-def _block_label(name: str, block) -> str:
-    texts = getattr(block, "texts", {})
-    kind = block.TYPE
-    if block.SOURCE:
-        return f"{name}\n{block.describe()}"
-    if kind == "gain":
-        k = texts.get("gain", block.params["gain"])
-        return f"{k}" if not isinstance(k, list) else "K"
-    if kind == "integrator":
-        return f"{name}\n1/s" + (f"\n[{block.lo:g}, {block.hi:g}]" if block.limited else "")
-    if kind == "transfer-fcn":
-        num = " ".join(f"{c:g}" for c in block.num)
-        den = " ".join(f"{c:g}" for c in block.den)
-        return f"{name}\n[{num}] / [{den}]"
-    if kind == "state-space":
-        return f"{name}\nx' = Ax + Bu\ny = Cx + Du"
-    if kind == "saturation":
-        return f"{name}\nsat [{block.lo:g}, {block.hi:g}]"
-    if kind == "dead-zone":
-        return f"{name}\ndead zone [{block.lo:g}, {block.hi:g}]"
-    if kind == "fcn":
-        return f"{name}\n{block.params['expression']}"
-    return f"{name}\n{block.describe()}"
 
 
 # --- checking DOT text read back from a results folder ---------------------------------------

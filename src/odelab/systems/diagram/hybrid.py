@@ -242,10 +242,8 @@ def simulate_hybrid(diagram, tspan, x0=None, *, method: str = "ode45", zero_cros
                 x = _discrete_hit(diagram, b, x, inputs_at(b, math.inf if forward else b)(b), hit_map[b])
             elif b in hit_map and last:
                 x_after = _discrete_hit(diagram, b, x, u(b), hit_map[b])
-                if dense:
+                if dense or np.any(user == b):
                     add(b, x_after)
-                else:
-                    rows_x[-1] = x_after.reshape(1, -1)
                 x = x_after
             consecutive = 0
         message = message or sol.message
