@@ -100,6 +100,9 @@ def test_the_shipped_cases_left_on_python_are_the_documented_ones():
         # the saturation's zero crossings are located on the Python path (diagrams, d5a4ce6)
         ("feedback_pi", "its block `actuator` (saturation) has zero crossings located by the Python driver "
                         "(zero_crossing = false on it compiles it)"),
+        # issue 21's sampled-data loop and relay: the hybrid driver runs them
+        ("speed_control", "its block `sampler` (zero-order-hold) is discrete (sample time 0.05)"),
+        ("thermostat", "its block `heater` (relay) switches with memory"),  # ", run by the Python driver"
     }
 
 

@@ -134,7 +134,9 @@ class CompiledDiagram:
             b = self.wiring.blocks[name]
             if b.DISCRETE:
                 return f"its block `{name}` ({b.TYPE}) is discrete (sample time {b.sample}), run by the Python driver"
-            if b.STATEFUL_MODE or (self.zero_crossing and b.zero_crossing):
+            if b.STATEFUL_MODE:
+                return f"its block `{name}` ({b.TYPE}) switches with memory, run by the Python driver"
+            if self.zero_crossing and b.zero_crossing:
                 return (f"its block `{name}` ({b.TYPE}) has zero crossings located by the Python driver "
                         "(zero_crossing = false on it compiles it)")
         return None
