@@ -21,7 +21,7 @@ from odelab.systems.diagram.blocks import BLOCKS
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 FENCE = re.compile(r"^```(toml|python)[ \t]*\n(.*?)^```", re.M | re.S)
-PAGES = sorted(p for p in DOCS.rglob("*.md") if "_build" not in p.parts)
+PAGES = sorted(p for p in DOCS.rglob("*.md") if "_build" not in p.parts) + [ROOT / "README.md"]
 
 
 def snippets(lang: str) -> list[tuple[Path, int, str]]:
@@ -86,7 +86,7 @@ def test_the_key_reference_describes_the_keys_a_student_meets_first():
 
 
 @pytest.mark.parametrize(("page", "line", "body"), snippets("toml"),
-                         ids=lambda v: f"{v.relative_to(DOCS)}" if isinstance(v, Path) else str(v))
+                         ids=lambda v: f"{v.relative_to(ROOT)}" if isinstance(v, Path) else str(v))
 def test_every_toml_snippet_parses_and_names_only_known_keys(page, line, body):
     data = tomllib.loads(body)
     if "check" in data or "reference" in data and isinstance(data["reference"], str):
@@ -109,7 +109,7 @@ def test_complete_experiment_snippets_load(tmp_path):
 
 
 @pytest.mark.parametrize("page", sorted({p for p, _, _ in snippets("python")}),
-                         ids=lambda p: str(p.relative_to(DOCS)))
+                         ids=lambda p: str(p.relative_to(ROOT)))
 def test_every_python_snippet_runs(page, tmp_path):
     code = "\n\n".join(body for p, _, body in snippets("python") if p == page)
     env = {**os.environ, "MPLBACKEND": "Agg"}
