@@ -98,3 +98,4 @@ def test_the_report_lists_only_real_failures_in_its_first_box(tmp_path):
     html = (out / "index.html").read_text()
     assert 'id="failed"' not in html
     assert "stopped, as expected" in html
+    assert "ode45 failed:" not in html and "<strong>ode45 stopped, as expected:</strong>" in html
