@@ -50,6 +50,9 @@ __all__ = [
     "Sine",
     "Pulse",
     "Table",
+    "interpolate_1d",
+    "interpolate_2d",
+    "spline_pieces",
     "Function",
     "Sum",
     "Scaled",
@@ -573,18 +576,115 @@ def _quoted_line(line: str, rows_so_far: list) -> str:
                 "columns t, u); check `file`")
     return repr(line if len(line) <= 60 else line[:57] + "...")
 
+# -- table interpolation (the [inputs] table type and the diagrams' lookup-table block) -----------
+
+#: Simulink's interpolation and extrapolation methods of lookup tables, in odelab's spelling
+INTERPOLATIONS = ("linear", "flat", "nearest", "cubic-spline")
+EXTRAPOLATIONS = ("clip", "linear")
+
+
+def spline_pieces(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The coefficients (4, n - 1) of MATLAB's ``spline`` through (x, y) (not-a-knot ends; two
+    points give the line, three the parabola): piece i is sum c[k, i] (t - x[i])**(3 - k)."""
+    from scipy.interpolate import CubicSpline
+
+    return np.asarray(CubicSpline(x, y, bc_type="not-a-knot").c, dtype=float)
+
+
+def _re(v):
+    return v.real if np.iscomplexobj(v) else v
+
+
+def interpolate_1d(v, x: np.ndarray, y: np.ndarray, interpolation: str = "linear", extrapolation: str = "clip",
+                   *, segment=None, spline: np.ndarray | None = None):
+    """Table lookup y(v) through the points (x, y), x increasing, as Simulink's 1-D Lookup Table.
+
+    ``interpolation``: ``"linear"``; ``"flat"`` (the value at the breakpoint at or below v);
+    ``"nearest"`` (the nearest breakpoint's value, half-way goes up); ``"cubic-spline"``
+    (MATLAB's ``spline``, coefficients ``spline`` from :func:`spline_pieces`).
+    ``extrapolation``: ``"clip"`` (the end values) or ``"linear"`` (the end segment's line; a
+    spline's end tangent). ``segment``, if given, is the interval index to use (the number of
+    breakpoints at or below v, or for ``"nearest"`` of midpoints), so a caller can hold it;
+    otherwise it is read off v. v may be complex (complex-step derivatives): the decisions are
+    taken on its real part.
+    """
+    n = x.size
+    r = _re(v)
+    edges = 0.5 * (x[1:] + x[:-1]) if interpolation == "nearest" else x
+    m = np.searchsorted(edges, r, side="right") if segment is None else np.broadcast_to(segment, np.shape(v))
+    zero = 0.0 * v
+    slope = np.diff(y) / np.diff(x)
+    if interpolation == "nearest":
+        out = y[np.clip(m, 0, n - 1)] + zero
+    elif interpolation == "flat":
+        out = y[np.clip(m - 1, 0, n - 1)] + zero
+    elif interpolation == "cubic-spline":
+        c = spline_pieces(x, y) if spline is None else spline
+        j = np.clip(m - 1, 0, n - 2)
+        dx = v - x[j]
+        out = ((c[0, j] * dx + c[1, j]) * dx + c[2, j]) * dx + c[3, j]
+    else:
+        j = np.clip(m - 1, 0, n - 2)
+        out = y[j] + slope[j] * (v - x[j])
+    if segment is not None and interpolation != "nearest":  # the held interval decides, not v
+        below, above = m == 0, m == n
+    else:
+        below, above = r < x[0], r > x[-1]
+    if extrapolation == "clip":
+        out = np.where(below, y[0] + zero, np.where(above, y[-1] + zero, out))
+    elif interpolation == "cubic-spline":
+        c = spline_pieces(x, y) if spline is None else spline
+        h = x[-1] - x[-2]
+        d_end = (3 * c[0, -1] * h + 2 * c[1, -1]) * h + c[2, -1]
+        out = np.where(below, y[0] + c[2, 0] * (v - x[0]), np.where(above, y[-1] + d_end * (v - x[-1]), out))
+    else:
+        out = np.where(below, y[0] + slope[0] * (v - x[0]), np.where(above, y[-1] + slope[-1] * (v - x[-1]), out))
+    return out
+
+
+def interpolate_2d(v1, v2, x1: np.ndarray, x2: np.ndarray, table: np.ndarray, interpolation: str = "linear",
+                   extrapolation: str = "clip"):
+    """2-D table lookup (rows for x1, columns for x2), as Simulink's 2-D Lookup Table:
+    bilinear (``"linear"``), ``"flat"`` or ``"nearest"``; ``"clip"`` or ``"linear"`` outside."""
+    r1, r2 = _re(v1), _re(v2)
+    zero = 0.0 * v1 + 0.0 * v2
+    if interpolation in ("flat", "nearest"):
+        idx = []
+        for r, x in ((r1, x1), (r2, x2)):
+            if interpolation == "nearest":
+                k = np.searchsorted(0.5 * (x[1:] + x[:-1]), r, side="right")
+            else:
+                k = np.searchsorted(x, r, side="right") - 1
+            idx.append(np.clip(k, 0, x.size - 1))
+        return table[idx[0], idx[1]] + zero
+    parts = []
+    for v, r, x in ((v1, r1, x1), (v2, r2, x2)):
+        i = np.clip(np.searchsorted(x, r, side="right") - 1, 0, x.size - 2)
+        if extrapolation == "clip":
+            v = np.where(r < x[0], x[0] + 0.0 * v, np.where(r > x[-1], x[-1] + 0.0 * v, v))
+        parts.append((i, (v - x[i]) / (x[i + 1] - x[i])))
+    (i, a), (j, b) = parts
+    return ((1 - a) * (1 - b) * table[i, j] + a * (1 - b) * table[i + 1, j] + (1 - a) * b * table[i, j + 1]
+            + a * b * table[i + 1, j + 1]) + zero
+
 
 @dataclass(frozen=True, eq=False)
 class Table(Signal):
-    """Linear interpolation of samples (t_i, u_i), held constant outside [t_0, t_last].
+    """Interpolation of samples (t_i, u_i): linear between them and held constant outside
+    [t_0, t_last] by default (Simulink's 1-D Lookup Table / From Workspace).
 
-    ``t`` must be strictly increasing (a jump is a Step added to the table). Simulink's
-    1-D Lookup Table / From Workspace with linear interpolation and no extrapolation.
+    ``interpolation`` is ``"linear"``, ``"flat"`` (each sample held until the next),
+    ``"nearest"`` or ``"cubic-spline"`` (MATLAB's ``spline``); ``extrapolation`` is ``"clip"``
+    (the end values) or ``"linear"`` (the end segments continued), as
+    :func:`interpolate_1d`. ``t`` must be strictly increasing (a jump is a Step added to the
+    table, or ``"flat"``).
     """
 
     t: Any
     values: Any
     label: str = ""
+    interpolation: str = "linear"
+    extrapolation: str = "clip"
 
     def __post_init__(self):
         try:
@@ -626,13 +726,25 @@ class Table(Signal):
                 "with a Step added to the table.",
                 key="Table.t",
             )
+        if self.interpolation not in INTERPOLATIONS:
+            raise InputError(f"`Table.interpolation` is {self.interpolation!r}; use one of "
+                             f"{', '.join(repr(m) for m in INTERPOLATIONS)}.", key="Table.interpolation")
+        if self.extrapolation not in EXTRAPOLATIONS:
+            raise InputError(f"`Table.extrapolation` is {self.extrapolation!r}; use one of "
+                             f"{', '.join(repr(m) for m in EXTRAPOLATIONS)}.", key="Table.extrapolation")
+        if t.size < 2 and (self.interpolation != "linear" or self.extrapolation != "clip"):
+            raise InputError(f"A Table with interpolation {self.interpolation!r} or extrapolation "
+                             f"{self.extrapolation!r} needs at least two samples.", key="Table")
         t.setflags(write=False)
         u.setflags(write=False)
         object.__setattr__(self, "t", t)
         object.__setattr__(self, "values", u)
+        spline = spline_pieces(t, u) if self.interpolation == "cubic-spline" else None
+        object.__setattr__(self, "_spline", spline)
 
     @classmethod
-    def from_csv(cls, path: str | Path, *, label: str | None = None, max_rows: int | None = None) -> Table:
+    def from_csv(cls, path: str | Path, *, label: str | None = None, max_rows: int | None = None,
+                 interpolation: str = "linear", extrapolation: str = "clip") -> Table:
         # (messages quote a line only once the file has shown itself a table: a path pointed at
         # /etc/shadow must not print a line of it)
         """Read two columns (t, u) from a CSV file, with an optional header line.
@@ -686,7 +798,7 @@ class Table(Signal):
         if label is None:
             label = header[1] if header and len(header) == 2 else path.stem
         try:
-            return cls(times, vals, label)
+            return cls(times, vals, label, interpolation, extrapolation)
         except InputError as exc:
             raise exc.located(source=str(path))
 
@@ -697,10 +809,11 @@ class Table(Signal):
             np.array_equal(self.t, other.t)
             and np.array_equal(self.values, other.values)
             and self.label == other.label
+            and (self.interpolation, self.extrapolation) == (other.interpolation, other.extrapolation)
         )
 
     def __hash__(self) -> int:
-        return hash((self.t.tobytes(), self.values.tobytes(), self.label))
+        return hash((self.t.tobytes(), self.values.tobytes(), self.label, self.interpolation, self.extrapolation))
 
     def __repr__(self) -> str:
         label = f", label={self.label!r}" if self.label else ""
@@ -708,32 +821,56 @@ class Table(Signal):
 
     def __call__(self, t: Any) -> float | np.ndarray:
         t = _times(t)
-        return _shaped(t, np.interp(t, self.t, self.values))
+        if self.interpolation == "linear" and self.extrapolation == "clip":
+            return _shaped(t, np.interp(t, self.t, self.values))
+        return _shaped(t, interpolate_1d(t, self.t, self.values, self.interpolation, self.extrapolation,
+                                         spline=self._spline))
 
     def _slopes(self) -> np.ndarray:
         """Slope on (-inf, t_0), each segment, and (t_last, inf): size n + 1."""
         inner = np.diff(self.values) / np.diff(self.t)
+        if self.extrapolation == "linear" and inner.size:
+            return np.concatenate([inner[:1], inner, inner[-1:]])
         return np.concatenate([[0.0], inner, [0.0]])
 
     def breakpoints(self, t0: float, tf: float) -> np.ndarray:
-        slopes = self._slopes()
-        # the slope changes at sample i when the segments on either side differ
-        kinks = self.t[slopes[1:] != slopes[:-1]]
-        return _inside(kinks, t0, tf)
+        t, u = self.t, self.values
+        if self.interpolation == "flat":  # jumps where the held value changes
+            times = t[1:][np.diff(u) != 0]
+            if self.extrapolation == "linear":
+                times = np.concatenate([t[:1], times, t[-1:]])
+        elif self.interpolation == "nearest":
+            times = (0.5 * (t[1:] + t[:-1]))[np.diff(u) != 0]
+            if self.extrapolation == "linear":
+                times = np.concatenate([t[:1], times, t[-1:]])
+        elif self.interpolation == "cubic-spline":
+            times = t  # the third derivative jumps at the knots, the first at the ends (clip)
+        else:
+            slopes = self._slopes()
+            # the slope changes at sample i when the segments on either side differ
+            times = t[slopes[1:] != slopes[:-1]]
+        return _inside(np.unique(times), t0, tf)
 
-    def exact_terms(self) -> ExactForm:
+    def exact_terms(self) -> ExactForm | None:
+        if self.interpolation != "linear":
+            return None  # held, nearest and spline tables are simulated (restarted at their breakpoints)
         t, u, slopes = self.t, self.values, self._slopes()
 
         def generate(lo: float, hi: float) -> tuple[Piece, ...]:
             # only the samples around the window: a long table gives few pieces
             i0 = max(int(np.searchsorted(t, lo, side="right")) - 1, 0)
             i1 = min(int(np.searchsorted(t, hi, side="right")), t.size - 1)
-            pieces = [Piece(-math.inf, float(t[i0]), (Term(float(u[i0])),))]
+            first = (Term(float(u[i0])),) if not slopes[0] else (Term(float(u[0])), Term(float(slopes[0]),
+                                                                                             float(t[0]), 1))
+            pieces = [Piece(-math.inf, float(t[i0]), first if i0 == 0 else (Term(float(u[i0])),))]
             for i in range(i0, i1):
                 terms = (Term(float(u[i])), Term(float(slopes[i + 1]), float(t[i]), 1))
                 pieces.append(Piece(float(t[i]), float(t[i + 1]), terms))
-            # constant after the last sample; when t[i1] > hi this piece lies past the window
-            pieces.append(Piece(float(t[i1]), math.inf, (Term(float(u[i1])),)))
+            # constant (or the last segment continued) after the last sample; when t[i1] > hi
+            # this piece lies past the window
+            last = (Term(float(u[i1])),) if not slopes[-1] or i1 != t.size - 1 else (
+                Term(float(u[i1])), Term(float(slopes[-1]), float(t[i1]), 1))
+            pieces.append(Piece(float(t[i1]), math.inf, last))
             return tuple(pieces)
 
         return ExactForm(generate)

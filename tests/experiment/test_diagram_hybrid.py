@@ -117,3 +117,119 @@ def test_the_shipped_thermostat_switches_at_the_closed_form_times():
     assert jumps.size == 10
     # located on ode45's interpolant of a solution computed at rtol 1e-6
     np.testing.assert_allclose(jumps, expect, rtol=0, atol=1e-5)
+
+
+LOOP = """
+[system]
+kind = "diagram"
+outputs = { y = "y", q = "q" }
+POLICY
+[parameters]
+a = 3
+[blocks]
+u  = { type = "step", time = 0, final = 2 }
+y  = { type = "sum", signs = "+-", inputs = ["u", "ay"] }
+ay = { type = "gain", gain = "a", input = "y" }
+q  = { type = "integrator", input = "y" }
+[time]
+stop = 1
+"""
+
+
+def test_an_algebraic_loop_in_a_file_is_solved_and_named_once_or_refused(tmp_path):
+    path = tmp_path / "loop.toml"
+    path.write_text(LOOP.replace("POLICY", ""))
+    result = run_case(load_experiment(path).cases[0])
+    notes = [w for w in result.warnings if w.startswith("algebraic loop y -> ay -> y solved by Newton")]
+    assert result.status == "success" and len(notes) == 1
+    np.testing.assert_allclose(result.series()["y"], 2 / (1 + 3), rtol=8 * EPS)
+    assert result.reference_kind == "lti" and result.errors["q"].max_abs <= 1e-14
+    path.write_text(LOOP.replace("POLICY", 'algebraic_loops = "error"'))
+    with pytest.raises(InputError) as info:
+        load_experiment(path)
+    assert info.value.key == "blocks.y" and "algebraic loop: y -> ay -> y" in info.value.message
+    path.write_text(LOOP.replace("POLICY", 'algebraic_loops = "loud"'))
+    out = CliRunner().invoke(app, ["run", str(path)])
+    assert out.exit_code == 2 and "algebraic_loops" in out.output
+
+
+def test_a_lookup_table_from_a_csv_file_and_a_table_input_with_its_interpolation(tmp_path):
+    (tmp_path / "curve.csv").write_text("u, y\n0, 1\n0.5, -0.5\n1.2, 2\n2, 0.3\n3, 0.8\n")
+    path = tmp_path / "lut.toml"
+    path.write_text("""
+[system]
+kind = "diagram"
+outputs = { y = "lut", i = "acc" }
+[blocks]
+r   = { type = "ramp", slope = 1 }
+lut = { type = "lookup-table", file = "curve.csv", interpolation = "flat", input = "r" }
+acc = { type = "integrator", input = "lut" }
+[time]
+stop = 4
+""")
+    result = run_case(load_experiment(path).cases[0])
+    assert result.status == "success"
+    assert abs(result.series()["i"][-1] - (0.5 * 1 - 0.5 * 0.7 + 2 * 0.8 + 0.3 * 1 + 0.8 * 1)) <= 1e-13
+    (tmp_path / "u.csv").write_text("t, u\n0, 0\n1, 1\n2, 0\n")
+    path = tmp_path / "held.toml"
+    path.write_text("""
+[system]
+states = ["x"]
+inputs = ["u"]
+equations = { x = "u" }
+[inputs.u]
+type = "table"
+file = "u.csv"
+interpolation = "flat"
+[initial]
+x = 0
+[time]
+stop = 3
+""")
+    result = run_case(load_experiment(path).cases[0])
+    assert abs(result.series()["x"][-1] - 1.0) <= 1e-12  # u = 0 on [0, 1), 1 on [1, 2), 0 after
+    path.write_text(path.read_text().replace('interpolation = "flat"', 'interpolation = "spline"'))
+    with pytest.raises(InputError) as info:
+        load_experiment(path)
+    assert info.value.key == "inputs.u.interpolation" and "cubic-spline" in info.value.message
+
+
+def test_linearising_a_diagram_with_discrete_blocks_is_refused_with_the_reason(tmp_path):
+    path = tmp_path / "dl.toml"
+    text = (ROOT / "experiments" / "speed_control.toml").read_text() + "\n[analysis]\nstep_info = true\n"
+    path.write_text(text)
+    with pytest.raises(InputError) as info:
+        load_experiment(path)
+    assert info.value.key == "analysis" and "`sampler` (zero-order-hold) is discrete" in info.value.message
+
+
+def test_events_of_a_diagram_with_a_saturation_are_located_with_its_crossings(tmp_path):
+    # x'' = -sat(x), |sat| <= 0.5, from x = 2 at rest: x = 2 - t^2/4 until x = 0.5 at t1 = sqrt(6),
+    # then x = 0.5 cos(s) - v1 sin(s) with v1 = sqrt(6)/2, zero at s = atan(0.5 / v1): the event
+    path = tmp_path / "ev.toml"
+    path.write_text("""
+[system]
+kind = "diagram"
+outputs = { x = "x" }
+[blocks]
+x    = { type = "integrator", input = "v", initial = 2 }
+v    = { type = "integrator", input = "push" }
+sat  = { type = "saturation", lower = -0.5, upper = 0.5, input = "x" }
+push = { type = "gain", gain = -1, input = "sat" }
+[time]
+stop = 10
+[solver]
+rtol = 1e-10
+atol = 1e-12
+[events.zero]
+when = "x"
+direction = "falling"
+terminal = true
+""")
+    result = run_case(load_experiment(path).cases[0])
+    assert result.status == "success", result.message
+    t1 = np.sqrt(6.0)
+    expect = t1 + np.arctan(0.5 / (t1 / 2))
+    assert len(result.events) == 1 and abs(result.events[0]["t"] - expect) <= 1e-8
+    assert abs(result.t[-1] - expect) <= 1e-8
+    assert "zero crossings located: sat (saturation) 1" in result.warnings

@@ -205,7 +205,7 @@ SIGNAL_KEYS = {
     "ramp": {"slope": 1.0, "start": 0.0, "initial": 0.0},
     "sine": {"amplitude": 1.0, "frequency": 1.0, "phase": 0.0, "bias": 0.0},
     "pulse": {"amplitude": 1.0, "period": 1.0, "width": 0.5, "delay": 0.0},
-    "table": {"file": None},
+    "table": {"file": None, "interpolation": "linear", "extrapolation": "clip"},
     "expression": {"expression": None},
     "constant": {"value": None},
 }
@@ -283,8 +283,16 @@ def build_signal(kind: str, given: dict, *, key: str, path: Path, params: dict[s
             if not csv.is_file():
                 raise ExperimentError(f"`{key}.file`: {values['file']!r} does not exist (looked for {csv}).",
                                       key=f"{key}.file")
+            for k, allowed_values in (("interpolation", sg.INTERPOLATIONS), ("extrapolation", sg.EXTRAPOLATIONS)):
+                if values[k] not in allowed_values:
+                    close = difflib.get_close_matches(str(values[k]), allowed_values, n=1)
+                    hint = f" Did you mean {close[0]!r}?" if close else ""
+                    raise ExperimentError(f"`{key}.{k}` is {values[k]!r}; use one of "
+                                          f"{', '.join(repr(a) for a in allowed_values)} (Simulink's names).{hint}",
+                                          key=f"{key}.{k}")
             try:
-                signal = sg.Table.from_csv(csv, max_rows=max_rows)
+                signal = sg.Table.from_csv(csv, max_rows=max_rows, interpolation=values["interpolation"],
+                                           extrapolation=values["extrapolation"])
             except InputError as exc:  # named from the experiment file, which is what the user runs
                 text = exc.message[:1].lower() + exc.message[1:]
                 if max_rows and text.startswith("the table file has more than"):

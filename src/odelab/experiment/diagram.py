@@ -89,7 +89,7 @@ def _source(name: str, spec: dict, path: Path, params: dict[str, float], max_row
                                   key=f"{key}.{k}")
         if k not in SIGNAL_KEYS[kind]:
             given[k] = v  # build_signal names the keys that do not apply
-        elif k in ("file", "expression"):
+        elif k in ("file", "expression", "interpolation", "extrapolation"):
             given[k] = _value("expression" if k == "expression" else "text", v, f"{key}.{k}", params)
         else:
             given[k] = _value("number", v, f"{key}.{k}", params)
@@ -98,9 +98,32 @@ def _source(name: str, spec: dict, path: Path, params: dict[str, float], max_row
     return Source(signal, kind=kind, label=f"{kind}" + (f"\n{shown}" if shown else ""))
 
 
-def _block(name: str, spec: dict, params: dict[str, float]):
+def _table_file(values: dict, key: str, path: Path, max_rows: int | None):
+    """A lookup table's ``file``: (breakpoints, values) from a CSV of two columns."""
+    from odelab import signals as sg
+    from odelab.experiment.userfiles import resolve_user_file
+
+    csv = resolve_user_file(values["file"], f"{key}.file", path)
+    if not csv.is_file():
+        raise ExperimentError(f"`{key}.file`: {values['file']!r} does not exist (looked for {csv}).",
+                              key=f"{key}.file")
+    for other in ("breakpoints", "table"):
+        if other in values:
+            raise ExperimentError(f"`{key}.{other}`: give either `file` or `breakpoints` and `table`, not both.",
+                                  key=f"{key}.{other}")
+    try:
+        table = sg.Table.from_csv(csv, max_rows=max_rows)
+    except InputError as exc:
+        text = exc.message[:1].lower() + exc.message[1:]
+        text = text.replace("(t, u)", "(breakpoint, value)").replace("t, u", "breakpoint, value")
+        raise ExperimentError(f"`{key}.file` {values['file']!r}: {text}", key=f"{key}.file") from None
+    return np.array(table.t), np.array(table.values)
+
+
+def _block(name: str, spec: dict, params: dict[str, float], path: Path | None = None, max_rows: int | None = None):
     from odelab.systems.diagram.blocks import BLOCKS, BlockError, Fcn
     from odelab.systems.diagram.graph import located
+    from odelab.systems.diagram.tables import LookupTable
 
     cls = BLOCKS[spec["type"]]
     key = f"blocks.{name}"
@@ -125,8 +148,11 @@ def _block(name: str, spec: dict, params: dict[str, float]):
                                   f"{hint}", key=f"{key}.{k}")
     if isinstance(values.get("gain"), np.ndarray) and values["gain"].size == 1:
         values["gain"] = float(values["gain"].reshape(()))
+    extra = {}
+    if cls is LookupTable and values.get("file") is not None and path is not None:
+        extra["data"] = _table_file(values, key, path, max_rows)
     try:
-        block = cls(parameters=params, **values) if cls is Fcn else cls(**values)
+        block = cls(parameters=params, **values) if cls is Fcn else cls(**values, **extra)
     except BlockError as exc:
         raise located(exc, name) from None
     block.texts = texts
@@ -199,19 +225,23 @@ def build_diagram(model: schema.Experiment, params: dict[str, float], path: Path
             check_count("states", size[1], f"{key}.{size[0]}", "", limits, asked=f"declares {size[1]:,} {what}")
         try:
             blocks[name] = (_source(name, spec, path, params, max_rows) if kind in SIGNAL_KEYS
-                            else _block(name, spec, params))
+                            else _block(name, spec, params, path, max_rows))
         except InputError as exc:
             raise exc.located(key=key) from None
     nstates = sum(b.nstates for b in blocks.values())
     check_count("states", nstates, "blocks", "", limits,
                 asked=f"hold {nstates:,} states in {sum(1 for b in blocks.values() if b.nstates):,} blocks")
-    compiled = CompiledDiagram(wire(blocks, outputs), states=system.states, t0=t0,
-                               zero_crossing=model.solver.zero_crossing)  # DiagramError: keyed
-    if compiled.hybrid and model.events is not None:
-        raise ExperimentError("[events] with a diagram's switching or discrete blocks are not supported: the hybrid "
-                              "driver that locates the blocks' zero crossings and sample hits does not take [events] "
-                              f"yet ({compiled.hybrid_reason()}); set zero_crossing = false on the blocks (or under "
-                              "[solver]), or model the event with blocks.", key="events")
+    loops = system.algebraic_loops or "warning"
+    compiled = CompiledDiagram(wire(blocks, outputs, "solve" if loops == "solve" else loops), states=system.states,
+                               t0=t0, zero_crossing=model.solver.zero_crossing,
+                               loop_note=loops != "none")  # DiagramError: keyed
+    discrete = [n for n, b in blocks.items() if b.DISCRETE]
+    for section in ("analysis", "linearize"):
+        if discrete and getattr(model, section, None) is not None:
+            raise ExperimentError(f"[{section}] linearises a continuous-time model, and block `{discrete[0]}` "
+                                  f"({blocks[discrete[0]].TYPE}) is discrete: the linear model of a sampled-data "
+                                  "diagram is a discrete-time system, which odelab does not build. Remove "
+                                  f"[{section}], or linearise the continuous plant on its own.", key=section)
     sys_obj = compiled.system
     resolved = {"kind": "diagram", "outputs": outputs}
     if system.states is not None:
@@ -247,6 +277,22 @@ def run_hybrid(problem, tspan, method: str, options: dict, backend: str):
     from odelab.systems.diagram.hybrid import simulate_hybrid
 
     d = problem.diagram
+    if problem.events is not None:  # [events]: their resets and records, each piece on the hybrid driver
+        from odelab.experiment.events import solve_with_events
+        from odelab.solution import Solution
+
+        seen: list[str] = []
+
+        def piece(ts, x, opts):
+            r = simulate_hybrid(d, ts, x, method=method, zero_crossing=d.zero_crossing,
+                                events=problem.events.function, **opts)
+            seen.extend(n for n in r.notes if n not in seen)
+            return Solution(t=r.t, y=r.x, stats=r.stats, status=r.status, message=r.message, method=r.method,
+                            warnings=r.warnings, te=r.te, ye=r.ye, ie=r.ie)
+
+        t, x, stats, status, message, warns, records, marks = solve_with_events(
+            None, tspan, problem.x0, method, options, problem.events, problem.states, solve_piece=piece)
+        return t, x, stats, status, message, [*warns, *seen], records, marks, "python"
     r = simulate_hybrid(d, tspan, problem.x0, method=method, zero_crossing=d.zero_crossing, **options)
     from odelab.solvers.compiled import AUTO_STEPS
 

@@ -65,6 +65,9 @@ NOTES: dict[str, str] = {
     "system.D": "Feedthrough matrix of y = Cx + Du (default zeros).",
     "system.jacobian": "An analytic Jacobian of [system.equations] (row i: the derivatives of equation i), checked "
                        "against the equations at the initial state; by default odelab derives it exactly.",
+    "system.algebraic_loops": "What a diagram's algebraic loop does (Simulink's diagnostic): `warning` (default: "
+                              "solved by Newton's method, named once in a note), `none` (solved quietly) or `error` "
+                              "(refused). See docs/blocks.md.",
     "initial": "Initial values of the states (default 0), numbers or expressions of the parameters.",
     "initial.<name>": "The initial value of state <name>.",
     "time": "The time span and output times (MATLAB's tspan).",
@@ -95,6 +98,9 @@ NOTES: dict[str, str] = {
     "solver.mass": "A mass matrix M in M y' = f, of expressions of t, the states and parameters (MATLAB's Mass); "
                    "singular with ode15s or ode23t for an index-1 DAE.",
     "solver.mstate_dependence": "How the mass matrix depends on the state (MATLAB's MStateDependence).",
+    "solver.zero_crossing": "Diagrams: locate the instants switching blocks (saturation, relay, switch...) change "
+                            "formula and restart there (default true, Simulink's zero-crossing detection); false "
+                            "steps over them. Each block's own `zero_crossing` key turns it off for that block.",
     "solver.backend": "Which engine runs an expression system: `auto` (compiled only when the run is long), "
                       "`python` or `compiled` (numba).",
     "reference": "What the errors are measured against.",
@@ -130,9 +136,14 @@ NOTES: dict[str, str] = {
     "inputs.pulse.width": "The fraction of the period the pulse is on, between 0 and 1 (Simulink's Pulse width "
                           "is a percentage: 50 % is width = 0.5).",
     "inputs.pulse.delay": "The time of the first rising edge (Simulink's Phase delay).",
-    "inputs.table": "Values read from a CSV file with a header row: time in the first column, u in the second, "
-                    "interpolated linearly between rows and held at the last value after the end.",
+    "inputs.table": "Values read from a CSV file (an optional header row, then time in the first column and u in "
+                    "the second), interpolated linearly between rows and held at the end values outside them by "
+                    "default (`interpolation`, `extrapolation`).",
     "inputs.table.file": "The CSV file, relative to the experiment file.",
+    "inputs.table.interpolation": "Between rows: `linear` (default), `flat` (each row held until the next), "
+                                  "`nearest` or `cubic-spline` (MATLAB's spline), Simulink's lookup-table names.",
+    "inputs.table.extrapolation": "Outside the rows: `clip` (default: the end values held) or `linear` (the end "
+                                  "segments continued).",
     "inputs.expression": "u = an expression of t and the parameters.",
     "inputs.expression.expression": "The expression, e.g. \"t^2\" or \"sin(t)*exp(-t)\".",
     "inputs.constant": "u = a constant value.",

@@ -116,6 +116,7 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
                                "reached the end of its span: remove `expect` if that is now right.")
     if p.diagram is not None:
         result.extra["diagram"] = diagram_record(p)
+        result.warnings.extend(n for n in p.diagram.notes if n not in result.warnings)
     if getattr(p, "network", None) is not None:  # kind = "network": its drawing and derivation
         from odelab.experiment.network import network_record
 

@@ -43,6 +43,7 @@ class System(_Section):
     C: Matrix | None = None
     D: Matrix | None = None
     jacobian: list[list[Value]] | None = None  # analytic df/dx of [system.equations], row i = d(eq_i)/dx
+    algebraic_loops: Literal["warning", "none", "error", "solve"] | None = None  # diagrams (Simulink's diagnostic)
 
 
 class Time(_Section):
@@ -106,6 +107,8 @@ class InputSignal(_Section):
     width: Number | None = None
     delay: Number | None = None
     # table
+    interpolation: StrictStr | None = None  # linear | flat | nearest | cubic-spline (odelab.signals.interpolate_1d)
+    extrapolation: StrictStr | None = None  # clip | linear
     file: StrictStr | None = None
     # expression / constant
     expression: Value | None = None

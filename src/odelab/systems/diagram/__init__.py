@@ -64,8 +64,11 @@ class Diagram:
         self.blocks[name] = block
         return self
 
-    def compile(self, *, t0: float = 0.0, zero_crossing: bool = True) -> CompiledDiagram:
+    def compile(self, *, t0: float = 0.0, zero_crossing: bool = True,
+                algebraic_loops: str = "warning") -> CompiledDiagram:
         """Check the wiring (raises DiagramError) and compile to a system; ``zero_crossing=False``
-        turns zero-crossing detection off for every block (as ``[solver] zero_crossing``)."""
-        return CompiledDiagram(wire(self.blocks, self.outputs), states=self.states, t0=t0,
-                               zero_crossing=zero_crossing)
+        turns zero-crossing detection off for every block (as ``[solver] zero_crossing``);
+        ``algebraic_loops`` is ``"warning"`` (solve them, with a note), ``"none"`` (solve them
+        quietly) or ``"error"`` (refuse them), as ``[system] algebraic_loops``."""
+        return CompiledDiagram(wire(self.blocks, self.outputs, algebraic_loops), states=self.states, t0=t0,
+                               zero_crossing=zero_crossing, loop_note=algebraic_loops != "none")

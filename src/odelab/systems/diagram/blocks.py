@@ -165,6 +165,21 @@ class Block:
         """The mark drawn at the head of the arrow into input ``i`` (a sum's sign), or None."""
         return None
 
+    # -- the compiled backend (:mod:`~odelab.systems.diagram.codegen`) -------------------------
+
+    @property
+    def generated(self) -> bool:
+        """Whether the compiled backend writes this block out (it overrides generate_outputs)."""
+        return type(self).generate_outputs is not Block.generate_outputs
+
+    def generate_outputs(self, g, name: str, ins: list[str]) -> list[str]:
+        """Write the block's outputs as numba lines with ``g`` (a codegen Writer), in the same
+        order of operations as :meth:`outputs`; return one variable per port."""
+        raise NotImplementedError
+
+    def generate_derivative(self, g, name: str, ins: list[str]) -> None:
+        """Write the block's state derivatives (``g.derivative``), as :meth:`derivative`."""
+
     # -- zero crossings (blocks with ZC = True) ---------------------------------------------------
 
     @property
@@ -297,6 +312,13 @@ class Gain(Block):
         text = self.params.get("_text", self.params["gain"])
         return f"gain {text}" if self.K.ndim == 0 else "gain K"
 
+    @property
+    def generated(self):
+        return self.K.ndim == 0
+
+    def generate_outputs(self, g, name, ins):
+        return [g.var(f"{g.number(self.K)} * {ins[0]}")]
+
     def node(self, name):
         k = getattr(self, "texts", {}).get("gain", self.params["gain"])
         label = f"{k}" if not isinstance(k, list) else "K"
@@ -337,6 +359,10 @@ class Sum(Block):
     def describe(self):
         return "sum " + "".join("+" if s > 0 else "-" for s in self.signs)
 
+    def generate_outputs(self, g, name, ins):
+        return [g.accumulate(f"{g.number(self.signs[0])} * {ins[0]}",
+                             (("+" if s > 0 else "-", v) for s, v in zip(self.signs[1:], ins[1:])))]
+
     def node(self, name):
         return "Σ", "circle", {"width": 0.45, "fixedsize": True, "xlabel": name}
 
@@ -376,6 +402,9 @@ class Product(Block):
 
     def input_mark(self, i):
         return "÷" if self.ops[i] == "/" else None
+
+    def generate_outputs(self, g, name, ins):
+        return [g.accumulate(ins[0] if self.ops[0] == "*" else f"(1.0 / {ins[0]})", zip(self.ops[1:], ins[1:]))]
 
 
 class _Limits(Block):
@@ -431,6 +460,10 @@ class Saturation(_Limits):
     def describe(self):
         return f"saturation [{self.lo:g}, {self.hi:g}]"
 
+    def generate_outputs(self, g, name, ins):  # detection off: the mode read off u, as outputs()
+        lo, hi, v = g.number(self.lo), g.number(self.hi), ins[0]
+        return [g.var(f"({hi} if {v} > {hi} else ({lo} if {v} < {lo} else {v}))")]
+
     def label(self, name):
         return f"{name}\nsat [{self.lo:g}, {self.hi:g}]"
 
@@ -450,6 +483,10 @@ class DeadZone(_Limits):
 
     def describe(self):
         return f"dead zone [{self.lo:g}, {self.hi:g}]"
+
+    def generate_outputs(self, g, name, ins):
+        lo, hi, v = g.number(self.lo), g.number(self.hi), ins[0]
+        return [g.var(f"(({v} - {hi}) if {v} > {hi} else (({v} - {lo}) if {v} < {lo} else 0.0 * {v}))")]
 
     def label(self, name):
         return f"{name}\ndead zone [{self.lo:g}, {self.hi:g}]"
@@ -648,6 +685,22 @@ class Integrator(Block):
         limits = f" [{self.lo:g}, {self.hi:g}]" if self.limited else ""
         return f"integrator 1/s{limits}"
 
+    def generate_outputs(self, g, name, ins):
+        x = g.state(name, 0)
+        if self.limited:
+            lo, hi = g.number(self.lo), g.number(self.hi)
+            return [g.var(f"({hi} if {x} > {hi} else ({lo} if {x} < {lo} else {x}))")]
+        return [g.var(x)]
+
+    def generate_derivative(self, g, name, ins):
+        x, v = g.state(name, 0), ins[0]
+        if self.limited:
+            lo, hi = g.number(self.lo), g.number(self.hi)
+            held = f"(({x} >= {hi}) and ({v} > 0)) or (({x} <= {lo}) and ({v} < 0))"
+            g.derivative(name, 0, f"(0.0 * {v}) if {held} else {v}")
+        else:
+            g.derivative(name, 0, v)
+
     def label(self, name):
         return f"{name}\n1/s" + (f"\n[{self.lo:g}, {self.hi:g}]" if self.limited else "")
 
@@ -690,6 +743,21 @@ class _Linear(Block):
 
     def derivative(self, t, x, u):
         return np.tensordot(self.A, x, axes=(1, 0)) + np.tensordot(self.B, self._u(u), axes=(1, 0))
+
+    def generate_outputs(self, g, name, ins):  # y = C x (+ D u), one scalar port per output
+        xs = [g.state(name, i) for i in range(self.nstates)]
+        out = []
+        for i in range(len(self.ports())):
+            text = g.linear_part(self.C, i, xs) if self.nstates else "0.0"
+            if self.feedthrough:
+                text = f"({text} + {g.linear_part(self.D, i, ins)})"
+            out.append(g.var(text))
+        return out
+
+    def generate_derivative(self, g, name, ins):
+        xs = [g.state(name, i) for i in range(self.nstates)]
+        for i in range(self.nstates):
+            g.derivative(name, i, f"({g.linear_part(self.A, i, xs)} + {g.linear_part(self.B, i, ins)})")
 
 
 class StateSpaceBlock(_Linear):
@@ -811,8 +879,9 @@ def block_class(type_name: str) -> type[Block]:
 # The blocks defined in their own modules join the registry here (after everything they import).
 from odelab.systems.diagram import discrete as _discrete  # noqa: E402
 from odelab.systems.diagram import switching as _switching  # noqa: E402
+from odelab.systems.diagram import tables as _tables  # noqa: E402
 
 for _cls in (_discrete.PID, _switching.Abs, _switching.Sign, _switching.Switch, _switching.Relay, _switching.MinMax,
              _discrete.ZeroOrderHold, _discrete.UnitDelay, _discrete.DiscreteTransferFcn, _discrete.DiscreteStateSpace,
-             _discrete.DiscretePID):
+             _discrete.DiscretePID, _tables.LookupTable):
     register(_cls)

@@ -10,10 +10,10 @@ of :mod:`odelab.solvers.compiled.inputs` (read at t clipped to the piece), and e
 block (gains, limits, matrices) is run-time data in the parameter vector, never pasted into the
 text, so two cases with other gains share one build. Names of blocks never reach the source.
 
-Diagrams whose every port is a scalar and whose blocks are sources, gains (scalar), sums,
-products, saturations, dead zones, integrators (scalar, limited or not), state-space and
-transfer-function blocks are generated; :func:`why_not` names the first block that is not
-(``fcn``, ``mux``, ``demux``, a matrix gain, a vector integrator).
+Each block writes its own lines (``Block.generate_outputs`` / ``generate_derivative``, with the
+:class:`Writer` here); a block that does not (``generated`` False: ``fcn``, ``mux``, ``demux``,
+a matrix gain, the switching and discrete blocks of the hybrid driver) is named by
+:func:`why_not`, as is a vector signal.
 """
 
 from __future__ import annotations
@@ -24,7 +24,43 @@ from odelab.systems.diagram import blocks as bk
 
 __all__ = ["why_not", "diagram_source"]
 
-_SCALAR = (bk.Gain, bk.Sum, bk.Product, bk.Saturation, bk.DeadZone, bk.Integrator, bk._Linear)
+class Writer:
+    """What a block's :meth:`~odelab.systems.diagram.blocks.Block.generate` writes with: run-time
+    numbers (``number``), fresh scalar variables (``var``), the state entries (``state``) and
+    the lines of the function body (``lines``)."""
+
+    def __init__(self, diagram, data: list[float], offset: int):
+        self.diagram, self.data, self.offset = diagram, data, offset
+        self.lines: list[str] = []
+        self._fresh = iter(range(10 ** 9))
+
+    def number(self, value: float) -> str:
+        self.data.append(float(value))
+        return f"_p[{self.offset + len(self.data) - 1}]"
+
+    def var(self, text: str) -> str:
+        name = f"_v{next(self._fresh)}"
+        self.lines.append(f"    {name} = {text}")
+        return name
+
+    def state(self, name: str, i: int) -> str:
+        return f"_y[{self.diagram.slices[name].start + i}]"
+
+    def derivative(self, name: str, i: int, text: str) -> None:
+        self.lines.append(f"    _out[{self.diagram.slices[name].start + i}] = {text}")
+
+    def accumulate(self, first: str, terms) -> str:
+        """``first``, then each ``(op, term)`` applied left to right, one statement per term:
+        the order of numpy's sums, in flat code (a 5,000-input sum written as one nested
+        expression is too deep for Python's compiler)."""
+        acc = self.var(first)
+        for op, term in terms:
+            self.lines.append(f"    {acc} = {acc} {op} {term}")
+        return acc
+
+    def linear_part(self, M: np.ndarray, row: int, values: list[str]) -> str:
+        """numpy's tensordot of one row: sum_j M[row, j] * values[j], left to right from 0.0."""
+        return self.accumulate("0.0", (("+", f"{self.number(M[row, j])} * {v}") for j, v in enumerate(values)))
 
 
 def why_not(diagram) -> str | None:
@@ -33,101 +69,35 @@ def why_not(diagram) -> str | None:
     reason = diagram.hybrid_reason()
     if reason:
         return reason
+    if w.torn:
+        return f"its algebraic loop {w.loops[0]} is solved by Newton's method in Python"
     for name in w.order:
         b = w.blocks[name]
         if b.SOURCE:
             continue
-        if not isinstance(b, _SCALAR) or (isinstance(b, bk.Gain) and b.K.ndim != 0):
+        if not b.generated:
             return f"its block `{name}` ({b.TYPE}) is evaluated in Python only"
-        if any(w.widths[port] != 1 for port in w.sources[name]) or (
-                isinstance(b, bk.Integrator) and b.nstates != 1):
+        if any(w.widths[port] != 1 for port in w.sources[name]) or b.nstates > 1 and b.TYPE == "integrator":
             return f"its block `{name}` carries a vector signal, which the compiled engine does not generate"
     return None
 
 
 def diagram_source(diagram, data: list[float], offset: int) -> list[str]:
     """The body of ``rhs(t, _y, _p, _out)`` after the input lines; the blocks' numbers are
-    appended to ``data``, which starts at ``_p[offset]``."""
+    appended to ``data``, which starts at ``_p[offset]``. Each block writes its own lines
+    (:meth:`~odelab.systems.diagram.blocks.Block.generate_outputs` in the wiring's order, then
+    :meth:`~odelab.systems.diagram.blocks.Block.generate_derivative`)."""
     w = diagram.wiring
-    lines: list[str] = []
+    g = Writer(diagram, data, offset)
     port: dict[tuple[str, int], str] = {(name, 0): f"_u{i}" for i, name in enumerate(diagram.inputs)}
-    fresh = iter(range(10 ** 9))
-
-    def number(value: float) -> str:
-        data.append(float(value))
-        return f"_p[{offset + len(data) - 1}]"
-
-    def var(text: str) -> str:
-        name = f"_v{next(fresh)}"
-        lines.append(f"    {name} = {text}")
-        return name
-
-    def state(name: str, i: int) -> str:
-        return f"_y[{diagram.slices[name].start + i}]"
-
-    def accumulate(first: str, terms) -> str:
-        """``first``, then each ``(op, term)`` applied left to right, one statement per term:
-        the order of numpy's sums, in flat code (a 5,000-input sum written as one nested
-        expression is too deep for Python's compiler)."""
-        acc = var(first)
-        for op, term in terms:
-            lines.append(f"    {acc} = {acc} {op} {term}")
-        return acc
-
-    def linear_part(M: np.ndarray, row: int, values: list[str]) -> str:
-        """numpy's tensordot of one row: sum_j M[row, j] * values[j], left to right from 0.0."""
-        return accumulate("0.0", (("+", f"{number(M[row, j])} * {v}") for j, v in enumerate(values)))
-
     for name in w.order:
         b = w.blocks[name]
         if b.SOURCE:
             continue
         ins = [port[p] for p in w.sources[name]] if b.feedthrough else []
-        if isinstance(b, bk.Gain):
-            port[(name, 0)] = var(f"{number(b.K)} * {ins[0]}")
-        elif isinstance(b, bk.Sum):
-            port[(name, 0)] = accumulate(f"{number(b.signs[0])} * {ins[0]}",
-                                         (("+" if s > 0 else "-", v) for s, v in zip(b.signs[1:], ins[1:])))
-        elif isinstance(b, bk.Product):
-            port[(name, 0)] = accumulate(ins[0] if b.ops[0] == "*" else f"(1.0 / {ins[0]})",
-                                         zip(b.ops[1:], ins[1:]))
-        elif isinstance(b, bk.Saturation):
-            lo, hi = number(b.lo), number(b.hi)
-            v = ins[0]
-            port[(name, 0)] = var(f"({hi} if {v} > {hi} else ({lo} if {v} < {lo} else {v}))")
-        elif isinstance(b, bk.DeadZone):
-            lo, hi = number(b.lo), number(b.hi)
-            v = ins[0]
-            port[(name, 0)] = var(f"(({v} - {hi}) if {v} > {hi} else (({v} - {lo}) if {v} < {lo} else 0.0 * {v}))")
-        elif isinstance(b, bk.Integrator):
-            x = state(name, 0)
-            if b.limited:
-                lo, hi = number(b.lo), number(b.hi)
-                port[(name, 0)] = var(f"({hi} if {x} > {hi} else ({lo} if {x} < {lo} else {x}))")
-            else:
-                port[(name, 0)] = var(x)
-        else:  # state-space or transfer-fcn: y = C x (+ D u), one scalar port per output
-            xs = [state(name, i) for i in range(b.nstates)]
-            for i in range(len(b.ports())):
-                text = linear_part(b.C, i, xs) if b.nstates else "0.0"
-                if b.feedthrough:
-                    text = f"({text} + {linear_part(b.D, i, ins)})"
-                port[(name, i)] = var(text)
-
-    for name, where in diagram.slices.items():
+        for i, v in enumerate(b.generate_outputs(g, name, ins)):
+            port[(name, i)] = v
+    for name in diagram.slices:
         b = w.blocks[name]
-        ins = [port[p] for p in w.sources[name]]
-        if isinstance(b, bk.Integrator):
-            x, v = state(name, 0), ins[0]
-            if b.limited:
-                lo, hi = number(b.lo), number(b.hi)
-                held = f"(({x} >= {hi}) and ({v} > 0)) or (({x} <= {lo}) and ({v} < 0))"
-                lines.append(f"    _out[{where.start}] = (0.0 * {v}) if {held} else {v}")
-            else:
-                lines.append(f"    _out[{where.start}] = {v}")
-        else:
-            xs = [state(name, i) for i in range(b.nstates)]
-            for i in range(b.nstates):
-                lines.append(f"    _out[{where.start + i}] = ({linear_part(b.A, i, xs)} + "
-                             f"{linear_part(b.B, i, ins)})")
-    return lines
+        b.generate_derivative(g, name, [port[p] for p in w.sources[name]])
+    return g.lines

@@ -23,14 +23,18 @@ from odelab.exceptions import InputError
 from odelab.systems.diagram.blocks import Clock
 from odelab.systems.diagram.graph import DiagramError, Wiring
 
-__all__ = ["CompiledDiagram"]
+__all__ = ["AlgebraicLoopError", "CompiledDiagram"]
+
+
+class AlgebraicLoopError(ArithmeticError):
+    """An algebraic loop of a diagram has no (unique) solution at some instant."""
 
 
 class CompiledDiagram:
     """A diagram ready to evaluate: states, inputs (sources), outputs, x0 and the system."""
 
     def __init__(self, wiring: Wiring, *, states: list[str] | None = None, t0: float = 0.0,
-                 zero_crossing: bool = True):
+                 zero_crossing: bool = True, loop_note: bool = True):
         from odelab import signals as sg
 
         self.wiring = wiring
@@ -71,16 +75,32 @@ class CompiledDiagram:
         self.zero_crossing = bool(zero_crossing)  # [solver] zero_crossing: off for every block
         self._order = [n for n in wiring.order if not blocks[n].SOURCE]
         self._system = None
+        self._z_last = None  # the last solution of the algebraic loops (Newton's next start)
+        #: what a run should say about the diagram once (the algebraic loops it solves)
+        self.notes: list[str] = [f"algebraic loop {text} solved by Newton's method at each evaluation, as Simulink "
+                                 "does (set [system] algebraic_loops = \"error\" to refuse it, \"none\" to say "
+                                 "nothing)" for text in wiring.loops] if loop_note else []
 
     # -- evaluation ------------------------------------------------------------------------------
 
     def _ports(self, t, x, u, cplx, cut=None):
         """Every port's value; with ``cut`` (a block name) that block's input is u's last entry
-        instead of the signal wired to it (the loop opened there)."""
+        instead of the signal wired to it (the loop opened there). A diagram with algebraic
+        loops solves for their unknowns first (:meth:`_solve_loops`)."""
+        if not self.wiring.torn:
+            return self._sweep(t, x, u, cplx, cut)
+        return self._solve_loops(t, x, u, cplx, cut)
+
+    def _sweep(self, t, x, u, cplx, cut=None, z=None):
+        """One evaluation in the wiring's order; ``z`` gives the torn blocks' outputs."""
         w = self.wiring
         vals = {(name, 0): u[i:i + 1] for i, name in enumerate(self.inputs)}
         for name in self._order:
             b = w.blocks[name]
+            if z is not None and name in z:
+                for i, v in enumerate(z[name]):
+                    vals[(name, i)] = v
+                continue
             xs = x[self.slices[name]] if name in self.slices else None
             if not b.feedthrough:
                 ins = []
@@ -91,6 +111,65 @@ class CompiledDiagram:
             for i, v in enumerate(b.outputs(t, xs, ins, cplx)):
                 vals[(name, i)] = v
         return vals
+
+    def _residual(self, t, x, u, cplx, cut, zvec):
+        """F(z) = (the torn blocks' outputs computed from their inputs) - z, and the ports."""
+        w = self.wiring
+        z, k = {}, 0
+        for name in w.torn:
+            n = len(w.blocks[name].ports())
+            z[name] = [zvec[k + i:k + i + 1] for i in range(n)]
+            k += n
+        vals = self._sweep(t, x, u, cplx, cut, z)
+        out = []
+        for name in w.torn:
+            b = w.blocks[name]
+            xs = x[self.slices[name]] if name in self.slices else None
+            ins = [u[-1:]] if name == cut else [vals[s] for s in w.sources[name]]
+            out.extend(b.outputs(t, xs, ins, cplx))
+        actual = np.concatenate([np.broadcast_to(v, (1,) + np.shape(zvec)[1:]) for v in out])
+        return actual - zvec, vals
+
+    def _solve_loops(self, t, x, u, cplx, cut=None):
+        """Newton's method on the torn blocks' outputs (Simulink's algebraic loop solver): the
+        Jacobian by complex steps (exact), from the last solution; a singular Jacobian or no
+        convergence raises :class:`AlgebraicLoopError` naming the loop and t."""
+        m = sum(len(self.wiring.blocks[n].ports()) for n in self.wiring.torn)
+        batch = np.broadcast_shapes(np.shape(t), np.shape(x)[1:], np.shape(u)[1:])  # many points at once
+        shape = (m,) + batch
+        dtype = complex if (cplx or np.iscomplexobj(x) or np.iscomplexobj(u)) else float
+        last = self._z_last
+        start = last.reshape((m,) + (1,) * (len(shape) - 1)) if last is not None and last.shape == (m,) else 0.0
+        z = np.array(np.broadcast_to(start, shape), dtype=dtype)
+        xr, ur = (np.real(x), np.real(u)) if dtype is complex else (x, u)
+        h = 1e-30
+        for _ in range(50):
+            F, vals = self._residual(t, x, u, dtype is complex, cut, z)
+            scale = 1.0 + np.max(np.abs(z))
+            if np.all(np.isfinite(F)) and np.max(np.abs(F), initial=0.0) <= 1e-13 * scale:
+                self._z_last = np.real(z).copy() if z.ndim == 1 else None
+                return vals
+            J = np.empty((m, m) + batch)
+            for j in range(m):
+                step = np.zeros(shape, dtype=complex)
+                step[j] = 1j * h
+                Fj, _ = self._residual(t, xr, ur, True, cut, np.real(z) + step)
+                J[:, j] = np.imag(Fj) / h
+            Jn = np.moveaxis(J, (0, 1), (-2, -1)) if J.ndim > 2 else J
+            Fn = np.moveaxis(F, 0, -1)[..., None] if F.ndim > 1 else F
+            with np.errstate(all="ignore"):
+                cond = np.linalg.cond(Jn)
+            if not np.all(np.isfinite(cond)) or np.any(cond > 1e14):
+                raise AlgebraicLoopError(self._loop_text(t, "its Jacobian is singular: the loop has no unique "
+                                                            "solution there"))
+            dz = np.linalg.solve(Jn, -Fn)
+            z = z + (np.moveaxis(dz[..., 0], -1, 0) if F.ndim > 1 else dz)
+        raise AlgebraicLoopError(self._loop_text(t, "Newton's method did not converge in 50 iterations: the loop "
+                                                    "has no solution there"))
+
+    def _loop_text(self, t, why):
+        where = f"t = {float(np.ravel(np.real(t))[0]):.10g}" if np.size(t) == 1 else "some output point"
+        return f"the algebraic loop {'; '.join(self.wiring.loops)} at {where}: {why}"
 
     def _dynamics(self, t, x, u, cplx=False, cut=None):
         w = self.wiring
@@ -116,7 +195,16 @@ class CompiledDiagram:
         """y at many points at once: t (N,), x (N, nx), u (N, nu) -> (N, ny)."""
         t = np.asarray(t, dtype=float)
         u = np.zeros((t.size, 0)) if u is None else np.asarray(u, dtype=float)
-        vals = self._ports(t, np.asarray(x, dtype=float).T, u.T, False)
+        x = np.asarray(x, dtype=float)
+        if self.wiring.torn:  # point by point from the last solution; NaN where a loop has none
+            rows = []
+            for i in range(t.size):
+                try:
+                    rows.append(self._output(t[i], x[i], u[i]))
+                except AlgebraicLoopError:
+                    rows.append(np.full(len(self.outputs), np.nan))
+            return np.array(rows).reshape(t.size, len(self.outputs))
+        vals = self._ports(t, x.T, u.T, False)
         return np.column_stack([np.broadcast_to(vals[p][0], t.shape) for p in self.wiring.outputs.values()]) \
             if self.outputs else np.zeros((t.size, 0))
 

@@ -33,6 +33,8 @@ class Wiring:
     outputs: dict[str, tuple[str, int]]  # output name -> (block, port)
     widths: dict[tuple[str, int], int]
     order: tuple[str, ...]  # every block, in an order where feedthrough inputs come first
+    torn: tuple[str, ...] = ()  # blocks whose outputs are the unknowns of algebraic loops (solved)
+    loops: tuple[str, ...] = ()  # each loop as text, "a -> b -> a"
 
 
 def located(exc: BlockError, name: str) -> DiagramError:
@@ -97,8 +99,60 @@ def find_loop(edges: dict[str, list[str]], nodes: list[str], declared: list[str]
         path.append(node)
 
 
-def wire(blocks: Mapping[str, Block], outputs: Mapping[str, str]) -> Wiring:
+LOOP_POLICIES = ("warning", "none", "error", "solve")
+
+
+def _topological(declared, edges):
+    from collections import deque
+
+    indegree = {n: 0 for n in declared}
+    for src in declared:
+        for dst in edges[src]:
+            indegree[dst] += 1
+    ready = deque(n for n in declared if indegree[n] == 0)
+    order: list[str] = []
+    while ready:
+        node = ready.popleft()
+        order.append(node)
+        for nxt in edges[node]:
+            indegree[nxt] -= 1
+            if indegree[nxt] == 0:
+                ready.append(nxt)
+    return order
+
+
+def _on_cycles(declared, edges, order):
+    """The blocks on cycles (in declaration order): drop those whose feedthrough successors are
+    all ordered, by a worklist over the reversed edges (linear in the diagram's size)."""
+    from collections import deque
+
+    done = set(order)
+    left = {n for n in declared if n not in done}
+    succ_left = {n: sum(1 for m in edges[n] if m in left) for n in left}
+    preds: dict[str, list[str]] = {n: [] for n in left}
+    for n in left:
+        for m in edges[n]:
+            if m in left:
+                preds[m].append(n)
+    drop = deque(n for n in left if succ_left[n] == 0)
+    while drop:
+        n = drop.popleft()
+        left.discard(n)
+        for p in preds[n]:
+            if p in left:
+                succ_left[p] -= 1
+                if succ_left[p] == 0:
+                    drop.append(p)
+    return [n for n in declared if n in left]
+
+
+def wire(blocks: Mapping[str, Block], outputs: Mapping[str, str], algebraic_loops: str = "error") -> Wiring:
     """Check a diagram's wiring and compute its widths and evaluation order.
+
+    ``algebraic_loops``: ``"error"`` refuses a cycle of direct-feedthrough blocks; ``"warning"``
+    (Simulink's default), ``"none"`` or ``"solve"`` tear each loop at one block (the first of
+    it declared), whose output becomes an unknown the compiled diagram solves for by Newton's
+    method at every evaluation (:class:`~odelab.systems.diagram.compile.CompiledDiagram`).
 
     Raises
     ------
@@ -130,51 +184,31 @@ def wire(blocks: Mapping[str, Block], outputs: Mapping[str, str]) -> Wiring:
     # Feedthrough edges: src -> dst when dst's output depends on src's at the same instant.
     declared = list(blocks)
     edges: dict[str, list[str]] = {n: [] for n in blocks}
-    indegree = {n: 0 for n in blocks}
     for name, feeds in sources.items():
         if blocks[name].feedthrough:
             for src in dict.fromkeys(s for s, _ in feeds):
                 edges[src].append(name)
-                indegree[name] += 1
-    from collections import deque
-
-    ready = deque(n for n in declared if indegree[n] == 0)
-    order: list[str] = []
-    while ready:
-        node = ready.popleft()
-        order.append(node)
-        for nxt in edges[node]:
-            indegree[nxt] -= 1
-            if indegree[nxt] == 0:
-                ready.append(nxt)
-    if len(order) < len(blocks):
-        done = set(order)
-        left = {n for n in declared if n not in done}
-        # Keep only nodes on cycles: drop those whose feedthrough successors are all done
-        # (a worklist over the reversed edges: linear in the diagram's size).
-        succ_left = {n: sum(1 for m in edges[n] if m in left) for n in left}
-        preds: dict[str, list[str]] = {n: [] for n in left}
-        for n in left:
-            for m in edges[n]:
-                if m in left:
-                    preds[m].append(n)
-        drop = deque(n for n in left if succ_left[n] == 0)
-        while drop:
-            n = drop.popleft()
-            left.discard(n)
-            for p in preds[n]:
-                if p in left:
-                    succ_left[p] -= 1
-                    if succ_left[p] == 0:
-                        drop.append(p)
-        loop = find_loop(edges, [n for n in declared if n in left], declared)
+    order = _topological(declared, edges)
+    torn: list[str] = []
+    loops: list[str] = []
+    while len(order) < len(blocks):
+        left = _on_cycles(declared, edges, order)
+        loop = find_loop(edges, left, declared)
         if len(loop) <= 12:
             text = " -> ".join([*loop, loop[0]])
         else:  # a few blocks and the count: a loop through 10,000 blocks is not a message
             text = " -> ".join([*loop[:6], "...", *loop[-2:], loop[0]]) + f" ({len(loop):,} blocks in the loop)"
-        raise DiagramError(f"algebraic loop: {text}; break it with an integrator (or another block with state "
-                           "and no direct feedthrough: a strictly proper transfer-fcn, a state-space block with "
-                           "D = 0).", key=f"blocks.{loop[0]}")
+        if algebraic_loops == "error":
+            raise DiagramError(f"algebraic loop: {text}; break it with an integrator (or another block with state "
+                               "and no direct feedthrough: a strictly proper transfer-fcn, a state-space block with "
+                               "D = 0), or let odelab solve it as Simulink does: remove [system] algebraic_loops = "
+                               "\"error\".", key=f"blocks.{loop[0]}")
+        cut = loop[0]
+        torn.append(cut)
+        loops.append(text)
+        for src in declared:  # the torn block's output is an unknown: its inputs no longer order it
+            edges[src] = [d for d in edges[src] if d != cut]
+        order = _topological(declared, edges)
 
     widths: dict[tuple[str, int], int] = {}
     for name, b in blocks.items():
@@ -194,9 +228,17 @@ def wire(blocks: Mapping[str, Block], outputs: Mapping[str, str]) -> Wiring:
             raise _rekey(exc, name) from None
         return got
 
+    for name in torn:  # the unknowns of a loop are scalars (checked below)
+        widths.update({(name, i): 1 for i in range(len(blocks[name].ports()))})
     for name in order:
-        if blocks[name].feedthrough:
+        if blocks[name].feedthrough and name not in torn:
             widths.update({(name, i): w for i, w in enumerate(setup(name))})
+    for name in torn:
+        got = setup(name)
+        if any(w != 1 for w in got):
+            raise DiagramError(f"the algebraic loop through `{name}` carries a vector signal; odelab solves loops of "
+                               "scalar signals: split the vector with a demux, or break the loop with a block with "
+                               "state.", key=f"blocks.{name}")
     for name in order:
         if not blocks[name].feedthrough and not blocks[name].SOURCE:
             setup(name)
@@ -205,7 +247,8 @@ def wire(blocks: Mapping[str, Block], outputs: Mapping[str, str]) -> Wiring:
             raise DiagramError(f"`system.outputs.{out}` is a signal of width {widths[port]}; an output is one "
                                "number: split the vector with a demux block and name one element.",
                                key=f"system.outputs.{out}")
-    return Wiring(blocks=blocks, sources=sources, outputs=out_ports, widths=widths, order=tuple(order))
+    return Wiring(blocks=blocks, sources=sources, outputs=out_ports, widths=widths, order=tuple(order),
+                  torn=tuple(torn), loops=tuple(loops))
 
 
 def _rekey(exc: InputError, name: str) -> InputError:

@@ -39,6 +39,9 @@ class HybridResponse(Response):
     crossings: dict = field(default_factory=dict)
     hits: tuple = ()
     notes: tuple = ()
+    te: np.ndarray = field(default_factory=lambda: np.empty(0))  # the user's events (``events``), as solve's
+    ye: np.ndarray = field(default_factory=lambda: np.empty((0, 0)))
+    ie: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=int))
 
 
 def needs_hybrid(diagram, zero_crossing: bool = True) -> bool:
@@ -55,12 +58,15 @@ def _locates(method: str) -> bool:
 
 
 def simulate_hybrid(diagram, tspan, x0=None, *, method: str = "ode45", zero_crossing: bool = True,
-                    **options) -> HybridResponse:
+                    events=None, **options) -> HybridResponse:
     """Integrate a compiled diagram with its switching and discrete blocks (see the module).
 
     ``tspan`` is ``[t0, tf]`` (the solver's own points, restarts shown twice) or output times.
-    ``zero_crossing = False`` turns location off for every block. A failure (a solver failure,
-    a chattering switch) returns what was computed with ``status == "failed"``.
+    ``zero_crossing = False`` turns location off for every block. ``events`` is a MATLAB-form
+    events function of (t, x), ``(value, isterminal, direction)`` (an [events] section's): its
+    events are located with the blocks' and returned as ``te, ye, ie``, a terminal one ends the
+    run there. A failure (a solver failure, a chattering switch) returns what was computed with
+    ``status == "failed"``.
     """
     from odelab.solvers.api import solve
     from odelab.solvers.events import locate_events  # noqa: F401 - the locator the solver runs
@@ -111,6 +117,10 @@ def simulate_hybrid(diagram, tspan, x0=None, *, method: str = "ode45", zero_cros
 
     dense = tspan.size == 2
     user = tspan
+    user_te: list[float] = []
+    user_ye: list[np.ndarray] = []
+    user_ie: list[int] = []
+    finished = False  # a terminal user event ended the run
     rows_t: list[np.ndarray] = []
     rows_x: list[np.ndarray] = []
     nsteps = nfevals = 0
@@ -162,7 +172,9 @@ def simulate_hybrid(diagram, tspan, x0=None, *, method: str = "ode45", zero_cros
                 add(a, x)  # the row after the jump (the one before ended the previous piece)
             while True:
                 before = sw.raw(start, x, u(start), sw.located) if sw.located else None
-                ev = sw.event_function(u) if sw.located else None
+                ev = _combined(sw.event_function(u) if sw.located else None, len(sw.owners) if sw.located else 0,
+                               events)
+                n_zc = len(sw.owners) if sw.located else 0
                 stop_fcn = None
                 if sw.stepped:
                     changed = sw.stepped_check(u)
@@ -198,13 +210,33 @@ def simulate_hybrid(diagram, tspan, x0=None, *, method: str = "ode45", zero_cros
                         add(sol.t[keep], sol.y[keep])
                     status, message = "failed", sol.message
                     raise _Stop
+                ie_all = np.asarray(sol.ie, dtype=int)
+                user_terminal = [bool(np.asarray(events(float(tj), yj)[1]).reshape(-1)[j - n_zc])
+                                 if j >= n_zc else True for tj, yj, j in zip(te, sol.ye, ie_all)] if te.size else []
+                first = next((k for k in range(te.size) if ie_all[k] < n_zc or user_terminal[k]), None)
+                for k in range(te.size):  # the user's events up to the end of this stretch
+                    if ie_all[k] >= n_zc and (first is None or te[k] <= te[first]):
+                        user_te.append(float(te[k]))
+                        user_ye.append(np.asarray(sol.ye[k], dtype=float))
+                        user_ie.append(int(ie_all[k] - n_zc))
+                if first is not None and ie_all[first] >= n_zc:  # a terminal user event ends the run
+                    t_stop = float(te[first])
+                    inner = keep & ((sol.t < t_stop) if forward else (sol.t > t_stop))
+                    add(sol.t[inner], sol.y[inner])
+                    add(t_stop, sol.ye[first])
+                    x = np.asarray(sol.ye[first], dtype=float)
+                    message = sol.message
+                    finished = True
+                    break
+                te = te[[k for k in range(te.size) if ie_all[k] < n_zc]]
                 if te.size:  # the first located switch ends the piece (terminal or not)
+                    zc_rows = [k for k in range(ie_all.size) if ie_all[k] < n_zc]
                     t_sw = float(te[0])
-                    y_sw = np.asarray(sol.ye[0], dtype=float)
+                    y_sw = np.asarray(sol.ye[zc_rows[0]], dtype=float)
                     inner = keep & ((sol.t < t_sw) if forward else (sol.t > t_sw))
                     add(sol.t[inner], sol.y[inner])
                     add(t_sw, y_sw)
-                    fired = [sw.owners[j] for j, tj in zip(np.asarray(sol.ie).tolist(), te.tolist()) if tj == t_sw]
+                    fired = [sw.owners[ie_all[k]] for k in zc_rows if float(sol.te[k]) == t_sw]
                     sw.record(t_sw, fired)
                     tol = 128 * max(math.ulp(t_sw), math.ulp(start))
                     consecutive = consecutive + 1 if abs(t_sw - start) <= 10 * tol else 0
@@ -238,6 +270,8 @@ def simulate_hybrid(diagram, tspan, x0=None, *, method: str = "ode45", zero_cros
                 if dense or np.any(user == b):
                     add(b, x)  # the row before the jump at b (or the last row)
                 break
+            if finished:
+                break
             if b in hit_map and not last:
                 x = _discrete_hit(diagram, b, x, inputs_at(b, math.inf if forward else b)(b), hit_map[b])
             elif b in hit_map and last:
@@ -262,7 +296,7 @@ def simulate_hybrid(diagram, tspan, x0=None, *, method: str = "ode45", zero_cros
     if hit_times.size:
         rates_txt = ", ".join(f"{n} every {blocks[n].sample}" for n in rates)
         notes.append(f"sample hits: {hit_times.size} ({rates_txt})")
-    if status == "success":
+    if status == "success" and not finished:
         message = (message.split(" Integrated in")[0] + " " + "; ".join(notes) + ".").strip() if notes else message
     U = np.zeros((t.size, len(signals)))
     for j, s in enumerate(signals):
@@ -274,7 +308,26 @@ def simulate_hybrid(diagram, tspan, x0=None, *, method: str = "ode45", zero_cros
                           outputs=diagram.outputs, stats=Stats(nsteps, nfailed, nfevals), status=status,
                           message=message, method=method_name, breakpoints=tuple(float(c) for c in cuts),
                           warnings=tuple(warns), crossings={n: tuple(v) for n, v in sw.times.items()},
-                          hits=tuple(float(h) for h in hit_times), notes=tuple(notes))
+                          hits=tuple(float(h) for h in hit_times), notes=tuple(notes),
+                          te=np.array(user_te), ye=np.array(user_ye).reshape(len(user_te), x.size),
+                          ie=np.array(user_ie, dtype=int))
+
+
+def _combined(zc, n_zc, events):
+    """One events function: the blocks' switching functions, then the user's events."""
+    if events is None:
+        return zc
+    if zc is None:
+        return events
+
+    def ev(t, x):
+        v1, t1, d1 = zc(t, x)
+        v2, t2, d2 = events(t, x)
+        return (np.concatenate([v1, np.asarray(v2, dtype=float).reshape(-1)]),
+                np.concatenate([t1, np.asarray(t2, dtype=bool).reshape(-1)]),
+                np.concatenate([d1, np.asarray(d2, dtype=float).reshape(-1)]))
+
+    return ev
 
 
 class _Stop(Exception):
