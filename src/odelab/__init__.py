@@ -16,6 +16,7 @@ _LAZY = {
     "ode23": "odelab.solvers.api",
     "ode45": "odelab.solvers.api",
     "solve": "odelab.solvers.api",
+    "dde23": "odelab.solvers.dde23",
     "deval": "odelab.solvers.dense",
     "odextend": "odelab.solvers.dense",
     "OdelabWarning": "odelab.exceptions",
@@ -81,6 +82,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from odelab.experiment.runner import run_experiment
     from odelab.solution import Solution, Stats
     from odelab.solvers.api import ode23, ode45, solve
+    from odelab.solvers.dde23 import dde23
     from odelab.solvers.dense import deval, odextend
     from odelab.solvers.registry import METHODS
     from odelab.solvers.suite import ode15s, ode23s, ode23t, ode23tb, ode113, ode78, ode89
