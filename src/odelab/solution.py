@@ -74,6 +74,9 @@ class Solution:
         hold the solution up to where it stopped.
     message
         Why it stopped, where and what to do about it.
+    reason
+        Why it stopped, as a code (:class:`odelab.solvers.status.Status`: ``SUCCESS``,
+        ``TERMINAL_EVENT``, ``STEP_UNDERFLOW``...); None for SciPy's methods.
     method
         The method's registry name (``"ode45"``, ``"rk4"``, ``"Radau"``...).
     warnings
@@ -100,6 +103,7 @@ class Solution:
     ie: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=int))
     interpolant: Any = field(default=None, repr=False)
     setup: Any = field(default=None, repr=False)
+    reason: Any = None
 
     def deval(self, t, derivative: bool = False):
         """The solution at ``t`` (a time or a sequence) from the method's interpolant (MATLAB's ``deval``).

@@ -202,3 +202,23 @@ def test_an_exception_in_the_users_function_names_its_file_and_line(tmp_path):
     sol = odelab.ode23(module.eq1, [0, 1], 2.0)
     assert sol.status == "failed"
     assert "NameError: name 'undefined_name' is not defined (eq1.py, line 4)" in sol.message
+
+
+def test_every_driver_reports_why_it_stopped_as_one_status():
+    """One Status for every driver: the Solution carries it, and status is its label."""
+    from odelab.solvers.status import Status
+
+    decay = lambda t, y: -y  # noqa: E731
+    for method in ("ode45", "ode113", "ode15s", "ode23t", "rk4"):
+        options = {"h": 0.1} if method == "rk4" else {}
+        sol = odelab.solve(decay, [0, 1], [1.0], method=method, **options)
+        assert sol.reason is Status.SUCCESS and sol.status == "success", method
+    with pytest.warns(odelab.SolverWarning):
+        sol = odelab.solve(decay, [0, 10], [1.0], method="ode45", max_steps=3)
+    assert sol.reason is Status.MAX_STEPS and sol.status == "failed"
+    event = lambda t, y: (y[0] - 0.5, True, 0)  # noqa: E731
+    for method in ("ode45", "ode113", "ode23s"):
+        sol = odelab.solve(decay, [0, 10], [1.0], method=method, events=event)
+        assert sol.reason is Status.TERMINAL_EVENT and sol.status == "success", method
+    assert abs(sol.te[0] - np.log(2.0)) / 1e-3 < 5  # ode23s at rtol = 1e-3
+    assert [s.failed for s in Status] == [False, True, True, True, True, False, False]

@@ -42,15 +42,7 @@ import numpy as np
 
 from odelab.solvers.dense import clip_nonnegative, query_times
 from odelab.solvers.ordered import combine
-from odelab.solvers.engine import (
-    STATUS_FUN_RAISED,
-    STATUS_MAX_STEPS,
-    STATUS_NONFINITE,
-    STATUS_OUTPUT_STOP,
-    STATUS_STEP_UNDERFLOW,
-    STATUS_SUCCESS,
-    STATUS_TERMINAL_EVENT,
-)
+from odelab.solvers.status import Status
 
 __all__ = ["MAX_ORDER", "integrate_ode113", "AdamsDenseOutput", "ntrp113"]
 
@@ -276,7 +268,7 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
     d_psi: list[list[float]] = []
 
     nsteps = nfailed = nfevals = 0
-    status = STATUS_SUCCESS
+    status = Status.SUCCESS
     exception = None
     h = tdir * absh
     try:
@@ -383,7 +375,7 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
                 if err > rtol:  # failed: restore t, phi and psi, then halve (book, block 3)
                     nfailed += 1
                     if absh <= hmin:
-                        status = STATUS_STEP_UNDERFLOW
+                        status = Status.STEP_UNDERFLOW
                         break
                     phase1 = False
                     phi[1:k + 1] = (phi[1:k + 1] - phi[2:k + 2]) / np.array(beta[1:k + 1])[:, None]
@@ -403,9 +395,9 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
                 elif err <= rtol:
                     break
                 else:  # NaN: a derivative or the prediction is not finite
-                    status = STATUS_NONFINITE
+                    status = Status.NONFINITE
                     break
-            if status != STATUS_SUCCESS:
+            if status != Status.SUCCESS:
                 break
             nsteps += 1
             klast = k
@@ -463,7 +455,7 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
                     if stop:
                         t_end, y_end = found_t[-1], found_y[-1]
                         done = True
-                        status = STATUS_TERMINAL_EVENT
+                        status = Status.TERMINAL_EVENT
             d_t.append(tlast)
             d_end.append(t_end)
             d_ref.append(tnew)
@@ -501,7 +493,7 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
                     y_out.append(y_end[None, :])
             if output_fcn is not None and len(t_out) > n_before:
                 if output_fcn(np.array(t_out[n_before:]), np.vstack(y_out[k_before:])):
-                    status = STATUS_OUTPUT_STOP
+                    status = Status.OUTPUT_STOP
                     t = t_end
                     break
 
@@ -516,10 +508,10 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
             if done:
                 break
             if max_steps and nsteps >= max_steps:
-                status = STATUS_MAX_STEPS
+                status = Status.MAX_STEPS
                 break
     except Exception as exc:  # the user's right-hand side (or events function) failed
-        status = STATUS_FUN_RAISED
+        status = Status.FUN_RAISED
         exception = exc
 
     t_arr = np.array(t_out)

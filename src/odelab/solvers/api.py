@@ -13,6 +13,7 @@ from odelab.solution import Solution, Stats
 from odelab.solvers import engine
 from odelab.solvers.options import SolverOptions, as_tspan, as_y0, normalize_options, resolve_options
 from odelab.solvers.registry import Method, get_method
+from odelab.solvers.status import Status
 
 __all__ = ["ode23", "ode45", "solve"]
 
@@ -215,7 +216,7 @@ def _solve_method(fun, tspan, y0, method: str, options: dict) -> Solution:
         f0_raw = fun(t0, y0_arr.copy())
     except Exception as exc:
         return _failed_at_start(m, tspan_arr, y0_arr, opts, f"the right-hand side raised {_describe(exc)} "
-                                f"at t = {t0:g} (the first call)")
+                                f"at t = {t0:g} (the first call)", Status.FUN_RAISED)
     rhs, f0 = _checked_rhs(fun, f0_raw, y0_arr)
     if not np.all(np.isfinite(f0)):
         return _failed_at_start(m, tspan_arr, y0_arr, opts, f"the derivative at t = {t0:g} is not finite "
@@ -319,7 +320,7 @@ def _solve_adaptive(fun, tspan, y0, f0, m: Method, opts: SolverOptions, setup: d
         interpolant = DenseOutput(*steps, coefficients=_stepping_arrays(tab)[3], y_final=y[-1].copy(),
                                   nonnegative=nonnegative, completion=completion, basis=tab.dense_basis)
     return Solution(
-        t=t, y=y, stats=stats, status="failed" if status in _FAILURES else "success", message=message,
+        t=t, y=y, stats=stats, status=Status(status).label, reason=Status(status), message=message,
         method=m.name, warnings=opts.warnings,
         te=np.array(te, dtype=float), ye=np.array(ye, dtype=y0.dtype).reshape(len(ye), y0.size),
         ie=np.array(ie, dtype=int), interpolant=interpolant, setup=setup,
@@ -340,10 +341,6 @@ def _non_fsal(tab) -> tuple:
         return ()
     inc = tab.increment_form
     return (inc["b"], None if tab.extra_c is None else (inc["extra_A"], tab.extra_c), tab.dense_basis)
-
-
-_FAILURES = (engine.STATUS_STEP_UNDERFLOW, engine.STATUS_NONFINITE, engine.STATUS_MAX_STEPS,
-             engine.STATUS_FUN_RAISED)
 
 
 def _nonnegative_rhs(fun, idx: np.ndarray):
@@ -392,7 +389,7 @@ def _solve_implicit(fun, tspan, y0, f0, m: Method, opts: SolverOptions) -> Solut
                   ndecomps=work.ndecomps, nsolves=work.nsolves)
     te, ye, ie = work.found
     message = _status_message(status, m, t_stop, h_stop, y, y0, opts, exc, tspan, te, ie)
-    return Solution(t=t, y=y, stats=stats, status="failed" if status in _FAILURES else "success", message=message,
+    return Solution(t=t, y=y, stats=stats, status=Status(status).label, reason=Status(status), message=message,
                     method=m.name, warnings=opts.warnings, interpolant=work.dense,
                     te=np.array(te, dtype=float), ye=np.array(ye, dtype=float).reshape(len(ye), y0.size),
                     ie=np.array(ie, dtype=int))
@@ -428,11 +425,13 @@ def _solve_fixed(fun, tspan, y0, m: Method, opts: SolverOptions) -> Solution:
     t, y, nsteps, nfevals, status, t_stop, exc = engine.integrate_fixed(fun, grid, keep, y0, tab.A, tab.b, tab.c)
     message = _status_message(status, m, t_stop, opts.h, y, y0, opts, exc, tspan)
     return Solution(t=t, y=y, stats=Stats(nsteps=nsteps, nfailed=0, nfevals=nfevals),
-                    status="success" if status == 0 else "failed", message=message, method=m.name)
+                    status=Status(status).label, reason=Status(status), message=message,
+                    method=m.name)
 
 
-def _failed_at_start(m: Method, tspan, y0, opts: SolverOptions, why: str) -> Solution:
+def _failed_at_start(m: Method, tspan, y0, opts: SolverOptions, why: str, reason=Status.NONFINITE) -> Solution:
     return Solution(t=tspan[:1].copy(), y=y0.reshape(1, -1), stats=Stats(0, 0, 1), status="failed",
+                    reason=reason,
                     message=f"{m.name} could not start: {why}.", method=m.name, warnings=opts.warnings)
 
 
@@ -463,14 +462,14 @@ def _fmt_vec(v: np.ndarray) -> str:
 def _status_message(status, m: Method, t_stop, h_stop, y, y0, opts: SolverOptions, exc, tspan, te=(), ie=(),
                     fun=None) -> str:
     tf = float(tspan[-1])
-    if status == engine.STATUS_SUCCESS:
+    if status == Status.SUCCESS:
         return f"{m.name} reached t = {tf:g}."
-    if status == engine.STATUS_TERMINAL_EVENT:
+    if status == Status.TERMINAL_EVENT:
         return f"{m.name} stopped at t = {te[-1]:.10g}: terminal event {ie[-1]} occurred."
-    if status == engine.STATUS_OUTPUT_STOP:
+    if status == Status.OUTPUT_STOP:
         return f"{m.name} stopped at t = {t_stop:.10g}: the output function asked to stop."
     where = f"at t = {t_stop:.10g}"
-    if status == engine.STATUS_STEP_UNDERFLOW:
+    if status == Status.STEP_UNDERFLOW:
         hmin = engine._hmin(t_stop)
         grown = float(np.max(np.abs(y[-1]))) > 1e6 * max(1.0, float(np.max(np.abs(y0))))
         cause = (
@@ -484,13 +483,13 @@ def _status_message(status, m: Method, t_stop, h_stop, y, y0, opts: SolverOption
             f"{m.name} failed {where}: the step size fell below {hmin:.2g}, the smallest allowed, "
             f"without meeting the tolerances (MATLAB: 'Unable to meet integration tolerances'); {cause}."
         )
-    if status == engine.STATUS_NONFINITE:
+    if status == Status.NONFINITE:
         return (
             f"{m.name} failed {where}: the derivative became NaN or infinite in the next step "
             f"(step size {h_stop:.3g}). Check the right-hand side for a division by zero, a log or sqrt "
             "of a negative number, or a blow-up near there; the solution up to that point is kept."
         )
-    if status == engine.STATUS_MAX_STEPS:
+    if status == Status.MAX_STEPS:
         head = f"{m.name} stopped {where} of {tf:g} after max_steps = {opts.max_steps} steps: "
         if m.stiff:
             return head + "raise max_steps, or loosen rtol/atol."

@@ -345,6 +345,7 @@ def odextend(sol, fun, tfinal: float, y0=None, **options):
                     nfailed=sol.stats.nfailed + more.stats.nfailed,
                     nfevals=sol.stats.nfevals + more.stats.nfevals),
         status=more.status,
+        reason=more.reason,
         message=more.message,
         method=sol.method,
         warnings=sol.warnings + more.warnings,

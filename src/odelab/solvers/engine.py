@@ -36,26 +36,9 @@ import math
 import numpy as np
 
 from odelab.solvers.ordered import backwards, combine, norm
+from odelab.solvers.status import Status
 
-__all__ = [
-    "STATUS_SUCCESS",
-    "STATUS_STEP_UNDERFLOW",
-    "STATUS_NONFINITE",
-    "STATUS_MAX_STEPS",
-    "STATUS_FUN_RAISED",
-    "STATUS_TERMINAL_EVENT",
-    "STATUS_OUTPUT_STOP",
-    "integrate_adaptive",
-    "integrate_fixed",
-]
-
-STATUS_SUCCESS = 0
-STATUS_STEP_UNDERFLOW = 1  # the step size fell to hmin and the error test still failed
-STATUS_NONFINITE = 2  # a derivative (or the solution) became NaN or infinite
-STATUS_MAX_STEPS = 3  # the max_steps guard stopped the integration
-STATUS_FUN_RAISED = 4  # the right-hand side raised an exception
-STATUS_TERMINAL_EVENT = 5  # a terminal event stopped the integration (not a failure)
-STATUS_OUTPUT_STOP = 6  # the output function asked to stop (not a failure)
+__all__ = ["integrate_adaptive", "integrate_fixed"]
 
 
 def _hmin(t: float) -> float:
@@ -361,7 +344,7 @@ def integrate_adaptive(
     nsteps = 0
     nfailed = 0
     nfevals = 0
-    status = STATUS_SUCCESS
+    status = Status.SUCCESS
     exception = None
     h = tdir * absh
     try:
@@ -435,7 +418,7 @@ def integrate_adaptive(
                 if err > rtol:  # failed attempt
                     nfailed += 1
                     if absh <= hmin:
-                        status = STATUS_STEP_UNDERFLOW
+                        status = Status.STEP_UNDERFLOW
                         break
                     if nofailed:
                         nofailed = False
@@ -450,9 +433,9 @@ def integrate_adaptive(
                 elif err <= rtol:
                     break
                 else:  # err is NaN: a derivative or the solution is not finite
-                    status = STATUS_NONFINITE
+                    status = Status.NONFINITE
                     break
-            if status != STATUS_SUCCESS:
+            if status != Status.SUCCESS:
                 break
             nsteps += 1
             if not fsal:
@@ -499,7 +482,7 @@ def integrate_adaptive(
                         ynew = found_y[-1]
                         h = tnew - t
                         done = True
-                        status = STATUS_TERMINAL_EVENT
+                        status = Status.TERMINAL_EVENT
 
             if not completed[0] and (
                     (refine_output and refine > 1)
@@ -540,7 +523,7 @@ def integrate_adaptive(
                     nxt += 1
                 if output_fcn is not None and nout > n_before:
                     if output_fcn(np.array(t_out[n_before:]), y_out[n_before:nout].copy()):
-                        status = STATUS_OUTPUT_STOP
+                        status = Status.OUTPUT_STOP
                         t = tnew
                         break
             elif output_fcn is not None:  # this step's Refine rows, as the output will hold them
@@ -550,7 +533,7 @@ def integrate_adaptive(
                 else:
                     t_new_rows, y_new_rows = np.array([tnew]), ynew.reshape(1, n).copy()
                 if output_fcn(t_new_rows, y_new_rows):
-                    status = STATUS_OUTPUT_STOP
+                    status = Status.OUTPUT_STOP
                     t = tnew
                     break
 
@@ -558,7 +541,7 @@ def integrate_adaptive(
                 t = tnew
                 break
             if max_steps and nsteps >= max_steps:
-                status = STATUS_MAX_STEPS
+                status = Status.MAX_STEPS
                 t = tnew
                 break
 
@@ -588,7 +571,7 @@ def integrate_adaptive(
             else:
                 K_first[...] = fnew
     except Exception as exc:  # the user's right-hand side (or events function) failed
-        status = STATUS_FUN_RAISED
+        status = Status.FUN_RAISED
         exception = exc
     nfevals += completed[1]
 
@@ -653,7 +636,7 @@ def integrate_fixed(fun, grid: np.ndarray, keep: np.ndarray, y0: np.ndarray, A: 
     y = y_row
     nsteps = 0
     nfevals = 0
-    status = STATUS_SUCCESS
+    status = Status.SUCCESS
     exception = None
     # Hundreds of thousands of steps: keep the loop on Python floats, and form h*A and h*b only
     # when h changes (once for a uniform grid, again for its shortened last step). The
@@ -676,14 +659,14 @@ def integrate_fixed(fun, grid: np.ndarray, keep: np.ndarray, y0: np.ndarray, A: 
             nfevals += s
             ynew = b_dot(W_3d)[0]
             if not math.isfinite(float(ynew.sum())):
-                status = STATUS_NONFINITE
+                status = Status.NONFINITE
                 break
             y_row[...] = ynew
             ys[k + 1] = y
             nsteps += 1
             t = times[k + 1]
     except Exception as exc:
-        status = STATUS_FUN_RAISED
+        status = Status.FUN_RAISED
         exception = exc
     done = nsteps + 1
     mask = keep[:done].copy()

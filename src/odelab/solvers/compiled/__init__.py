@@ -26,6 +26,7 @@ import numpy as np
 
 from odelab.exceptions import InputError
 from odelab.solution import Solution, Stats
+from odelab.solvers.status import Status
 
 __all__ = ["BACKENDS", "AUTO_STEPS", "COMPILE_SECONDS", "CompiledSystem", "expected_compile_seconds", "unavailable",
            "solve_compiled"]
@@ -348,7 +349,8 @@ def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dic
         t, y = grid[:done][mask], ys[:done][mask]
         message = api._status_message(status, m, t_stop, opts.h, y, y0_arr, opts, None, tspan_arr)
         return Solution(t=t, y=y, stats=Stats(nsteps=nsteps, nfailed=0, nfevals=nfevals),
-                        status="success" if status == 0 else "failed", message=message, method=m.name)
+                        status=Status(status).label, reason=Status(status), message=message,
+                        method=m.name)
 
     refine = opts.refine
     if tspan_arr.size == 2 and refine > 1:
@@ -382,7 +384,7 @@ def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dic
                                   list(found.get("te", ())), list(found.get("ie", ())),
                                   fun=_python_rhs(rhs, p, n))  # a step-limit message's stiffness check
     return Solution(t=t, y=y, stats=Stats(nsteps=nsteps, nfailed=nfailed, nfevals=nfevals + 1),
-                    status="failed" if status in api._FAILURES else "success", message=message, method=m.name,
+                    status=Status(status).label, reason=Status(status), message=message, method=m.name,
                     warnings=opts.warnings, **found)
 
 

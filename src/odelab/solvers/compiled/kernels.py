@@ -29,10 +29,7 @@ _I8 = _types.int64
 RHS = _types.void(_F8, _V, _V, _V)
 _RHS_ARG = _types.FunctionType(RHS)
 
-STATUS_SUCCESS = 0
-STATUS_STEP_UNDERFLOW = 1
-STATUS_NONFINITE = 2
-STATUS_MAX_STEPS = 3
+from odelab.solvers.status import Status as _Status
 
 
 @_njit(cache=True, error_model="numpy")
@@ -117,7 +114,7 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
     nsteps = 0
     nfailed = 0
     nfevals = 0
-    status = STATUS_SUCCESS
+    status = _Status.SUCCESS
     h = tdir * absh
     tnew = t
     err = 0.0
@@ -188,7 +185,7 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
             if err > rtol:
                 nfailed += 1
                 if absh <= hmin:
-                    status = STATUS_STEP_UNDERFLOW
+                    status = _Status.STEP_UNDERFLOW
                     break
                 if nofailed:
                     nofailed = False
@@ -200,9 +197,9 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
             elif err <= rtol:
                 break
             else:
-                status = STATUS_NONFINITE
+                status = _Status.NONFINITE
                 break
-        if status != STATUS_SUCCESS:
+        if status != _Status.SUCCESS:
             break
         nsteps += 1
 
@@ -255,7 +252,7 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
         if done:
             break
         if max_steps > 0 and nsteps >= max_steps:
-            status = STATUS_MAX_STEPS
+            status = _Status.MAX_STEPS
             t = tnew
             break
 
@@ -294,7 +291,7 @@ def _fixed(_rhs, grid, y0, p, A, b, c):
         y[j] = y0[j]
     nsteps = 0
     nfevals = 0
-    status = STATUS_SUCCESS
+    status = _Status.SUCCESS
     t = grid[0]
     for step in range(grid.shape[0] - 1):
         t = grid[step]
@@ -320,7 +317,7 @@ def _fixed(_rhs, grid, y0, p, A, b, c):
             stage[j] = acc + y[j]
             total += stage[j]
         if not _np.isfinite(total):
-            status = STATUS_NONFINITE
+            status = _Status.NONFINITE
             break
         for j in range(n):
             y[j] = stage[j]

@@ -1,8 +1,8 @@
 """The compiled loop with [events]: MATLAB's ``odezero`` on each step's interpolant (numba).
 
 This file is appended to ``kernels.py`` in one generated module (see
-:func:`odelab.solvers.compiled.cache.load_kernels`) and uses its names (``_grow``, the status
-codes). :func:`_locate` is :func:`odelab.solvers.events.locate_events` statement for statement
+:func:`odelab.solvers.compiled.cache.load_kernels`) and uses its names (``_grow``, ``_Status``).
+:func:`_locate` is :func:`odelab.solvers.events.locate_events` statement for statement
 (regula falsi with the Illinois modification on the step's interpolant, the tolerance
 ``128 eps``, events at the left end, later events of the same step, terminal events), with
 arrays instead of lists; :func:`_adaptive_events` is the adaptive loop with the engine's event
@@ -15,7 +15,6 @@ has events.
 import numpy as _np
 from numba import njit as _njit
 
-STATUS_TERMINAL_EVENT = 5  # odelab.solvers.engine's code: a terminal event stopped the run
 
 
 _TINY = 2.2250738585072014e-308  # realmin: Illinois halving keeps values above it
@@ -281,7 +280,7 @@ def _adaptive_events(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shr
     nsteps = 0
     nfailed = 0
     nfevals = 0
-    status = STATUS_SUCCESS
+    status = _Status.SUCCESS
     h = tdir * absh
     tnew = t
     err = 0.0
@@ -352,7 +351,7 @@ def _adaptive_events(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shr
             if err > rtol:
                 nfailed += 1
                 if absh <= hmin:
-                    status = STATUS_STEP_UNDERFLOW
+                    status = _Status.STEP_UNDERFLOW
                     break
                 if nofailed:
                     nofailed = False
@@ -364,9 +363,9 @@ def _adaptive_events(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shr
             elif err <= rtol:
                 break
             else:
-                status = STATUS_NONFINITE
+                status = _Status.NONFINITE
                 break
-        if status != STATUS_SUCCESS:
+        if status != _Status.SUCCESS:
             break
         nsteps += 1
 
@@ -395,7 +394,7 @@ def _adaptive_events(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shr
                 ynew[j] = ye[nev - 1, j]
             h = tnew - t
             done = True
-            status = STATUS_TERMINAL_EVENT
+            status = _Status.TERMINAL_EVENT
 
         if refine_output:
             needed = count + refine
@@ -453,7 +452,7 @@ def _adaptive_events(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shr
         if done:
             break
         if max_steps > 0 and nsteps >= max_steps:
-            status = STATUS_MAX_STEPS
+            status = _Status.MAX_STEPS
             t = tnew
             break
 

@@ -25,7 +25,7 @@ import warnings
 
 import numpy as np
 
-from odelab.solvers import engine
+from odelab.solvers.status import Status
 from odelab.solvers.implicit.common import SQRT_EPS, Output, Work, clamp_step
 
 __all__ = ["integrate_ode15s", "KAPPA"]
@@ -67,7 +67,7 @@ def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
     threshold = atol / rtol
     out = Output(tspan, y0, refine, events)
     nsteps = nfailed = 0
-    status, exception = engine.STATUS_SUCCESS, None
+    status, exception = Status.SUCCESS, None
     t, y = t0, y0.copy()
     absh = 0.0
     M = work.M
@@ -184,7 +184,7 @@ def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                             lu = None
                             continue
                         if absh <= hmin:
-                            status = engine.STATUS_STEP_UNDERFLOW
+                            status = Status.STEP_UNDERFLOW
                             break
                         absh_old = absh
                         absh = max(0.3 * absh, hmin)
@@ -200,7 +200,7 @@ def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                         nfailed += 1
                         nfails += 1
                         if absh <= hmin:
-                            status = engine.STATUS_STEP_UNDERFLOW
+                            status = Status.STEP_UNDERFLOW
                             break
                         absh_old = absh
                         if nfails == 1:
@@ -221,9 +221,9 @@ def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                         nconhk = 0
                         continue
                     if err != err:
-                        status = engine.STATUS_NONFINITE
+                        status = Status.NONFINITE
                     break
-                if status != engine.STATUS_SUCCESS:
+                if status != Status.SUCCESS:
                     break
 
                 # Accept: update the differences to the new point.
@@ -241,14 +241,14 @@ def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
 
                 if out.step(t, tnew, D[0], interp):
                     t, y = out.t[-1], out.y[-1]
-                    status = engine.STATUS_TERMINAL_EVENT
+                    status = Status.TERMINAL_EVENT
                     break
                 t, y = tnew, D[0].copy()
                 nconhk = min(nconhk + 1, max_order + 2)
                 if done:
                     break
                 if max_steps and nsteps >= max_steps:
-                    status = engine.STATUS_MAX_STEPS
+                    status = Status.MAX_STEPS
                     break
                 if nofailed and nconhk >= k + 2:
                     temp = 1.2 * (err / rtol) ** (1 / (k + 1))
@@ -270,7 +270,7 @@ def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                             k = kopt
                             nconhk = 0
         except Exception as exc:  # the user's right-hand side (or Jacobian) failed
-            status, exception = engine.STATUS_FUN_RAISED, exc
+            status, exception = Status.FUN_RAISED, exc
     t_out, y_out = out.arrays()
     work.found = out.found()
     return t_out, y_out, nsteps, nfailed, status, t, absh, exception

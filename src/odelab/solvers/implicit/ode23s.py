@@ -27,7 +27,7 @@ import warnings
 
 import numpy as np
 
-from odelab.solvers import engine
+from odelab.solvers.status import Status
 from odelab.solvers.implicit.common import SQRT_EPS, Output, Work, clamp_step, initial_step
 
 __all__ = ["integrate_ode23s", "D", "E32"]
@@ -47,7 +47,7 @@ def integrate_ode23s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
     threshold = atol / rtol
     out = Output(tspan, y0, refine, events)
     nsteps = nfailed = 0
-    status, exception = engine.STATUS_SUCCESS, None
+    status, exception = Status.SUCCESS, None
     t, y, F0 = t0, y0.copy(), f0
     M = work.M
     absh = initial_step(f0, y0, threshold, rtol, POWER, hmax, abs(float(tspan[1]) - t0), t0, htry)
@@ -80,7 +80,7 @@ def integrate_ode23s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                     if err > rtol:
                         nfailed += 1
                         if absh <= hmin:
-                            status = engine.STATUS_STEP_UNDERFLOW
+                            status = Status.STEP_UNDERFLOW
                             break
                         if nofailed:
                             nofailed = False
@@ -92,9 +92,9 @@ def integrate_ode23s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                     elif err <= rtol:
                         break
                     else:
-                        status = engine.STATUS_NONFINITE
+                        status = Status.NONFINITE
                         break
-                if status != engine.STATUS_SUCCESS:
+                if status != Status.SUCCESS:
                     break
                 nsteps += 1
 
@@ -104,21 +104,21 @@ def integrate_ode23s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
 
                 if out.step(t, tnew, ynew, interp):
                     t = out.t[-1]
-                    status = engine.STATUS_TERMINAL_EVENT
+                    status = Status.TERMINAL_EVENT
                     break
                 if done:
                     t = tnew
                     break
                 if max_steps and nsteps >= max_steps:
                     t = tnew
-                    status = engine.STATUS_MAX_STEPS
+                    status = Status.MAX_STEPS
                     break
                 if nofailed:
                     temp = 1.25 * (err / rtol) ** POWER
                     absh = absh / temp if temp > 0.2 else 5.0 * absh
                 t, y, F0 = tnew, ynew, F2
         except Exception as exc:
-            status, exception = engine.STATUS_FUN_RAISED, exc
+            status, exception = Status.FUN_RAISED, exc
     t_out, y_out = out.arrays()
     work.found = out.found()
     return t_out, y_out, nsteps, nfailed, status, t, absh, exception

@@ -50,7 +50,7 @@ import warnings
 
 import numpy as np
 
-from odelab.solvers import engine
+from odelab.solvers.status import Status
 from odelab.solvers.implicit.common import (EPS, SQRT_EPS, Newton, Output, QuadraticSteps, Work, clamp_step,
                                            consistent_slope, quadratic_through)
 
@@ -174,7 +174,7 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
     out = Output(tspan, y0, refine, events)
     steps = QuadraticSteps()
     nsteps = nfailed = 0
-    status, exception = engine.STATUS_SUCCESS, None
+    status, exception = Status.SUCCESS, None
     t, y = t0, y0.copy()
     absh = 0.0
     M = work.M
@@ -259,7 +259,7 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                             need_j = True
                             continue
                         if absh <= hmin:
-                            status = engine.STATUS_STEP_UNDERFLOW
+                            status = Status.STEP_UNDERFLOW
                             break
                         absh_last = absh
                         if itfailed == 3 and not start:
@@ -289,7 +289,7 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                     if err > rtol:
                         nfailed += 1
                         if absh <= hmin:
-                            status = engine.STATUS_STEP_UNDERFLOW
+                            status = Status.STEP_UNDERFLOW
                             break
                         nofailed = False
                         absh_last = absh
@@ -302,9 +302,9 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                         done = False
                         continue
                     if err != err:
-                        status = engine.STATUS_NONFINITE
+                        status = Status.NONFINITE
                     break
-                if status != engine.STATUS_SUCCESS:
+                if status != Status.SUCCESS:
                     break
 
                 nsteps += 1
@@ -312,7 +312,7 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                 if out.step(t, tnew, ynew, steps.add(t, h, y, *interpolant(history, tnew, ynew, ymid))):
                     t, y = out.t[-1], out.y[-1]
                     steps.cut(t)
-                    status = engine.STATUS_TERMINAL_EVENT
+                    status = Status.TERMINAL_EVENT
                     break
                 if start and damping > 1:
                     history = [(tnew, ynew)]  # damped: the next BDF1 step starts afresh from here
@@ -326,7 +326,7 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                 if done:
                     break
                 if max_steps and nsteps >= max_steps:
-                    status = engine.STATUS_MAX_STEPS
+                    status = Status.MAX_STEPS
                     break
                 if start and damping > 1:
                     damping -= 1
@@ -349,7 +349,7 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                         z = ratio * z
                         need_lu = True
         except Exception as exc:  # the user's right-hand side (or Jacobian) failed
-            status, exception = engine.STATUS_FUN_RAISED, exc
+            status, exception = Status.FUN_RAISED, exc
     t_out, y_out = out.arrays()
     work.found = out.found()
     work.dense = steps.dense(y)

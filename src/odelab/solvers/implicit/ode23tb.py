@@ -36,7 +36,7 @@ import warnings
 
 import numpy as np
 
-from odelab.solvers import engine
+from odelab.solvers.status import Status
 from odelab.solvers.implicit.common import (Newton, Output, QuadraticSteps, Work, clamp_step, initial_step, newton,
                                            quadratic_through)
 
@@ -94,7 +94,7 @@ def integrate_ode23tb(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine,
     out = Output(tspan, y0, refine, events)
     steps = QuadraticSteps()  # the quadratic through y_n, y_g, y_n+1: Refine, tspan output and deval
     nsteps = nfailed = 0
-    status, exception = engine.STATUS_SUCCESS, None
+    status, exception = Status.SUCCESS, None
     t, y = t0, y0.copy()
     M = work.M
     absh = 0.0
@@ -129,7 +129,7 @@ def integrate_ode23tb(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine,
                             lu = None
                             continue
                         if absh <= hmin:
-                            status = engine.STATUS_STEP_UNDERFLOW
+                            status = Status.STEP_UNDERFLOW
                             break
                         absh = max(0.3 * absh, hmin)
                         done = False
@@ -140,7 +140,7 @@ def integrate_ode23tb(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine,
                     if err > rtol:
                         nfailed += 1
                         if absh <= hmin:
-                            status = engine.STATUS_STEP_UNDERFLOW
+                            status = Status.STEP_UNDERFLOW
                             break
                         if nofailed:
                             absh = max(hmin, absh * max(0.5, 0.8 * (rtol / err) ** POWER))
@@ -150,16 +150,16 @@ def integrate_ode23tb(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine,
                         nofailed = False
                         continue
                     if err != err:
-                        status = engine.STATUS_NONFINITE
+                        status = Status.NONFINITE
                     break
-                if status != engine.STATUS_SUCCESS:
+                if status != Status.SUCCESS:
                     break
 
                 nsteps += 1
                 if out.step(t, tnew, ynew, steps.add(t, h, y, *quadratic_through(GAMMA, y, yg, ynew))):
                     t, y = out.t[-1], out.y[-1]
                     steps.cut(t)
-                    status = engine.STATUS_TERMINAL_EVENT
+                    status = Status.TERMINAL_EVENT
                     break
                 ypnew = znew / h
                 ypp = (ypnew - yp) / h
@@ -168,13 +168,13 @@ def integrate_ode23tb(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine,
                 if done:
                     break
                 if max_steps and nsteps >= max_steps:
-                    status = engine.STATUS_MAX_STEPS
+                    status = Status.MAX_STEPS
                     break
                 if nofailed:
                     temp = 1.25 * (err / rtol) ** POWER
                     absh = absh / temp if temp > 0.2 else 5.0 * absh
         except Exception as exc:  # the user's right-hand side (or Jacobian) failed
-            status, exception = engine.STATUS_FUN_RAISED, exc
+            status, exception = Status.FUN_RAISED, exc
     t_out, y_out = out.arrays()
     work.found = out.found()
     work.dense = steps.dense(y)
