@@ -331,7 +331,7 @@ def test_evaluate_parameters_in_dependency_order():
      ({"m": 0, "k": "1/m"}, "`parameters.k` = `1/m` evaluates to inf", "k"),
      ({"m": True}, "`parameters.m` must be a number or an expression string; got bool", "m"),
      ({"m": [1]}, "must be a number or an expression string; got list", "m"),
-     ({"e": 1.0}, "`e` is a constant", "e"),
+     ({"sin": 1.0}, "`sin` is a function of the expression language", "sin"),
      ({"mass": 1, "k": "2*mas"}, "unknown name `mas`; did you mean `mass`?", "k")],
 )  # fmt: skip
 def test_evaluate_parameters_errors(params, message, key):

@@ -55,7 +55,7 @@ def test_bouncing_ball_bounces_at_the_exact_times(tmp_path):
 
 
 def test_a_terminal_event_without_reset_stops_the_case(tmp_path):
-    path = variant(tmp_path, 'reset = { v = "-cr*v" }        # restart with these states changed (hybrid systems)\n', "")
+    path = variant(tmp_path, 'reset = { v = "-e*v" }        # restart with these states changed (hybrid systems)\n', "")
     (r,) = run_experiment(path)
     assert r.status == "success" and len(r.events) == 1
     assert r.t[-1] == r.events[0]["t"] and abs(r.t[-1] - T1) < 1e-12

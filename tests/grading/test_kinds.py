@@ -162,15 +162,15 @@ tolerance = { abs = 1e-3 }
 def test_events(tmp_path):
     from grading_support import write_class
 
-    students = {"right": {"ball.toml": BALL}, "bouncier": {"ball.toml": BALL.replace("cr = 0.8", "cr = 0.85")},
+    students = {"right": {"ball.toml": BALL}, "bouncier": {"ball.toml": BALL.replace("e = 0.8 ", "e = 0.85")},
                 "higher": {"ball.toml": BALL.replace("h0 = 10", "h0 = 10.2")}}
     grades = by_name(grade_class(write_class(tmp_path, {"ball.toml": BALL}, students, BALL_RUBRIC)))
     right = grades["right"].outcomes[0]
     assert right.passed and right.reference == "7"  # seven bounces before t = 10 (the file's closed form)
-    # bounce k at t1 (1 + 2 cr (1 - cr^k) / (1 - cr)), t1 = sqrt(2 h0 / g): with cr = 0.85, five before t = 10
+    # bounce k at t1 (1 + 2 e (1 - e^k) / (1 - e)), t1 = sqrt(2 h0 / g): with e = 0.85, five before t = 10
     bouncier = grades["bouncier"].outcomes[0]
     assert not bouncier.passed and bouncier.summary == "events 'floor': yours 5, the reference's 7"
-    assert bouncier.differences == ["parameters.cr is 0.85 where the reference has 0.8"]
+    assert bouncier.differences == ["parameters.e is 0.85 where the reference has 0.8"]
     # dropped from 10.2 m: still seven bounces, the first at sqrt(2 * 10.2 / 9.81) = 1.442 s, not 1.428 s
     higher = grades["higher"].outcomes[0]
     assert not higher.passed

@@ -151,7 +151,7 @@ def parse_fit(raw: Any, cases, models, original: dict, *, path: Path, file_hash:
         if isinstance(text, str):
             from odelab.expressions import parse_expression
 
-            used = sorted(set(parse_expression(text, key=f"parameters.{pname}").names) & set(known))
+            used = sorted(set(parse_expression(text, key=f"parameters.{pname}", names=known).names) & set(known))
             if used:
                 raise _error(f"`{key}`: parameters.{pname} = {text!r} is computed from {', '.join(used)}; a fitted "
                              f"parameter must be a number of its own: fit {' or '.join(used)} instead, or give "
@@ -328,7 +328,7 @@ def _fit_case(case, model: schema.Experiment, names: tuple[str, ...], quantities
 
         for text in texts:
             if isinstance(text, str):
-                used.update(parse_expression(text).names)
+                used.update(parse_expression(text, names=[*args, *fixed]).names)
         return compile_vector(texts, args=args, constants=fixed, keys=keys, complex_step=True)
 
     # the inputs: real signals, or expressions of t and the parameters

@@ -106,6 +106,9 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
 
     # a cache that could not be used or an entry compiled again (odelab.cachedir): said once, with this case
     warnings = [*warnings, *take_notes()]
+    from odelab.expressions.functions import shadowing_note
+
+    warnings += shadowing_note(p.parameters)  # "parameter e shadows the constant e (2.718...)"
     result = CaseResult(case=case, status=status, message=message, stats=stats, elapsed=elapsed, t=t, x=x, u=u,
                         y=y, warnings=list(warnings), events=events, event_marks=marks, backend=ran)
     if p.fit is not None:  # the experiment's [fit], estimated before its cases ran (experiment/fit.py)

@@ -340,8 +340,12 @@ def _fsync_folder(folder: Path, fd: int | None = None) -> None:
 
 def _resolved_toml(result: CaseResult, tomli_w) -> str:
     case = result.case
+    from odelab.expressions.functions import shadowing_note
+
     header = (f"# Resolved by odelab from {case.source} (sha256 {case.file_hash[:12]}), case {case.name!r}.\n"
               f"# `odelab run` this file to reproduce the case exactly.\n")
+    header += "".join(f"# {note}; in this file's expressions it is the parameter.\n"
+                      for note in shadowing_note(case.config.get("parameters") or {}))
     return header + tomli_w.dumps(_clean(case.config))
 
 

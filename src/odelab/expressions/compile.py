@@ -20,6 +20,8 @@ from odelab.expressions.functions import (
     CONSTANTS,
     FUNCTIONS,
     _namespace,
+    constant_values,
+    shadowed_constants,
 )
 from odelab.expressions.parse import (
     ParsedExpression,
@@ -45,8 +47,9 @@ def _unknown_name_error(
         if "." in name and not any("." in k for k in known):  # only networks have dotted names
             return ExpressionError("attribute access (`.`) is not allowed in expressions",
                                    expression=parsed.text, column=parsed.column(offset), source=source, key=key)
-        hint = _did_you_mean(name, [*known, *CONSTANTS])
-        listed = [*known, *CONSTANTS]
+        constants = constant_values(known)
+        hint = _did_you_mean(name, [*known, *constants])
+        listed = [*known, *constants]
         if len(listed) > 40:
             listed = [*listed[:40], f"... ({len(listed) - 40} more)"]
         message = f"unknown name `{name}`; " + (f"{hint} " if hint else "")
@@ -63,9 +66,10 @@ def _unknown_name_error(
 class _Emitter:
     """Python source for validated trees; numbers become np.float64 globals of the namespace."""
 
-    def __init__(self, namespace: dict[str, Any], complex_step: bool):
+    def __init__(self, namespace: dict[str, Any], complex_step: bool, shadowed: frozenset[str] = frozenset()):
         self.namespace = namespace
         self.complex_step = complex_step
+        self.shadowed = shadowed  # constants that a bound name shadows: variables here
         self._pool: dict[str, str] = {}
 
     def number(self, value: float) -> str:
@@ -97,7 +101,7 @@ class _Emitter:
             except OverflowError:  # an integer literal beyond the float range
                 return self.number(math.inf)
         if isinstance(node, ast.Name):
-            if node.id in CONSTANTS:
+            if node.id in CONSTANTS and node.id not in self.shadowed:
                 return self.number(CONSTANTS[node.id])
             return node.id
         if isinstance(node, ast.Attribute):  # a dotted name, validated by the parser
@@ -223,7 +227,7 @@ def compile_expression(
         The expression (or a number, or a :class:`ParsedExpression`).
     names
         The names the expression may use (states, inputs, parameters, ``t``...). The constants
-        ``pi`` and ``e`` are always available.
+        ``pi`` and ``e`` are available unless one of these names shadows them.
     key, source
         Where the text came from, for error messages.
     complex_step
@@ -264,15 +268,15 @@ _COMPILED_MAX = 4096
 
 
 def _compile_expression(text, names: tuple, key, source, complex_step: bool) -> CompiledExpression:
-    parsed = parse_expression(text, key=key, source=source)
+    parsed = parse_expression(text, key=key, source=source, names=names)
     key = parsed.key if key is None else key
     source = parsed.source if source is None else source
-    known = list(dict.fromkeys(n for n in names if n not in CONSTANTS))
+    known = list(dict.fromkeys(names))
     error = _unknown_name_error(parsed, known, key, source)
     if error is not None:
         raise error
     namespace = _namespace(complex_step)
-    body = _Emitter(namespace, complex_step).expression(parsed.tree)
+    body = _Emitter(namespace, complex_step, shadowed_constants(names)).expression(parsed.tree)
     params = tuple(name for name, _ in parsed._occurrences)
     source_code = _function_source("_odelab_expression", params, [f"return {body}"])
     function = _define(
@@ -296,11 +300,10 @@ def _check_argument_name(name: Any, what: str) -> None:
         or keyword.iskeyword(name)
         or name.startswith("_")
         or name in FUNCTIONS
-        or name in CONSTANTS
     ):
         raise InputError(
             f"`{name}` cannot be {what}: names must be ASCII identifiers, not keywords, not "
-            "starting with `_`, and not a function or constant of the expression language",
+            "starting with `_`, and not a function of the expression language",
             key="constants" if what == "a constant" else "args",
         )
 
@@ -367,7 +370,7 @@ def compile_vector(
         raise InputError(f"got {len(keys)} keys for {len(texts)} expressions", key="keys")
 
     known = [*args, *constants]
-    parsed = [parse_expression(text, key=k, source=source) for text, k in zip(texts, keys)]
+    parsed = [parse_expression(text, key=k, source=source, names=known) for text, k in zip(texts, keys)]
     for p, k in zip(parsed, keys):
         error = _unknown_name_error(p, known, k if k is not None else p.key, source)
         if error is not None:
@@ -381,7 +384,7 @@ def compile_vector(
             raise InputError(
                 f"constant `{name}` must be a real number; got {value!r}", key=f"constants.{name}"
             ) from None
-    emitter = _Emitter(namespace, complex_step)
+    emitter = _Emitter(namespace, complex_step, shadowed_constants(known))
     rows = [emitter.expression(p.tree) for p in parsed]
     used = set().union(*(p.names for p in parsed))
     unused_args = [python_name(a) for a in args if a not in used]

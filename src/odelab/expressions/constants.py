@@ -43,7 +43,8 @@ def check_identifier(
     ------
     InputError
         If ``name`` is not an ASCII identifier, is a Python keyword, starts with ``_``, or is
-        reserved (``t``, a constant or a function of the expression language).
+        reserved (``t``, a function of the expression language, or a constant unless ``what``
+        is "parameter": a parameter ``e`` shadows the constant, as a MATLAB variable does).
     """
     where = f"`{key}`: " if key else ""
     if not isinstance(name, str):
@@ -67,7 +68,7 @@ def check_identifier(
         reason = f"`{name}` starts with `_`, which is reserved"
     elif name == "t":
         reason = "`t` is the time variable"
-    elif name in CONSTANTS:
+    elif name in CONSTANTS and what != "parameter":  # a parameter shadows it: shadowed_constants
         reason = f"`{name}` is a constant ({CONSTANTS[name]!r})"
     elif name in FUNCTIONS:
         reason = f"`{name}` is a function of the expression language"
@@ -197,7 +198,7 @@ def _evaluate_parameters(params: Mapping[str, float | int | str], source: str | 
                 key=key_of(name),
                 source=source,
             )
-        parsed[name] = parse_expression(value, key=key_of(name), source=source)
+        parsed[name] = parse_expression(value, key=key_of(name), source=source, names=names)
         error = _unknown_name_error(parsed[name], names, key_of(name), source)
         if error is not None:
             raise error

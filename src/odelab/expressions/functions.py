@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import ast
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from types import MappingProxyType
 from typing import Any
 
@@ -113,8 +113,40 @@ FUNCTIONS: Mapping[str, Callable[..., Any]] = MappingProxyType(
 #: Named constants of the language.
 CONSTANTS: Mapping[str, float] = MappingProxyType({"pi": math.pi, "e": math.e})
 
-#: Names a file may not give to a state, input, parameter or output.
+#: Names a file may not give to a state, input, parameter or output (a parameter may take a
+#: constant's name: see :func:`shadowed_constants`).
 RESERVED: frozenset[str] = frozenset(FUNCTIONS) | frozenset(CONSTANTS) | {"t"}
+
+
+def shadowed_constants(names: Iterable[Any]) -> frozenset[str]:
+    """The constants of the language that these names shadow: the one place of the rule.
+
+    A parameter named like a constant is a variable, and a variable shadows a constant of the
+    same name, as in MATLAB (where ``pi`` is a function a variable hides, and ``e`` is nothing
+    at all: the coefficient of restitution of every dynamics book is ``e``). Wherever names are
+    bound (the parser's free names, the dependency order of parameters, the Python and numba
+    compilers, fit, compiled inputs, the symbolic layer of networks), the expression language
+    asks this function which constants are no longer constants. Functions are never shadowed:
+    a parameter named ``sin`` is refused.
+    """
+    found = set()
+    for name in names:
+        if isinstance(name, str) and name in CONSTANTS:
+            found.add(name)
+    return frozenset(found)
+
+
+def constant_values(names: Iterable[Any] = ()) -> dict[str, float]:
+    """The constants still available next to ``names``: :data:`CONSTANTS` without the shadowed."""
+    shadowed = shadowed_constants(names)
+    return {name: value for name, value in CONSTANTS.items() if name not in shadowed}
+
+
+def shadowing_note(names: Iterable[Any]) -> list[str]:
+    """One sentence per shadowed constant, for a run's notes and resolved.toml:
+    ``"parameter e shadows the constant e (2.718281828459045)"``."""
+    return [f"parameter {name} shadows the constant {name} ({CONSTANTS[name]!r})"
+            for name in sorted(shadowed_constants(names))]
 
 # number of arguments: exact, or (minimum, None) for variadic functions
 _ARITY: dict[str, int | tuple[int, None]] = {name: 1 for name in FUNCTIONS}

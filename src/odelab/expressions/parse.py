@@ -13,7 +13,7 @@ import re
 import tokenize
 import warnings
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -27,6 +27,7 @@ from odelab.expressions.functions import (
     _UNARY,
     CONSTANTS,
     FUNCTIONS,
+    shadowed_constants,
 )
 
 #: Longest accepted expression, in characters; longer text is rejected before parsing.
@@ -110,7 +111,11 @@ class ParsedExpression:
     text
         The expression as the user wrote it.
     names
-        The free names it uses: variables, excluding the constants and the functions.
+        The free names it uses: variables, excluding the constants and the functions. A
+        constant that a file's own names shadow (a parameter ``e``) is a free name of the
+        expression :meth:`binding` returns.
+    constants
+        The constants it names that are still constants (``pi``, ``e``).
     tree
         Its :class:`ast.Expression`; ``^`` is already ``**`` there, and column offsets refer to
         that translated text (map them with :meth:`column`).
@@ -127,6 +132,22 @@ class ParsedExpression:
     _occurrences: tuple[tuple[str, int], ...] = field(default=(), repr=False, compare=False)
     _columns: tuple[int, ...] = field(default=(0,), repr=False, compare=False)
     _depth: int = field(default=1, repr=False, compare=False)
+    constants: frozenset[str] = field(default=frozenset(), repr=False, compare=False)
+    _constant_occurrences: tuple[tuple[str, int], ...] = field(default=(), repr=False, compare=False)
+
+    def binding(self, names) -> "ParsedExpression":
+        """This expression where ``names`` (the names bound where it is used: states,
+        parameters...) are known: a constant they shadow (:func:`shadowed_constants`) is a free
+        name, as a MATLAB variable ``e`` or ``pi`` is. Without shadowing, ``self``."""
+        shadowed = shadowed_constants(names) & self.constants if self.constants else frozenset()
+        if not shadowed:
+            return self
+        occurrences = [*self._occurrences, *((n, o) for n, o in self._constant_occurrences if n in shadowed)]
+        occurrences.sort(key=lambda item: item[1])
+        return replace(self, names=self.names | shadowed, constants=self.constants - shadowed,
+                       _occurrences=tuple(occurrences),
+                       _constant_occurrences=tuple((n, o) for n, o in self._constant_occurrences
+                                                   if n not in shadowed))
 
     def column(self, offset: int) -> int:
         """The column in :attr:`text` of an offset into the translated (``**``) text."""
@@ -487,6 +508,7 @@ def is_dotted_name(name: str) -> bool:
 def _validate(reader: _Reader, tree: ast.Expression, carets: set[int]):
     """Check every node against the whitelist, in source order; return the free names."""
     occurrences: dict[str, int] = {}
+    constants: dict[str, int] = {}
     stack: list[ast.AST] = [tree.body]
     while stack:
         node = stack.pop()
@@ -519,6 +541,8 @@ def _validate(reader: _Reader, tree: ast.Expression, carets: set[int]):
                 raise reader.error(f"`{name}` is a function; call it as `{name}(...)`", node.col_offset)
             if name not in CONSTANTS:
                 occurrences.setdefault(name, node.col_offset)
+            else:
+                constants.setdefault(name, node.col_offset)
         elif _is_dotted_name(node):  # `mass.x`: one name, a network element's variable
             occurrences.setdefault(f"{node.value.id}.{node.attr}", node.col_offset)
         elif isinstance(node, ast.BinOp):
@@ -556,7 +580,7 @@ def _validate(reader: _Reader, tree: ast.Expression, carets: set[int]):
             )
             raise reader.error(message, _forbidden_node_column(reader, node))
         stack.extend(reversed(children))
-    return occurrences
+    return occurrences, constants
 
 
 def parse_expression(
@@ -564,6 +588,7 @@ def parse_expression(
     *,
     key: str | None = None,
     source: str | None = None,
+    names=None,
 ) -> ParsedExpression:
     """Parse and validate an expression of the language.
 
@@ -576,6 +601,9 @@ def parse_expression(
         The TOML key path the text came from (``system.equations.x``), for error messages.
     source
         The file the text came from, for error messages.
+    names
+        The names bound where the expression is used, if known: the result is
+        :meth:`ParsedExpression.binding` of them (a parameter ``e`` shadows the constant).
 
     Returns
     -------
@@ -589,14 +617,14 @@ def parse_expression(
         the language; the error carries the 0-based column of the offending part.
     """
     if isinstance(text, ParsedExpression):
-        return text
+        return text if names is None else text.binding(names)
     reader = _Reader(_as_text(text, key, source), key, source)
     _check_characters(reader)
     carets = _translate(reader)
     tree = _parse_tree(reader)
     depth = _measure_depth(reader, tree)
-    occurrences = _validate(reader, tree, carets)
-    return ParsedExpression(
+    occurrences, constants = _validate(reader, tree, carets)
+    parsed = ParsedExpression(
         text=reader.text,
         names=frozenset(occurrences),
         tree=tree,
@@ -605,4 +633,7 @@ def parse_expression(
         _occurrences=tuple(occurrences.items()),
         _columns=tuple(reader.columns),
         _depth=depth,
+        constants=frozenset(constants),
+        _constant_occurrences=tuple(constants.items()),
     )
+    return parsed if names is None else parsed.binding(names)

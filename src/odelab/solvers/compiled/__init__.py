@@ -91,8 +91,8 @@ class CompiledSystem:
     def _parsed(self) -> list:
         from odelab.expressions import parse_expression
 
-        parsed = [parse_expression(text, key=key) for text, key in self.equations]
         known = {"t", *self.states, *self.parameters, *self.inputs}
+        parsed = [parse_expression(text, key=key, names=known) for text, key in self.equations]
         for p in parsed:
             unknown = sorted(set(p.names) - known)
             if unknown:
@@ -214,8 +214,8 @@ class CompiledSystem:
                 raise InputError("[events] work with systems without inputs.", key="events")
             from odelab.expressions import parse_expression
 
-            whens = [parse_expression(text, key=key) for text, key in self.events]
             known = {"t", *self.states, *self.event_parameters}
+            whens = [parse_expression(text, key=key, names=known) for text, key in self.events]
             for w in whens:
                 unknown = sorted(set(w.names) - known)
                 if unknown:

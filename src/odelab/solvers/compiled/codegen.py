@@ -105,14 +105,15 @@ def _number(value: float) -> str:
     return repr(float(value))
 
 
-def _node(node: ast.AST, parts: list[str], rename: dict[str, str] | None = None) -> str:
+def _node(node: ast.AST, parts: list[str], rename: dict[str, str] | None = None,
+          free: frozenset[str] = frozenset()) -> str:
     if isinstance(node, ast.Constant):
         try:
             return _number(float(node.value))
         except OverflowError:  # an integer literal beyond the float range
             return "_INF"
     if isinstance(node, ast.Name):
-        if node.id in CONSTANTS:
+        if node.id in CONSTANTS and node.id not in free:  # a bound name shadows it (shadowed_constants)
             return _number(CONSTANTS[node.id])
         _check_argument_name(node.id, "an argument")
         return rename.get(node.id, node.id) if rename else node.id
@@ -146,7 +147,9 @@ def _node(node: ast.AST, parts: list[str], rename: dict[str, str] | None = None)
 
 def expression_source(parsed: ParsedExpression, rename: dict[str, str] | None = None) -> str:
     """One validated expression as numba-compatible Python source (post-order, no recursion);
-    ``rename`` maps names to the source that stands for them (``t`` -> ``_tu``...)."""
+    ``rename`` maps names to the source that stands for them (``t`` -> ``_tu``...). A constant
+    among the free names of ``parsed`` (bound by :meth:`~ParsedExpression.binding`: a parameter
+    ``e``) is a variable."""
     code: dict[int, str] = {}
     stack: list[tuple[ast.AST, bool]] = [(parsed.tree.body, False)]
     while stack:
@@ -155,7 +158,7 @@ def expression_source(parsed: ParsedExpression, rename: dict[str, str] | None = 
             stack.append((node, True))
             stack.extend((child, False) for child in _operands(node))
             continue
-        code[id(node)] = _node(node, [code[id(c)] for c in _operands(node)], rename)
+        code[id(node)] = _node(node, [code[id(c)] for c in _operands(node)], rename, parsed.names)
     return code[id(parsed.tree.body)]
 
 

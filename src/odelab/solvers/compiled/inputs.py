@@ -90,7 +90,7 @@ def signal_source(signal, data: list[float], offset: int) -> str:
         from odelab.solvers.compiled.codegen import expression_source
 
         text, key, params = signal.fun.odelab_expression
-        parsed = parse_expression(text, key=key)
+        parsed = parse_expression(text, key=key, names=["t", *params])  # a parameter `e` shadows e
         used = [name for name in params if name in set(parsed.names)]
         rename = {"t": "_tu", **dict(zip(used, slot(*(params[name] for name in used))))}
         return f"({expression_source(parsed, rename)})"

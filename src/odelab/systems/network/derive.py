@@ -86,11 +86,11 @@ class _Parser:
               inputs: bool = False, law_of: str | None = None):
         """``allowed``: name -> symbol. With ``inputs``, any other name becomes an input."""
         path = f"elements.{element}.{key}"
-        parsed = parse_expression(value, key=path)
         names = dict(allowed)
         for p in self.parameters:
             names.setdefault(p, self.symbols[p])
-        extra = [n for n in parsed.names if n not in names and n not in ("pi", "e")]
+        parsed = parse_expression(value, key=path, names=names)  # a parameter `e` shadows the constant e
+        extra = [n for n in parsed.names if n not in names]
         if extra and law_of is not None:
             import difflib
 

@@ -52,6 +52,7 @@ def to_sympy(parsed, symbols: Mapping[str, object]):
     Integers stay exact; other numbers become SymPy Floats of the same binary value.
     """
     sp = require_sympy()
+    parsed = parsed.binding(symbols)  # a symbol named like a constant shadows it (shadowed_constants)
 
     def node(n):
         if isinstance(n, ast.Constant):
@@ -62,10 +63,8 @@ def to_sympy(parsed, symbols: Mapping[str, object]):
                 return sp.Integer(int(value))
             return sp.Float(float(value), 17)
         if isinstance(n, ast.Name):
-            if n.id == "pi" and "pi" not in symbols:
-                return sp.pi
-            if n.id == "e" and "e" not in symbols:
-                return sp.E
+            if n.id in parsed.constants:  # still a constant: SymPy's exact pi and E
+                return {"pi": sp.pi, "e": sp.E}[n.id]
             return symbols[n.id]
         if isinstance(n, ast.Attribute):
             return symbols[f"{n.value.id}.{n.attr}"]
