@@ -1,7 +1,8 @@
 """Drawing a report's figures: each from the figure cache or drawn once, the drawing spread over the cores.
 
 The figures of a report are independent of each other, and drawing one (matplotlib's
-constrained layout and the Agg rasteriser) is almost all of a cold report's time. So
+artists, one measuring pass for the layout and the Agg rasteriser) is almost all of a cold
+report's time. So
 :func:`render_pngs` looks every figure up in the cache (:mod:`odelab.report.figcache`)
 first, then draws the missing ones: in this process when there are few of them or one core,
 otherwise in a pool of processes forked from this one (matplotlib imported once, before the
