@@ -233,3 +233,52 @@ terminal = true
     assert len(result.events) == 1 and abs(result.events[0]["t"] - expect) <= 1e-8
     assert abs(result.t[-1] - expect) <= 1e-8
     assert "zero crossings located: sat (saturation) 1" in result.warnings
+
+
+RATE_LIMITED = """
+title = "a step through a rate limiter into an integrator"
+[system]
+kind = "diagram"
+outputs = { y = "rl", q = "acc" }
+[blocks]
+u   = { type = "step", time = 1, final = 3 }
+rl  = { type = "rate-limiter", input = "u", rising = 2, falling = -1 }
+acc = { type = "integrator", input = "rl" }
+[time]
+stop = 4
+[solver]
+rtol = 1e-3
+EXTRA
+[exact]
+y = "min(max(2*(t - 1), 0), 3)"
+q = "(t > 1)*(min(t - 1, 1.5)^2 + 3*max(t - 2.5, 0))"
+"""
+
+
+def test_a_rate_limiter_in_a_file_is_exact_and_named_when_it_keeps_the_run_on_python(tmp_path, monkeypatch):
+    path = tmp_path / "rl.toml"
+    path.write_text(RATE_LIMITED.replace("EXTRA", 'backend = "auto"'))
+    result = run_case(load_experiment(path).cases[0])
+    assert result.status == "success", result.message
+    assert "zero crossings located: rl (rate-limiter) 1" in result.warnings
+    assert result.errors["y"].max_abs <= 64 * EPS and result.errors["q"].max_abs <= 64 * EPS
+    # backend = "auto" on a run long enough to compile says which block kept it on Python
+    monkeypatch.setattr("odelab.solvers.compiled.AUTO_STEPS", 5)
+    result = run_case(load_experiment(path).cases[0])
+    assert "ran on the Python engine, not the compiled one: its block `rl` (rate-limiter) switches with memory" \
+        in " ".join(result.warnings)
+    path.write_text(RATE_LIMITED.replace("EXTRA", 'backend = "compiled"'))
+    out = CliRunner().invoke(app, ["run", str(path), "--no-store"])
+    assert out.exit_code == 2 and "`rl` (rate-limiter)" in out.output and "Traceback" not in out.output
+
+
+def test_a_bad_slew_rate_or_an_analysis_of_a_rate_limiter_is_refused_with_the_fix(tmp_path):
+    path = tmp_path / "rl.toml"
+    path.write_text(RATE_LIMITED.replace("EXTRA", "").replace("falling = -1", "falling = 1"))
+    with pytest.raises(InputError) as info:
+        load_experiment(path)
+    assert info.value.key == "blocks.rl.falling" and "must be negative" in info.value.message
+    path.write_text(RATE_LIMITED.replace("EXTRA", "") + "\n[analysis]\npoles = true\n")
+    with pytest.raises(InputError) as info:
+        load_experiment(path)
+    assert info.value.key == "analysis" and "replace it by a gain of 1" in info.value.message

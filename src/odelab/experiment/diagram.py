@@ -242,6 +242,14 @@ def build_diagram(model: schema.Experiment, params: dict[str, float], path: Path
                                   f"({blocks[discrete[0]].TYPE}) is discrete: the linear model of a sampled-data "
                                   "diagram is a discrete-time system, which odelab does not build. Remove "
                                   f"[{section}], or linearise the continuous plant on its own.", key=section)
+    limiters = [n for n, b in blocks.items() if getattr(b, "NEEDS_SLOPE", False)]
+    for section in ("analysis", "linearize"):
+        if limiters and getattr(model, section, None) is not None:
+            raise ExperimentError(f"[{section}] linearises the diagram about an operating point, and block "
+                                  f"`{limiters[0]}` ({blocks[limiters[0]].TYPE}) has no linear model of its own "
+                                  "(where it follows its input it is a gain of 1, as Simulink's linmod takes it). "
+                                  f"For the analysis, replace it by a gain of 1 (`type = \"gain\", gain = 1`), or "
+                                  f"remove [{section}].", key=section)
     sys_obj = compiled.system
     resolved = {"kind": "diagram", "outputs": outputs}
     if system.states is not None:

@@ -76,6 +76,11 @@ class CompiledDiagram:
         self._order = [n for n in wiring.order if not blocks[n].SOURCE]
         self._system = None
         self._z_last = None  # the last solution of the algebraic loops (Newton's next start)
+        #: blocks whose derivative needs their input's slope (rate limiters), in evaluation order
+        self._sloped = [n for n in wiring.order if getattr(blocks[n], "NEEDS_SLOPE", False)]
+        self._in_slope = False
+        #: where the sources' slopes are taken (the hybrid driver sets its piece)
+        self.slope_window = (-np.inf, np.inf)
         #: what a run should say about the diagram once (the algebraic loops it solves)
         self.notes: list[str] = [f"algebraic loop {text} solved by Newton's method at each evaluation, as Simulink "
                                  "does (set [system] algebraic_loops = \"error\" to refuse it, \"none\" to say "
@@ -176,7 +181,38 @@ class CompiledDiagram:
         vals = self._ports(t, x, u, cplx, cut)
         parts = [w.blocks[n].derivative(t, x[s], [u[-1:]] if n == cut else [vals[p] for p in w.sources[n]])
                  for n, s in self.slices.items()]
+        if self._sloped and not cplx and cut is None and not self._in_slope:
+            for n in self._sloped:  # a rate limiter tracking its input: y' = u', in evaluation order
+                b = w.blocks[n]
+                if b.mode is not None and int(np.asarray(b.mode).reshape(-1)[0]) == 1:
+                    k = list(self.slices).index(n)
+                    parts[k] = b.derivative(t, x[self.slices[n]], [vals[p] for p in w.sources[n]],
+                                            slope=self.input_slope(n, t, x, u, np.concatenate(parts)))
         return np.concatenate(parts)
+
+    def input_slope(self, name: str, t, x, u, xdot=None) -> float:
+        """d/dt of the signal into block ``name`` along the trajectory at (t, x) with the sources'
+        values ``u``: a complex step of the evaluation in the direction (1, x', the sources'
+        slopes), exact to round-off (the sources' slopes are taken inside ``slope_window``)."""
+        from odelab.systems.diagram.ratelimit import signal_slope
+
+        lo, hi = self.slope_window
+        t = float(t)
+        x = np.asarray(x, dtype=float)
+        u = np.asarray(u, dtype=float)
+        if xdot is None:
+            self._in_slope = True
+            try:
+                xdot = self._dynamics(t, x, u)
+            finally:
+                self._in_slope = False
+        xdot = np.array(xdot, dtype=float)
+        xdot[self.slices[name]] = 0.0  # the block's own output does not move its input (no loop through it)
+        udot = np.array([signal_slope(s, t, lo, hi) for s in self.signals]) if self.signals else np.zeros(0)
+        h = 1e-30
+        vals = self._ports(t + 1j * h, x + 1j * h * xdot, u + 1j * h * udot, True)
+        src = self.wiring.sources[name][0]
+        return float(np.imag(np.asarray(vals[src]).reshape(-1)[0])) / h
 
     def _output(self, t, x, u, cplx=False):
         vals = self._ports(t, x, u, cplx)

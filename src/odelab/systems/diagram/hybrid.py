@@ -157,6 +157,7 @@ def simulate_hybrid(diagram, tspan, x0=None, *, method: str = "ode45", zero_cros
             u_lo = lo if ((lo == a and i > 0) or (lo == b and not last)) else -math.inf
             u_hi = float(np.nextafter(hi, -math.inf)) if ((hi == a and i > 0) or (hi == b and not last)) else math.inf
             u = inputs_at(u_lo, u_hi)
+            diagram.slope_window = (u_lo, u_hi)
             if i > 0 and sw:
                 x = sw.choose(a, x, u(a))
             start = a
@@ -246,7 +247,7 @@ def simulate_hybrid(diagram, tspan, x0=None, *, method: str = "ode45", zero_cros
                                    "(the switch chatters: its mode changes faster than time can advance); set "
                                    f"zero_crossing = false on `{fired[0]}` or change the model.")
                         raise _Stop
-                    x = sw.choose(t_sw, y_sw, u(t_sw), before)
+                    x = sw.choose(t_sw, sw.sync(t_sw, y_sw, u(t_sw), fired), u(t_sw), before)
                     add(t_sw, x) if dense or (t_sw == b and np.any(user == b)) else None
                     start = t_sw
                     if t_sw == b:
@@ -256,7 +257,7 @@ def simulate_hybrid(diagram, tspan, x0=None, *, method: str = "ode45", zero_cros
                     add(sol.t[keep], sol.y[keep])
                     y_end = np.asarray(sol.y[-1], dtype=float)
                     x_before = y_end.copy()
-                    x = sw.choose(t_end, y_end, u(t_end))
+                    x = sw.choose(t_end, sw.sync(t_end, y_end, u(t_end)), u(t_end))
                     sw.record(t_end, [n for n in sw.stepped if not np.array_equal(
                         x[diagram.slices[n]], x_before[diagram.slices[n]])])
                     if dense:
@@ -267,6 +268,7 @@ def simulate_hybrid(diagram, tspan, x0=None, *, method: str = "ode45", zero_cros
                 body = keep & ~at_b
                 add(sol.t[body], sol.y[body])
                 x = np.asarray(sol.y[-1], dtype=float)
+                x = sw.sync(b, x, u(b)) if sw else x
                 if dense or np.any(user == b):
                     add(b, x)  # the row before the jump at b (or the last row)
                 break
@@ -285,6 +287,7 @@ def simulate_hybrid(diagram, tspan, x0=None, *, method: str = "ode45", zero_cros
         pass
     finally:
         sw.release()
+        diagram.slope_window = (-math.inf, math.inf)
 
     t = np.concatenate(rows_t) if rows_t else np.array([t0])
     X = np.concatenate(rows_x).reshape(t.size, x.size) if rows_x else x.reshape(1, -1)

@@ -60,11 +60,34 @@ class Switching:
         sl = self.diagram.slices.get(name)
         return None if sl is None else x[sl]
 
+    def _extra(self, t, x, u, name) -> dict:
+        """What a block needs besides its state and inputs: a rate limiter its input's slope."""
+        if getattr(self.diagram.wiring.blocks[name], "NEEDS_SLOPE", False):
+            return {"slope": self.diagram.input_slope(name, t, x, u)}
+        return {}
+
     def raw(self, t, x, u, names) -> dict[str, np.ndarray]:
         """Each named block's switching functions at one point, with the modes as they are."""
         vals = self.diagram._ports(t, x, u, False)
         blocks = self.diagram.wiring.blocks
-        return {n: blocks[n].zc_values(self._state(x, n), self._inputs(vals, n)) for n in names}
+        return {n: blocks[n].zc_values(self._state(x, n), self._inputs(vals, n), **self._extra(t, x, u, n))
+                for n in names}
+
+    def sync(self, t, x, u, fired=()) -> np.ndarray:
+        """The state with every rate limiter that tracks its input (or has just caught it) put
+        exactly on its input, at an instant where the inputs are continuous (a located switch,
+        the end of a piece before its jumps): no integration error is carried on."""
+        blocks = self.diagram.wiring.blocks
+        names = [n for n in self.held if hasattr(blocks[n], "caught")]
+        if not names:
+            return x
+        x = np.array(x, dtype=float)
+        for n in names:
+            vals = self.diagram._ports(t, x, u, False)
+            ins, sl = self._inputs(vals, n), self.diagram.slices[n]
+            if blocks[n].caught(x[sl], ins, n in fired):
+                x[sl] = np.asarray(ins[0], dtype=float).reshape(-1)[:1]
+        return x
 
     def release(self) -> None:
         """Forget the held modes (blocks read them off their inputs again)."""
@@ -94,13 +117,14 @@ class Switching:
                 held = b.mode
                 if not b.STATEFUL_MODE:
                     b.mode = None
-                raw = np.asarray(b.zc_values(xs, ins), dtype=float)
+                extra = self._extra(t, x, u, n)
+                raw = np.asarray(b.zc_values(xs, ins, **extra), dtype=float)
                 signs = np.sign(raw)
                 if before is not None and n in before and before[n].shape == raw.shape:
                     zero = signs == 0
                     signs[zero] = -np.sign(before[n][zero])
                 b.mode = held
-                b.mode = np.asarray(b.zc_mode(signs, xs, ins))
+                b.mode = np.asarray(b.zc_mode(signs, xs, ins, **extra))
                 sl = self.diagram.slices.get(n)
                 if sl is not None:
                     new = np.asarray(b.zc_reset(x[sl], b.mode), dtype=float).reshape(-1)
