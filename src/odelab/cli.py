@@ -124,7 +124,8 @@ def run(
 
     from odelab.exceptions import InputError
     from odelab.experiment.executors import EXECUTORS
-    from odelab.experiment.loader import check_experiment_names, load_experiments
+    from odelab.experiment.loader import load_experiments
+    from odelab.experiment.naming import check_experiment_names
 
     # Everything worth saying (RelTol raised, equilibrium residuals...) reaches the user as a
     # note in the output; Python's own warning lines would only repeat it.
@@ -410,13 +411,13 @@ def _progress(err, *, shown: bool):
 def _trajectory(result) -> dict:
     """``--json --trajectories`` (or ``--table``): every column of the case at its output times."""
     from odelab.analysis.errors import error_columns
-    from odelab.experiment.store import _clean
+    from odelab.experiment.store import json_safe
 
     columns = {"t": result.t, **result.series()}
     for name, ref in result.reference.items():
         abs_err, rel_err = error_columns(columns[name], ref)
         columns.update({f"{name}_ref": ref, f"{name}_abs_err": abs_err, f"{name}_rel_err": rel_err})
-    return {"trajectory": _clean(columns)}
+    return {"trajectory": json_safe(columns)}
 
 
 def _store(result, runs, mat, err) -> None:
@@ -513,7 +514,8 @@ def validate(
 ) -> None:
     """Check experiment files without running them (with the budgets `odelab run` would use)."""
     from odelab.exceptions import InputError
-    from odelab.experiment.loader import check_experiment_names, load_experiments
+    from odelab.experiment.loader import load_experiments
+    from odelab.experiment.naming import check_experiment_names
 
     out, err = _consoles()
     limits = _limits(max_steps, limit, err)
@@ -643,7 +645,7 @@ def network(
     """Show how a network's equations are derived (element laws, interconnection laws, states,
     state equations; A, B, C, D and transfer functions if linear). Runs nothing."""
     from odelab.exceptions import InputError
-    from odelab.experiment.network import describe_file
+    from odelab.experiment.network_file import describe_file
 
     out, err = _consoles()
     try:

@@ -107,9 +107,14 @@ def _error(message: str, key: str) -> ExperimentError:
 
 
 def parse_fit(raw: Any, cases, models, original: dict, *, path: Path, file_hash: str, name: str, limits,
-              sweep=None) -> FitSpec:
-    """Check [fit] against the loaded cases (``models``: their validated schema models)."""
-    from odelab.experiment.loader import schema_error
+              sweep=None, load=None) -> FitSpec:
+    """Check [fit] against the loaded cases (``models``: their validated schema models).
+
+    ``load(path, data, file_hash, name, limits)`` is the loader's function that turns a file's
+    tables into an experiment: the fit rebuilds the experiment with its estimates through it
+    (passed in, so that this module does not import the loader, which imports it).
+    """
+    from odelab.experiment.schema_errors import schema_error
 
     if not isinstance(raw, dict):
         raise _error("[fit] must be a table: [fit] with parameters = { k = { initial = 2, lower = 0 } }.", "fit")
@@ -241,7 +246,7 @@ def parse_fit(raw: Any, cases, models, original: dict, *, path: Path, file_hash:
                    rtol=float(spec.rtol), max_solves=int(spec.max_solves), max_steps=int(limits.steps or 0),
                    validate=spec.validate_,
                    rebuild={"path": path, "original": original, "file_hash": file_hash, "name": name,
-                            "limits": limits},
+                            "limits": limits, "load": load},
                    data_specs=tuple(m.data for _, m in fitted_cases))
 
 
@@ -493,7 +498,6 @@ def fit_experiment(exp, *, validate_with: str | None = None):
     the last iterate and why, and the cases run at that iterate.
     """
     from odelab.analysis.fit import fit_least_squares
-    from odelab.experiment.loader import _load
 
     spec: FitSpec = exp.fit
     result = fit_least_squares(lambda p: residuals_and_jacobian(spec, p), spec.initial, names=spec.names,
@@ -517,7 +521,7 @@ def fit_experiment(exp, *, validate_with: str | None = None):
     for pname, value in zip(spec.names, result.estimates):
         params[pname] = float(value)
     data["parameters"] = params
-    rebuilt = _load(rb["path"], data, rb["file_hash"], rb["name"], rb["limits"])
+    rebuilt = rb["load"](rb["path"], data, rb["file_hash"], rb["name"], rb["limits"])
     cases = tuple(replace(c, problem=replace(c.problem, fit=summary)) for c in rebuilt.cases)
     return replace(rebuilt, cases=cases, fit=spec)
 

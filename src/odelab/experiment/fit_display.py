@@ -20,7 +20,7 @@ def _num(value, digits: int = 7) -> str:
 
 def print_fit(console: Console, fit: dict) -> None:
     """Print one experiment's fit summary (``fit_summary``'s dict)."""
-    from odelab.experiment.display import print_grid
+    from odelab.experiment.grid import print_grid
 
     ok = fit["status"] == "converged"
     head = "[bold]fit[/]" if ok else "[bold red]fit FAILED[/]"

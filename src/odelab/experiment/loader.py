@@ -22,7 +22,9 @@ from odelab.experiment import schema
 from odelab.experiment.cases import Case, LoadedExperiment, Problem
 from odelab.experiment.fields import check_keys, constant, expr, mathtext_problem
 from odelab.experiment.limits import DEFAULT_LIMITS, Limits, check_count, check_solve
+from odelab.experiment.naming import NAME_RULE, check_experiment_names, folder_key, slug  # noqa: F401 (re-exported)
 from odelab.experiment.reading import read_toml
+from odelab.experiment.schema_errors import describe_value, schema_error  # noqa: F401 (schema_error re-exported)
 
 __all__ = ["Case", "LoadedExperiment", "Problem", "load_experiment", "load_experiments", "merge", "slug"]
 
@@ -52,172 +54,6 @@ def merge(base: dict, override: dict) -> dict:
 def _retyped(base: dict, override: dict) -> bool:
     """A case's table with another `type` (a step input becoming a sine) replaces the base's."""
     return "type" in override and "type" in base and override["type"] != base["type"]
-
-
-_SLUG = re.compile(r"[^A-Za-z0-9._-]+")
-
-
-def slug(name: str) -> str:
-    """A folder name for an experiment or case name that cannot leave the results folder."""
-    s = _SLUG.sub("-", name.replace("\x00", "")).strip("-.")
-    return s[:80] or "unnamed"
-
-
-NAME_RULE = ("(a results folder's name keeps letters, digits, '.', '_' and '-' of the first 80 characters, anything "
-             "else becomes '-', and folder names are compared ignoring case, as on Windows and macOS)")
-
-
-def folder_key(name: str) -> str:
-    """What two names must not share: their results folder, compared as a case-insensitive file system would."""
-    return slug(name).casefold()
-
-
-def check_experiment_names(experiments) -> list[tuple[object, ExperimentError]]:
-    """Experiments of one run that would share a results folder: each later one with its error.
-
-    ``experiments`` are loaded experiments (``.name``, ``.source``); the first to claim a
-    folder keeps it, so a folder of files still runs all but the colliding ones.
-    """
-    claimed: dict[str, object] = {}
-    clashes = []
-    for exp in experiments:
-        key = folder_key(exp.name)
-        first = claimed.setdefault(key, exp)
-        if first is exp:
-            continue
-        same = first.name == exp.name
-        what = f"is also named {exp.name!r} and" if same else f"is named {exp.name!r}, which"
-        clashes.append((exp, ExperimentError(
-            f"experiment {what} would be stored in the same results folder {slug(exp.name)!r} as {first.name!r} "
-            f"from {first.source}, overwriting its cases: give this file its own `name` {NAME_RULE}.",
-            source=str(exp.source), key="name")))
-    return clashes
-
-
-# --- schema errors ----------------------------------------------------------------------------
-
-_TOML_TYPE = {bool: "a boolean", int: "a number", float: "a number", str: "a string", list: "an array",
-              dict: "a table"}
-_EXPECTED = {
-    "int_type": "a whole number",
-    "float_type": "a number",
-    "string_type": "a string",
-    "bool_type": "true or false",
-    "list_type": "an array",
-    "dict_type": "a table",
-    "model_type": "a table",
-    "model_attributes_type": "a table",
-}
-
-
-def _is_union_tag(seg) -> bool:
-    return isinstance(seg, str) and (
-        "[" in seg or seg in {"int", "float", "str", "bool", "none"} or seg.startswith("function-")
-    )
-
-
-def _key_path(loc, data) -> tuple:
-    """The segments of pydantic's error location that are keys of the file (not union-member tags).
-
-    A segment is looked up in the file's data first, so a user's key that looks like a tag
-    (``"rtol[1]"``, ``"int"``) is still reported under its own name.
-    """
-    path = []
-    node = data
-    for seg in loc:
-        if isinstance(node, dict) and isinstance(seg, str) and seg in node:
-            node = node[seg]
-        elif isinstance(node, list) and isinstance(seg, int) and 0 <= seg < len(node):
-            node = node[seg]
-        elif _is_union_tag(seg):
-            continue
-        else:  # a required key that is missing, or below a value of the wrong type
-            node = None
-        path.append(seg)
-    return tuple(path)
-
-
-def _key(loc) -> str:
-    parts: list[str] = []
-    for seg in loc:
-        if isinstance(seg, int):
-            parts[-1 if parts else 0:] = [f"{parts[-1] if parts else ''}[{seg}]"]
-        else:
-            parts.append(str(seg))
-    return ".".join(parts)
-
-
-def _node_at(data: Any, loc) -> Any:
-    """The table of ``data`` at ``loc`` (as the file wrote it), or None."""
-    node = data
-    for seg in loc:
-        if isinstance(node, dict) and seg in node:
-            node = node[seg]
-        elif isinstance(node, list) and isinstance(seg, int) and 0 <= seg < len(node):
-            node = node[seg]
-        else:
-            return None
-    return node
-
-
-def _describe(value) -> str:
-    kind = _TOML_TYPE.get(type(value), type(value).__name__)
-    text = repr(value) if not isinstance(value, bool) else str(value).lower()
-    if len(text) > 60:
-        text = text[:57] + "..."
-    return f"{text} ({kind})"
-
-
-_REQUIRED_HINT = {
-    "system": "add a [system] table with `states` and [system.equations] (or `function`, or kind = \"state-space\")",
-    "time": "add a [time] table with at least `stop`",
-    "time.stop": "add `stop = 10` (or an expression such as \"2*pi\") under [time]",
-    "type": "give the signal's `type`: step, ramp, sine, pulse, table, expression or constant",
-}
-
-
-def schema_error(exc: ValidationError, *, source: str, case: str | None, data: Any = None) -> ExperimentError:
-    """Turn pydantic's errors into one message, one line per key, most useful first.
-
-    ``data`` is what was validated: with it, keys are named as the file spells them.
-    """
-    by_key: dict[str, list[dict]] = {}
-    for err in exc.errors():
-        err = {**err, "loc": _key_path(err["loc"], data)}
-        by_key.setdefault(_key(err["loc"]), []).append(err)
-    lines = []
-    first_key = None
-    for key, errs in by_key.items():
-        first_key = first_key or key
-        kinds = {e["type"] for e in errs}
-        err = errs[0]
-        if "extra_forbidden" in kinds:
-            from odelab.experiment.keyref import unknown_key_message
-
-            lines.append(unknown_key_message(key, _node_at(data, err["loc"][:-1])))
-        elif "missing" in kinds:
-            hint = _REQUIRED_HINT.get(key) or _REQUIRED_HINT.get(key.rsplit(".", 1)[-1], "")
-            lines.append(f"`{key}` is required" + (f": {hint}." if hint else "."))
-        elif "literal_error" in kinds:
-            expected = err.get("ctx", {}).get("expected", "")
-            choices = re.findall(r"'([^']*)'", expected)
-            given = err["input"]
-            # MATLAB names (sin for sine) and typos: the closest allowed word, or the one it starts
-            close = difflib.get_close_matches(given, choices, n=1, cutoff=0.6) if isinstance(given, str) else []
-            close = close or ([c for c in choices if c.startswith(given)][:1] if isinstance(given, str) and given
-                              else [])
-            hint = f" Did you mean {close[0]!r}?" if close else ""
-            lines.append(f"`{key}` is {_describe(given)}; it must be one of {expected}.{hint}")
-        else:
-            expected = sorted({_EXPECTED.get(e["type"], e["msg"]) for e in errs})
-            if "a number" in expected and "a whole number" in expected:
-                expected.remove("a whole number")
-            if expected == ["a number", "a string"]:
-                expected = ["a number or an expression string"]
-            lines.append(f"`{key}` must be {' or '.join(expected)}; got {_describe(err['input'])}.")
-    where = f" (in case {case!r})" if case else ""
-    message = lines[0] + where if len(lines) == 1 else "\n  ".join([f"{len(lines)} problems{where}:", *lines])
-    return ExperimentError(message, source=source, key=first_key)
 
 
 # --- loading ------------------------------------------------------------------------------
@@ -307,7 +143,7 @@ def _load(path: Path, data: dict, file_hash: str, name, limits: Limits, copies: 
     elif not cases_raw:
         cases_raw = [None]
     if not isinstance(name, str) or not name.strip():
-        raise ExperimentError(f"`name` must be a non-empty string; got {_describe(name)}.", source=src, key="name")
+        raise ExperimentError(f"`name` must be a non-empty string; got {describe_value(name)}.", source=src, key="name")
     sweep, swept, study_raw = None, [{} for _ in cases_raw], data.pop("study", None)
     if "sweep" in data:
         from odelab.experiment.sweep import expand_sweep
@@ -386,7 +222,7 @@ def _load(path: Path, data: dict, file_hash: str, name, limits: Limits, copies: 
 
         try:
             fit = parse_fit(fit_raw, cases, models, original, path=path, file_hash=file_hash, name=name,
-                            limits=limits, sweep=sweep)
+                            limits=limits, sweep=sweep, load=_load)
         except InputError as exc:
             raise exc.located(source=src) from None
     return LoadedExperiment(name=name, title=title, source=path, file_hash=file_hash, cases=tuple(cases),

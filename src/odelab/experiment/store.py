@@ -30,9 +30,10 @@ import numpy as np
 
 from odelab.analysis.errors import HEADLINE_RULE, error_columns
 from odelab.fileio import atomic_write
+from odelab.experiment.naming import slug
 from odelab.experiment.result import CaseResult
 
-__all__ = ["RESULT_FORMAT", "Pace", "atomic_write", "case_dir", "summary", "write_case", "read_run", "list_runs"]
+__all__ = ["RESULT_FORMAT", "Pace", "atomic_write", "case_dir", "json_safe", "summary", "write_case", "read_run", "list_runs"]
 
 RESULT_FORMAT = "odelab-result/1"
 _TMP_SUFFIX = ".tmp"
@@ -90,19 +91,18 @@ class Pace:
 
 def case_dir(runs: Path, experiment: str, case: str) -> Path:
     """The folder of a case, with names made safe (they can never leave ``runs``)."""
-    from odelab.experiment.loader import slug  # here: the report reads runs without the loader (pydantic)
 
     return Path(runs) / slug(experiment) / slug(case)
 
 
-def _clean(value: Any) -> Any:
+def json_safe(value: Any) -> Any:
     """JSON-safe: NaN and inf become null (strict JSON has neither), arrays become lists."""
     if isinstance(value, dict):
-        return {str(k): _clean(v) for k, v in value.items()}
+        return {str(k): json_safe(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_clean(v) for v in value]
+        return [json_safe(v) for v in value]
     if isinstance(value, np.ndarray):
-        return _clean(value.tolist())
+        return json_safe(value.tolist())
     if isinstance(value, np.generic):
         value = value.item()
     if isinstance(value, float) and not math.isfinite(value):
@@ -128,7 +128,7 @@ def summary(result: CaseResult) -> dict[str, Any]:
     """The case's summary, as stored in result.json and printed by ``odelab run --json``."""
     case = result.case
     p = case.problem
-    return _clean({
+    return json_safe({
         "format": RESULT_FORMAT,
         "experiment": case.experiment,
         "case": case.name,
@@ -346,7 +346,7 @@ def _resolved_toml(result: CaseResult, tomli_w) -> str:
               f"# `odelab run` this file to reproduce the case exactly.\n")
     header += "".join(f"# {note}; in this file's expressions it is the parameter.\n"
                       for note in shadowing_note(case.config.get("parameters") or {}))
-    return header + tomli_w.dumps(_clean(case.config))
+    return header + tomli_w.dumps(json_safe(case.config))
 
 
 def _mat_bytes(result: CaseResult) -> bytes:
@@ -354,7 +354,6 @@ def _mat_bytes(result: CaseResult) -> bytes:
 
     from scipy.io import savemat
 
-    from odelab.experiment.loader import slug as case_slug
 
     buf = io.BytesIO()
     data = {"t": result.t.reshape(-1, 1), "x": result.x}
@@ -363,7 +362,7 @@ def _mat_bytes(result: CaseResult) -> bytes:
     if result.u is not None:
         data["u"] = result.u
     for name, ref in result.reference.items():
-        data[f"ref_{case_slug(name).replace('-', '_').replace('.', '_')}"] = ref.reshape(-1, 1)
+        data[f"ref_{slug(name).replace('-', '_').replace('.', '_')}"] = ref.reshape(-1, 1)
     savemat(buf, data)
     return buf.getvalue()
 

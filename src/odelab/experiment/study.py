@@ -297,13 +297,13 @@ def write_sweep(exp, results, runs) -> Path:
     """Store ``runs/<experiment>/sweep.json`` and ``sweep.csv`` atomically; returns the folder."""
     import json
 
-    from odelab.experiment.loader import slug
-    from odelab.experiment.store import _clean
+    from odelab.experiment.naming import slug
+    from odelab.experiment.store import json_safe
     from odelab.fileio import atomic_write
 
     folder = Path(runs) / slug(exp.name)
     folder.mkdir(parents=True, exist_ok=True)
-    record = _clean(sweep_record(exp, results))
+    record = json_safe(sweep_record(exp, results))
     atomic_write(folder / "sweep.csv", sweep_csv(record))
     atomic_write(folder / "sweep.json", json.dumps(record, indent=1, allow_nan=False) + "\n")
     return folder

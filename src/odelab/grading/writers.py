@@ -42,7 +42,7 @@ def _score(x: float):
 
 def student_folder(name: str) -> str:
     """The student's folder under the grades folder (a name that cannot leave it)."""
-    from odelab.experiment.loader import slug
+    from odelab.experiment.naming import slug
 
     return slug(name)
 
