@@ -161,3 +161,17 @@ def test_bouncing_ball_with_ode113(tmp_path):
     assert r.status == "success" and r.message == "ode113 reached t = 10 after 7 restarts."
     times = np.array([e["t"] for e in r.events])
     np.testing.assert_allclose(times, [exact_bounce(k) for k in range(7)], rtol=0, atol=1e-12)
+
+
+def test_a_restart_where_the_event_function_is_zero_does_not_fire_again(tmp_path):
+    # The reset puts the ball exactly on the floor (h = 0) and the event watches both directions:
+    # the restart is a new t0 of MATLAB's loop, where a zero is not an event, so each bounce is
+    # reported once and the times are still the geometric series.
+    path = variant(tmp_path, 'reset = { v = "-e*v" }', 'reset = { h = "0", v = "-e*v" }')
+    path.write_text(path.read_text().replace('direction = "falling"', 'direction = "both"'))
+    (r,) = run_experiment(path)
+    assert r.status == "success" and len(r.events) == 7
+    # each bounce is located to odezero's 128 ulp of t (< 10) and the next flight starts from it
+    located = 7 * 128 * math.ulp(10.0)
+    np.testing.assert_allclose([e["t"] for e in r.events], [exact_bounce(k) for k in range(7)], rtol=0, atol=located)
+    assert all(e["reset"]["h"] == 0.0 for e in r.events)

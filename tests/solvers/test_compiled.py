@@ -414,7 +414,7 @@ def ball_events(t, y):
     ([0.0, 12.0], [0, 5], {"refine": 1}),  # up through h = 2 (rising), the apex, down to the floor
     ([0.0, 12.0], list(np.linspace(0, 5, 41)), {"rtol": 1e-6}),  # output times; the floor's point added
     ([0.0, 12.0], [0, 1.5], {}),  # the end comes first: h = 2 and the apex only
-    ([0.0, 0.0], [0, 5], {}),  # h = 0 at t0: registered, not terminal, then it falls through
+    ([0.0, 0.0], [0, 5], {}),  # h = 0 at t0: not an event (MATLAB), then it falls through the floor
 ])
 def test_events_are_located_as_the_python_engine_does(y0, tspan, options):
     a = solve_compiled(BALL, tspan, y0, "ode45", **options)

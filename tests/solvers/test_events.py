@@ -46,11 +46,10 @@ def test_free_fall_hits_the_floor_at_the_exact_time(method):
 
 def test_harmonic_oscillator_zero_crossings_at_k_pi():
     sol = odelab.ode45(oscillator, [0, 20], [0, 1], events=lambda t, y: ([y[0]], [0], [0]), rtol=1e-8, atol=1e-10)
-    # The initial zero is registered just after t0 (MATLAB: an event at the initial point is
-    # never terminal), then every crossing k*pi up to 20.
-    assert sol.te.size == 7 and sol.ie.tolist() == [0] * 7
-    assert 0 < sol.te[0] <= 128 * math.ulp(sol.t[4])  # the location tolerance of the first step
-    errors = np.abs(sol.te[1:] - np.pi * np.arange(1, 7))
+    # The zero at t0 is not an event (MATLAB's odezero ignores the initial point); every
+    # crossing k*pi up to 20 is.
+    assert sol.te.size == 6 and sol.ie.tolist() == [0] * 6
+    errors = np.abs(sol.te - np.pi * np.arange(1, 7))
     assert errors.max() < 0.2 * 1e-8  # global error of the solution, well inside rtol
     # Events never change the steps: the same run without events takes exactly the same mesh.
     plain = odelab.ode45(oscillator, [0, 20], [0, 1], rtol=1e-8, atol=1e-10)
@@ -62,9 +61,8 @@ def test_harmonic_oscillator_zero_crossings_at_k_pi():
 def test_direction_filter(direction, expected):
     sol = odelab.ode45(oscillator, [0, 17], [0, 1], events=lambda t, y: ([y[0]], [0], [direction]),
                        rtol=1e-8, atol=1e-10)
-    # the zero at t0 goes up, so the rising filter registers it just after t0
-    got = sol.te[1:] if direction == 1 else sol.te
-    np.testing.assert_allclose(got, expected, atol=2e-9)
+    # the zero at t0 is not an event (MATLAB), whichever way the function leaves it
+    np.testing.assert_allclose(sol.te, expected, atol=2e-9)
 
 
 def test_several_events_in_one_step_in_time_order():
@@ -90,9 +88,10 @@ def test_terminal_event_at_the_last_point():
 
 
 def test_event_at_t0_is_not_terminal():
+    # a zero at the initial point is not an event at all (MATLAB's odezero), terminal or not
     sol = odelab.ode45(lambda t, y: 1.0, [0, 3], 0.0, events=lambda t, y: ([y[0]], [1], [0]))
     assert sol.status == "success" and sol.t[-1] == 3 and sol.message == "ode45 reached t = 3."
-    assert sol.te.size == 1 and 0 < sol.te[0] <= 64 * math.ulp(1.0)
+    assert sol.te.size == 0
     # falling only: the zero at t0 moves up, so nothing is registered at all
     sol = odelab.ode45(lambda t, y: 1.0, [0, 3], 0.0, events=lambda t, y: ([y[0]], [1], [-1]))
     assert sol.te.size == 0 and sol.ye.shape == (0, 1) and sol.t[-1] == 3
@@ -186,9 +185,48 @@ def test_isterminal_and_direction_are_read_at_every_call():
         return [y[0]], flags, [0]
 
     sol = odelab.ode45(oscillator, [0, 20], [0, 1], events=crossings, rtol=1e-8, atol=1e-10)
-    np.testing.assert_allclose(sol.te[1:], [np.pi, 2 * np.pi], atol=1e-8)  # stops at the first after 5
+    np.testing.assert_allclose(sol.te, [np.pi, 2 * np.pi], atol=1e-8)  # stops at the first after 5
     assert sol.t[-1] == sol.te[-1] and "terminal event 0" in sol.message
     rising = odelab.ode45(oscillator, [0, 20], [0, 1], rtol=1e-8, atol=1e-10,
                           events=lambda t, y: ([y[0]], [0], [np.array(1.0) if t < 10 else -1]))
     # rising crossings before t = 10, falling ones after: 2 pi, then 5 pi (4 pi rises)
-    np.testing.assert_allclose(rising.te[1:], [2 * np.pi, 5 * np.pi], atol=1e-8)
+    np.testing.assert_allclose(rising.te, [2 * np.pi, 5 * np.pi], atol=1e-8)
+
+
+@pytest.mark.parametrize("method", ["ode23", "ode45", "ode89", "ode113", "ode15s"])
+def test_a_zero_at_the_initial_point_is_not_an_event_but_its_return_is(method):
+    # MATLAB's odezero ignores a zero at t0: a ball released from the floor reports nothing at
+    # t0; y = sin t leaves zero and comes back at pi, 2 pi, which are reported. Terminal too:
+    # the initial zero does not stop the integration.
+    up = odelab.solve(lambda t, y: [1.0], [0, 2], [0.0], method=method, events=lambda t, y: ([y[0]], [1], [0]))
+    assert up.te.size == 0 and up.t[-1] == 2 and up.status == "success"
+    sine = odelab.solve(lambda t, y: [np.cos(t)], [0, 7], [0.0], method=method, rtol=1e-8, atol=1e-10,
+                        events=lambda t, y: ([y[0]], [0], [0]))
+    np.testing.assert_allclose(sine.te, [np.pi, 2 * np.pi], atol=1e-6)
+    # a function that is zero at t0 and returns within the first step (MaxStep > the return
+    # time) is located where it returns
+    quick = odelab.solve(lambda t, y: [np.cos(t)], [0, 4], [0.0], method=method, events=lambda t, y: ([y[0]], [1], [-1]),
+                         initial_step=3.5, max_step=4, rtol=1e-3) if method in ("ode23", "ode45") else None
+    if quick is not None:
+        assert quick.te.size == 1 and abs(quick.te[0] - np.pi) < 0.1 and quick.t[-1] == quick.te[0]
+
+
+@pytest.mark.parametrize("method", ["ode23", "ode45", "ode15s"])
+@pytest.mark.parametrize("direction", [-1, 0])
+def test_free_fall_from_the_floor_going_up_stops_when_it_comes_back(method, direction):
+    # MATLAB: h(0) = 0 is not an event (odezero ignores the initial point), terminal or not; the
+    # ball thrown up at 10 m/s lands at 2 v0 / g, where the terminal event stops it. The height
+    # is a quadratic, which ode23/ode45 and their interpolants integrate exactly: te to the
+    # location tolerance of its step; ode15s to its own error (rtol 1e-8 on a 2 s flight).
+    sol = odelab.solve(free_fall, [0, 5], [0.0, 10.0], method=method, rtol=1e-8, atol=1e-10,
+                       events=lambda t, y: ([y[0]], [1], [direction]))
+    landing = 2 * 10.0 / G
+    assert sol.te.size == 1 and sol.t[-1] == sol.te[0] and "terminal event 0" in sol.message
+    bound = 128 * math.ulp(5.0) if method != "ode15s" else 1e-6
+    assert abs(sol.te[0] - landing) <= bound, (sol.te[0] - landing)
+
+
+def test_an_oscillator_started_at_a_zero_reports_only_its_returns():
+    # x = sin t: zero at t0 (ignored), then k pi; terminal at the first return, pi, not at 0
+    sol = odelab.ode45(oscillator, [0, 20], [0, 1], events=lambda t, y: ([y[0]], [1], [0]), rtol=1e-8, atol=1e-10)
+    assert sol.te.size == 1 and abs(sol.te[0] - np.pi) < 0.2 * 1e-8 and sol.t[-1] == sol.te[0]

@@ -14,8 +14,14 @@ are reported at the right end of the final bracket. Then the search goes on in
 ``[tR + tol/2, tnew]`` for later events of the step, unless one found is terminal (all events
 found with it are reported, the step is cut there) or the bracket reached ``tnew``.
 
-A terminal event located while the bracket's left end is still the initial time ``t0`` does
-not stop the integration (MATLAB: an event at the initial point is registered as non-terminal).
+An event function that is exactly zero at the initial time ``t0`` is not an event there, as
+MATLAB's ``odezero`` ignores a zero at the initial point: a ball released from the floor, or a
+crossing function that starts at zero, reports nothing at ``t0``. The first step's search
+starts just off ``t0`` (``t0 + tol/2`` on the interpolant), so a function that leaves zero and
+comes back is still located where it returns. A restart after an event with a reset is a new
+``t0`` (MATLAB's loop around the solver), so a function zero there does not fire again. A
+terminal event located while the bracket's left end is still where the first step's search
+began does not stop the integration (MATLAB registers such an event as non-terminal).
 
 This module is plain array code called by the driver between steps; it keeps no state.
 """
@@ -98,6 +104,12 @@ def locate_events(interpolate: Callable[[float], np.ndarray], events: Callable, 
 
     vnew, isterminal, direction = events(tnew, ynew)
     tL, yL, vL = t, y, v
+    if t == t0 and np.any(v == 0):
+        # MATLAB ignores a zero at the initial point: search from just off it
+        tL = t + tdir * 0.5 * tol
+        yL = interpolate(tL)
+        vL = events(tL, yL)[0]
+    search_start = tL if t == t0 else None
     tR, yR, vR = tnew, ynew, vnew
     # ttry/vtry remember the last point tried, for extrapolation when an end value is zero.
     ttry, vtry = tR, vR
@@ -162,7 +174,7 @@ def locate_events(interpolate: Callable[[float], np.ndarray], events: Callable, 
             ye.append(yR)
             ie.append(int(j))
         if np.any(isterminal[found]):
-            if tL != t0:
+            if tL != search_start:
                 stop = True
             break
         if abs(tnew - tR) <= tol:

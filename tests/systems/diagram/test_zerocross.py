@@ -102,3 +102,16 @@ def test_block_key_checks():
         Switch(inputs=["a", "b", "c"], criteria="u2 >= 0")
     with pytest.raises(dg.BlockError, match="on_point"):
         Relay(input="u", on_point=-1, off_point=1)
+
+
+def test_initial_modes_come_from_where_the_switching_functions_go():
+    # sign(sin t) from t = 0, where sin is exactly zero: the mode is +1 from the start (the
+    # direction sin leaves zero in), not sign(0) = 0 held until an event at t0 (the solver
+    # reports none there, as MATLAB). Its integral over [0, pi] is pi; the only crossing is pi.
+    d = dg.Diagram({"c": Sine(amplitude=1, frequency=1), "sg": Sign(input="c"), "ab": Abs(input="c"),
+                    "x": dg.Integrator(input="sg"), "z": dg.Integrator(input="ab")}, {"x": "x", "z": "z"})
+    r = d.compile().simulate([0, 4], rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(r.crossings["sg"], [np.pi], rtol=0, atol=1e-9)
+    k = np.searchsorted(r.t, np.pi)
+    np.testing.assert_allclose(r.y[-1], [np.pi - (4 - np.pi), 2 + 1 - np.cos(4 - np.pi)], rtol=0, atol=1e-8)
+    assert r.y[k - 1, 0] == pytest.approx(r.t[k - 1], abs=1e-9)  # x = t while sin > 0

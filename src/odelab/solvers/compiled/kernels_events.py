@@ -84,6 +84,16 @@ def _locate(_ev, p, isterminal, direction, v, t, y, tnew, ynew, h, K, dense, t0,
         V[R, j] = vnew[j]
         V[T, j] = vnew[j]
     tL = t
+    if t == t0:
+        any_zero = False
+        for j in range(k):
+            if v[j] == 0:
+                any_zero = True
+        if any_zero:  # MATLAB ignores a zero at the initial point: search from just off it
+            tL = t + tdir * 0.5 * tol
+            _interpolate(tL, t, y, h, K, dense, Y[L])
+            _ev(tL, Y[L], p, V[L])
+    search_start = tL
     tR = tnew
     ttry = tR
     while True:
@@ -156,7 +166,7 @@ def _locate(_ev, p, isterminal, direction, v, t, y, tnew, ynew, h, K, dense, t0,
             if isterminal[j] != 0.0:
                 terminal = True
         if terminal:
-            if tL != t0:
+            if t != t0 or tL != search_start:
                 stop = True
             break
         if abs(tnew - tR) <= tol:

@@ -143,13 +143,43 @@ def simulate_hybrid(diagram, tspan, x0=None, *, method: str = "ode45", zero_cros
         rows_t.append(np.atleast_1d(np.asarray(t, dtype=float)))
         rows_x.append(np.asarray(xs, dtype=float).reshape(-1, x.size))
 
+    consecutive = 0
+    sqrt_eps = math.sqrt(np.finfo(float).eps)
+
+    def look(t, end):
+        """How far ahead a switching function's departure from a zero at ``t`` is read: a
+        relative sqrt(eps) of the span, inside the piece that ends at ``end``."""
+        dt = sqrt_eps * max(abs(tf - t0), abs(t))
+        if end != t:
+            dt = min(dt, 0.5 * abs(end - t))
+        return dt if forward else -dt
+
+    def settle(t, xs, u, end):
+        """The modes at a piece's start once every switching function exactly zero there has
+        left in the direction it goes (the solver ignores a zero at its initial point, as
+        MATLAB does: the driver takes those crossings itself, counted like located ones)."""
+        nonlocal consecutive, status, message
+        if not sw.located:
+            return xs
+        dt = look(t, end)
+        while True:
+            hit, after = sw.departing(t, xs, u, dt)
+            if not hit:
+                return xs
+            sw.record(t, hit)
+            consecutive += 1
+            if consecutive >= MAX_CONSECUTIVE:
+                status, message = "failed", _chatter_message(consecutive, hit[0], t)
+                raise _Stop
+            xs = sw.choose(t, xs, u(t), after=after)
+
     try:
         # the hit at t0 (discrete outputs from their initial states and the inputs at t0)
         u_first = inputs_at(-math.inf if len(edges) == 2 else -math.inf, math.inf)
         if t0 in hit_map:
             x = _discrete_hit(diagram, t0, x, u_first(t0), hit_map[t0])
-        x = sw.choose(t0, x, u_first(t0)) if sw else x
-        consecutive = 0
+        if sw:  # a function zero at t0 takes the sign it moves into (Simulink's initialisation)
+            x = sw.choose(t0, x, u_first(t0), after=lambda xx: sw.ahead(t0, xx, u_first, look(t0, edges[1])))
         for i in range(len(edges) - 1):
             a, b = edges[i], edges[i + 1]
             last = i == len(edges) - 2
@@ -159,7 +189,9 @@ def simulate_hybrid(diagram, tspan, x0=None, *, method: str = "ode45", zero_cros
             u = inputs_at(u_lo, u_hi)
             diagram.slope_window = (u_lo, u_hi)
             if i > 0 and sw:
-                x = sw.choose(a, x, u(a))
+                x = sw.choose(a, x, u(a), after=lambda xx, _a=a, _b=b, _u=u: sw.ahead(_a, xx, _u, look(_a, _b)))
+            if sw:
+                x = settle(a, x, u, b)
             start = a
             if dense:
                 grid_user = np.empty(0)
@@ -242,12 +274,10 @@ def simulate_hybrid(diagram, tspan, x0=None, *, method: str = "ode45", zero_cros
                     tol = 128 * max(math.ulp(t_sw), math.ulp(start))
                     consecutive = consecutive + 1 if abs(t_sw - start) <= 10 * tol else 0
                     if consecutive >= MAX_CONSECUTIVE:
-                        status = "failed"
-                        message = (f"{consecutive} consecutive zero crossings of block `{fired[0]}` at t = {t_sw:.10g} "
-                                   "(the switch chatters: its mode changes faster than time can advance); set "
-                                   f"zero_crossing = false on `{fired[0]}` or change the model.")
+                        status, message = "failed", _chatter_message(consecutive, fired[0], t_sw)
                         raise _Stop
                     x = sw.choose(t_sw, sw.sync(t_sw, y_sw, u(t_sw), fired), u(t_sw), before)
+                    x = settle(t_sw, x, u, b)
                     add(t_sw, x) if dense or (t_sw == b and np.any(user == b)) else None
                     start = t_sw
                     if t_sw == b:
@@ -257,7 +287,9 @@ def simulate_hybrid(diagram, tspan, x0=None, *, method: str = "ode45", zero_cros
                     add(sol.t[keep], sol.y[keep])
                     y_end = np.asarray(sol.y[-1], dtype=float)
                     x_before = y_end.copy()
-                    x = sw.choose(t_end, sw.sync(t_end, y_end, u(t_end)), u(t_end))
+                    x = sw.choose(t_end, sw.sync(t_end, y_end, u(t_end)), u(t_end),
+                                  after=lambda xx: sw.ahead(t_end, xx, u, look(t_end, b)))
+                    x = settle(t_end, x, u, b)
                     sw.record(t_end, [n for n in sw.stepped if not np.array_equal(
                         x[diagram.slices[n]], x_before[diagram.slices[n]])])
                     if dense:
@@ -331,6 +363,11 @@ def _combined(zc, n_zc, events):
                 np.concatenate([d1, np.asarray(d2, dtype=float).reshape(-1)]))
 
     return ev
+
+
+def _chatter_message(count: int, block: str, t: float) -> str:
+    return (f"{count} consecutive zero crossings of block `{block}` at t = {t:.10g} (the switch chatters: its mode "
+            f"changes faster than time can advance); set zero_crossing = false on `{block}` or change the model.")
 
 
 class _Stop(Exception):

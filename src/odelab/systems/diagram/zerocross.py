@@ -12,6 +12,14 @@ the switching functions (a value of exactly zero takes the sign it crossed into)
 integration restarts. A ramp of slope 1 into a saturation at 0.5 thus switches at t = 0.5 to
 round-off whatever the tolerances.
 
+The solver ignores an event function that is zero at the start of a piece (MATLAB's ``odezero``
+ignores a zero at the initial point), so the driver never relies on one: at the start of the
+run and of every piece without a crossing behind it, a switching function exactly zero takes
+the sign it moves into (its value just after, along the flow: Simulink's initialisation reads
+the direction the same way), and :meth:`Switching.departing` names the functions that leave a
+zero at a piece's start in a direction their mode watches, the crossings an event at the
+piece's start would have reported (a chattering switch among them).
+
 This module holds the pieces that know about blocks and modes; it keeps no state of its own
 (the modes live on the blocks while the driver runs, and are cleared after).
 """
@@ -94,20 +102,57 @@ class Switching:
         for n in self.blocks:
             self.diagram.wiring.blocks[n].mode = None
 
-    def choose(self, t, x, u, before: dict[str, np.ndarray] | None = None) -> np.ndarray:
+    def ahead(self, t, x, u_of, dt: float, names=None) -> dict[str, np.ndarray]:
+        """The switching functions just after ``t`` along the flow with the modes as they are:
+        at ``(t + dt, x + dt f(t, x))``, ``u_of(t)`` the sources' values. Their signs say which
+        way a function exactly zero at ``t`` moves."""
+        names = self.held if names is None else names
+        u = u_of(t)
+        f = np.asarray(self.diagram._dynamics(t, x, u), dtype=float).reshape(-1)
+        return self.raw(t + dt, np.asarray(x, dtype=float) + dt * f, u_of(t + dt), names)
+
+    def departing(self, t, x, u_of, dt: float):
+        """The located blocks whose switching function is exactly zero at ``t`` and leaves it,
+        along the flow with the modes held, in a direction its mode watches: the crossings an
+        event at ``t`` would report, which the solver does not (a zero at its initial point is
+        not an event). Returns ``(names, after)``, ``after`` the values just after ``t`` (for
+        :meth:`choose`), or ``([], None)``."""
+        blocks = self.diagram.wiring.blocks
+        now = self.raw(t, x, u_of(t), self.located)
+        if not any(np.any(np.asarray(v) == 0) for v in now.values()):
+            return [], None
+        after = self.ahead(t, x, u_of, dt, self.located)
+        hit = []
+        for n in self.located:
+            d = np.asarray(blocks[n].zc_directions(blocks[n].mode), dtype=float).reshape(-1)
+            v, a = np.asarray(now[n], dtype=float).reshape(-1), np.asarray(after[n], dtype=float).reshape(-1)
+            if v.shape != d.shape or a.shape != d.shape:
+                continue
+            fire = (v == 0) & ~np.isnan(d) & (np.sign(a) != 0) & (np.nan_to_num(d) * a >= 0)
+            if np.any(fire):
+                hit.append(n)
+        return hit, (after if hit else None)
+
+    def choose(self, t, x, u, before: dict[str, np.ndarray] | None = None, after=None) -> np.ndarray:
         """Set the modes the state ``x`` at ``t`` selects and return the state with the blocks'
         resets applied (an integrator put exactly at its limit, a relay's new output).
 
         A switching function exactly zero takes the sign opposite to its value ``before`` (the
-        side it came from), or 0 (each block's own convention) with no history. Blocks are
-        visited in evaluation order, each seeing the modes already chosen upstream; blocks with
-        state (whose outputs feed back) are revisited until nothing changes.
+        side it came from); without history, the sign of its value ``after`` (just after ``t``
+        along the flow: a dict, or a function of ``x`` called with the modes read off the
+        inputs, see :meth:`ahead`), so that the mode chosen at a zero is the one the run goes
+        on in; or 0 (each block's own convention) when it stays zero. A relay keeps its own rule
+        (on once u >= on_point). Blocks are visited in evaluation order, each seeing the modes
+        already chosen upstream; blocks with state (whose outputs feed back) are revisited until
+        nothing changes.
         """
         blocks = self.diagram.wiring.blocks
         x = np.array(x, dtype=float)
         for n in self.held:
             if not blocks[n].STATEFUL_MODE:
                 blocks[n].mode = None
+        if callable(after):
+            after = after(x)
         for _ in range(len(self.held) + 2):
             moved = False
             for n in self.held:
@@ -123,6 +168,9 @@ class Switching:
                 if before is not None and n in before and before[n].shape == raw.shape:
                     zero = signs == 0
                     signs[zero] = -np.sign(before[n][zero])
+                if after is not None and not b.STATEFUL_MODE and n in after and np.shape(after[n]) == raw.shape:
+                    zero = signs == 0
+                    signs[zero] = np.sign(np.asarray(after[n], dtype=float)[zero])
                 b.mode = held
                 b.mode = np.asarray(b.zc_mode(signs, xs, ins, **extra))
                 sl = self.diagram.slices.get(n)
