@@ -40,6 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from odelab.solvers.controller import clamp_step, first_step, given_step
 from odelab.solvers.dense import clip_nonnegative, query_times
 from odelab.solvers.ordered import combine
 from odelab.solvers.status import Status
@@ -213,19 +214,14 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
     if have_nonneg:
         threshold_nn = threshold if norm_control else threshold[nonnegative]
     sqrt = math.sqrt
-    ulp = math.ulp
 
     t = t0
     y = y0.copy()
-    hmin = 16.0 * ulp(t)
     if htry != htry:  # NaN: MATLAB's ode113 first step, Shampine & Gordon's h = 0.25 sqrt(tol / ||y'||)
-        absh = min(hmax, abs(float(tspan[1]) - t0))
         rh = _wnorm(f0, _inv_weight(y, threshold, norm_control), norm_control) / (0.25 * sqrt(rtol))
-        if absh * rh > 1.0:
-            absh = 1.0 / rh
-        absh = max(absh, hmin)
+        absh = first_step(rh, abs(float(tspan[1]) - t0), hmax, t0)
     else:
-        absh = min(hmax, max(hmin, htry))
+        absh = given_step(htry, t0, hmax)
 
     # Method state, 1-based as in the book: phi[i] is the i-th modified divided difference.
     phi = np.zeros((_NCOL, n), dtype=y0.dtype)
@@ -268,19 +264,13 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
     d_psi: list[list[float]] = []
 
     nsteps = nfailed = nfevals = 0
-    status = Status.SUCCESS
+    status = success = Status.SUCCESS  # a local: the enum's attribute lookup costs more than a step's test
     exception = None
     h = tdir * absh
     try:
         while True:
-            hmin = 16.0 * ulp(t)
-            absh = min(hmax, max(hmin, absh))
-            h = tdir * absh
-            done = False
-            if 1.1 * absh >= abs(tfinal - t):  # stretch the step to land on tfinal
-                h = tfinal - t
-                absh = abs(h)
-                done = True
+            hmin, absh, done = clamp_step(t, tfinal, absh, hmax)  # stretched to land on tfinal
+            h = tfinal - t if done else tdir * absh
             invwt = _inv_weight(y, threshold, norm_control)
             failed = 0
             while True:
@@ -397,7 +387,7 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
                 else:  # NaN: a derivative or the prediction is not finite
                     status = Status.NONFINITE
                     break
-            if status != Status.SUCCESS:
+            if status != success:
                 break
             nsteps += 1
             klast = k

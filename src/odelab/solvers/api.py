@@ -11,6 +11,7 @@ import warnings
 from odelab.exceptions import InputError, SolverWarning
 from odelab.solution import Solution, Stats
 from odelab.solvers import engine
+from odelab.solvers.controller import min_step
 from odelab.solvers.options import SolverOptions, as_tspan, as_y0, normalize_options, resolve_options
 from odelab.solvers.registry import Method, get_method
 from odelab.solvers.status import Status
@@ -470,7 +471,7 @@ def _status_message(status, m: Method, t_stop, h_stop, y, y0, opts: SolverOption
         return f"{m.name} stopped at t = {t_stop:.10g}: the output function asked to stop."
     where = f"at t = {t_stop:.10g}"
     if status == Status.STEP_UNDERFLOW:
-        hmin = engine._hmin(t_stop)
+        hmin = min_step(t_stop)
         grown = float(np.max(np.abs(y[-1]))) > 1e6 * max(1.0, float(np.max(np.abs(y0))))
         cause = (
             "the solution may be unbounded near there (it grew from "

@@ -35,15 +35,12 @@ import math
 
 import numpy as np
 
+from odelab.solvers.controller import clamp_step, first_step, given_step, grow, shrink
 from odelab.solvers.ordered import backwards, combine, norm
 from odelab.solvers.status import Status
 
 __all__ = ["integrate_adaptive", "integrate_fixed"]
 
-
-def _hmin(t: float) -> float:
-    """MATLAB's ``16*eps(t)``: 16 spacings of doubles at |t| (the smallest subnormal at 0)."""
-    return 16.0 * math.ulp(t)
 
 #: Systems up to this size take the error norm's maximum over a Python list (cheaper than a
 #: numpy reduction for a few components; the same bits).
@@ -283,7 +280,6 @@ def integrate_adaptive(
     if not norm_control:
         ywt = np.maximum(absy, threshold)  # max(|y|, threshold), the part known before the step
 
-    ulp = math.ulp
     absolute = np.abs
     maximum = np.maximum
     t = t0
@@ -291,18 +287,14 @@ def integrate_adaptive(
     normy = float(norm(y0)) if norm_control else 0.0
     normynew = normy
 
-    hmin = _hmin(t)
     if htry != htry:  # NaN: MATLAB's initial step from the derivative at t0
-        absh = min(hmax, abs(float(tspan[1]) - t0))
         if norm_control:
             rh = (float(norm(f0)) / max(normy, float(threshold))) / (0.8 * rtol**power)
         else:
             rh = float((np.abs(f0) / np.maximum(absy, threshold)).max()) / (0.8 * rtol**power)
-        if absh * rh > 1.0:
-            absh = 1.0 / rh
-        absh = max(absh, hmin)
+        absh = first_step(rh, abs(float(tspan[1]) - t0), hmax, t0)
     else:
-        absh = min(hmax, max(hmin, htry))
+        absh = given_step(htry, t0, hmax)
 
     refine_output = ntspan == 2
     if refine_output and refine > 1:
@@ -344,23 +336,14 @@ def integrate_adaptive(
     nsteps = 0
     nfailed = 0
     nfevals = 0
-    status = Status.SUCCESS
+    status = success = Status.SUCCESS  # a local: the enum's attribute lookup costs more than a step's test
     exception = None
     h = tdir * absh
     try:
         while True:
-            hmin = 16.0 * ulp(t)  # _hmin(t), inlined: this runs every step
-            if absh < hmin:  # absh = min(hmax, max(hmin, absh)) in two tests
-                absh = hmin
-            if absh > hmax:
-                absh = hmax
-            h = tdir * absh
-            done = False
-            # Stretch (or shrink) the step to land on tfinal if within 10% of it.
-            if 1.1 * absh >= abs(tfinal - t):
-                h = tfinal - t
-                absh = abs(h)
-                done = True
+            # hmin <= absh <= hmax, stretched (or shrunk) to land on tfinal if within 10% of it
+            hmin, absh, done = clamp_step(t, tfinal, absh, hmax)
+            h = tfinal - t if done else tdir * absh
 
             nofailed = True
             while True:
@@ -420,14 +403,10 @@ def integrate_adaptive(
                     if absh <= hmin:
                         status = Status.STEP_UNDERFLOW
                         break
-                    if nofailed:
-                        nofailed = False
-                        if have_nonneg and nn_reject:
-                            absh = max(hmin, 0.5 * absh)
-                        else:
-                            absh = max(hmin, absh * max(shrink_min, 0.8 * (rtol / err) ** power))
-                    else:
-                        absh = max(hmin, 0.5 * absh)
+                    # a negative non-negative component halves the step, as a second failure
+                    absh = shrink(absh, hmin, err, rtol, power, shrink_min, 0.8,
+                                  nofailed and not (have_nonneg and nn_reject))
+                    nofailed = False
                     h = tdir * absh
                     done = False
                 elif err <= rtol:
@@ -435,7 +414,7 @@ def integrate_adaptive(
                 else:  # err is NaN: a derivative or the solution is not finite
                     status = Status.NONFINITE
                     break
-            if status != Status.SUCCESS:
+            if status != success:
                 break
             nsteps += 1
             if not fsal:
@@ -547,11 +526,7 @@ def integrate_adaptive(
 
             # No failures in this step: choose the next step from the error estimate.
             if nofailed:
-                temp = 1.25 * (err / rtol) ** power
-                if temp > 0.2:
-                    absh = absh / temp
-                else:
-                    absh = 5.0 * absh
+                absh = grow(absh, err, rtol, power, 1.25, 5.0)
 
             t = tnew
             y_row[...] = ynew  # y is y_row: the rows of the next step's stages

@@ -34,7 +34,10 @@ from odelab import cachedir
 
 __all__ = ["cache_dir", "compiled_folder", "guard_numba_cache", "is_built", "kernels_text", "load_kernels", "load_module", "module_digest"]
 
-_KERNELS = (Path(__file__).with_name("kernels.py"), Path(__file__).with_name("kernels_events.py"))
+#: The shared loops' module, in this order: the step-size rules (compiled by kernels.py), the loops
+#: and the loop with events.
+_KERNELS = (Path(__file__).parent.parent / "controller.py", Path(__file__).with_name("kernels.py"),
+            Path(__file__).with_name("kernels_events.py"))
 _LOADED: dict[str, ModuleType] = {}
 
 
@@ -59,7 +62,7 @@ def module_text(prelude: str, rhs: str) -> str:
 
 
 def load_kernels() -> ModuleType:
-    """The shared stepping loops (``kernels.py`` and, appended to it, ``kernels_events.py``),
+    """The shared stepping loops (``controller.py``'s rules, ``kernels.py`` and ``kernels_events.py``),
     imported from (and compiled into) the cache folder as one module."""
     return load_module(kernels_text(), prefix="odelab_kernels")
 
@@ -87,7 +90,7 @@ def is_built(text: str, prefix: str = "odelab_compiled", function: str | None = 
 
 
 def kernels_text() -> str:
-    """The text of the shared loops' module (``kernels.py`` and ``kernels_events.py``)."""
+    """The text of the shared loops' module (``controller.py``, ``kernels.py``, ``kernels_events.py``)."""
     return "\n\n".join(path.read_text(encoding="utf-8") for path in _KERNELS)
 
 

@@ -1,6 +1,7 @@
 """The stepping loops of the compiled backend (numba), shared by every system.
 
-:mod:`odelab.solvers.compiled.cache` copies this file into the cache folder and imports it
+:mod:`odelab.solvers.compiled.cache` copies this file (after :mod:`odelab.solvers.controller`,
+whose step-size rules it compiles) into the cache folder and imports it
 from there, so numba's ``cache=True`` keeps its machine code beside it: the loops are compiled
 once per machine (and numba version), not once per system. A system's own module holds only
 its right-hand side ``rhs(t, y, p, out)`` with the signature :data:`RHS`, and is passed to the
@@ -30,6 +31,21 @@ RHS = _types.void(_F8, _V, _V, _V)
 _RHS_ARG = _types.FunctionType(RHS)
 
 from odelab.solvers.status import Status as _Status
+
+
+# The step-size rules: this module's text begins with odelab/solvers/controller.py (see
+# cache._KERNELS), whose pure functions are compiled here, so both engines take the same steps.
+@_njit(cache=True, error_model="numpy")
+def _ulp(x):
+    return _np.spacing(abs(x))
+
+
+min_step = _njit(cache=True, error_model="numpy")(min_step)  # noqa: F821 (controller.py's)
+given_step = _njit(cache=True, error_model="numpy")(given_step)  # noqa: F821
+first_step = _njit(cache=True, error_model="numpy")(first_step)  # noqa: F821
+clamp_step = _njit(cache=True, error_model="numpy")(clamp_step)  # noqa: F821
+shrink = _njit(cache=True, error_model="numpy")(shrink)  # noqa: F821
+grow = _njit(cache=True, error_model="numpy")(grow)  # noqa: F821
 
 
 @_njit(cache=True, error_model="numpy")
@@ -81,9 +97,7 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
         normy = _np.sqrt(normy)
     normynew = normy
 
-    hmin = 16.0 * _np.spacing(abs(t))
     if htry != htry:
-        absh = min(hmax, abs(tspan[1] - t0))
         if norm_control:
             nf = 0.0
             for j in range(n):
@@ -96,11 +110,9 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
                 if q > rh or q != q:
                     rh = q
             rh = rh / (0.8 * rtol ** power)
-        if absh * rh > 1.0:
-            absh = 1.0 / rh
-        absh = max(absh, hmin)
+        absh = first_step(rh, abs(tspan[1] - t0), hmax, t0)
     else:
-        absh = min(hmax, max(hmin, htry))
+        absh = given_step(htry, t0, hmax)
 
     t_out = _np.empty(capacity)
     y_out = _np.empty((capacity, n))
@@ -119,14 +131,8 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
     tnew = t
     err = 0.0
     while True:
-        hmin = 16.0 * _np.spacing(abs(t))
-        absh = min(hmax, max(hmin, absh))
-        h = tdir * absh
-        done = False
-        if 1.1 * absh >= abs(tfinal - t):
-            h = tfinal - t
-            absh = abs(h)
-            done = True
+        hmin, absh, done = clamp_step(t, tfinal, absh, hmax)
+        h = tfinal - t if done else tdir * absh
 
         nofailed = True
         while True:
@@ -187,11 +193,8 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
                 if absh <= hmin:
                     status = _Status.STEP_UNDERFLOW
                     break
-                if nofailed:
-                    nofailed = False
-                    absh = max(hmin, absh * max(shrink_min, 0.8 * (rtol / err) ** power))
-                else:
-                    absh = max(hmin, 0.5 * absh)
+                absh = shrink(absh, hmin, err, rtol, power, shrink_min, 0.8, nofailed)
+                nofailed = False
                 h = tdir * absh
                 done = False
             elif err <= rtol:
@@ -257,11 +260,7 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
             break
 
         if nofailed:
-            temp = 1.25 * (err / rtol) ** power
-            if temp > 0.2:
-                absh = absh / temp
-            else:
-                absh = 5.0 * absh
+            absh = grow(absh, err, rtol, power, 1.25, 5.0)
 
         t = tnew
         for j in range(n):

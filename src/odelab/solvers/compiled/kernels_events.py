@@ -250,9 +250,7 @@ def _adaptive_events(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shr
         normy = _np.sqrt(normy)
     normynew = normy
 
-    hmin = 16.0 * _np.spacing(abs(t))
     if htry != htry:
-        absh = min(hmax, abs(tspan[1] - t0))
         if norm_control:
             nf = 0.0
             for j in range(n):
@@ -265,11 +263,9 @@ def _adaptive_events(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shr
                 if q > rh or q != q:
                     rh = q
             rh = rh / (0.8 * rtol ** power)
-        if absh * rh > 1.0:
-            absh = 1.0 / rh
-        absh = max(absh, hmin)
+        absh = first_step(rh, abs(tspan[1] - t0), hmax, t0)
     else:
-        absh = min(hmax, max(hmin, htry))
+        absh = given_step(htry, t0, hmax)
 
     t_out = _np.empty(capacity)
     y_out = _np.empty((capacity, n))
@@ -295,14 +291,8 @@ def _adaptive_events(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shr
     tnew = t
     err = 0.0
     while True:
-        hmin = 16.0 * _np.spacing(abs(t))
-        absh = min(hmax, max(hmin, absh))
-        h = tdir * absh
-        done = False
-        if 1.1 * absh >= abs(tfinal - t):
-            h = tfinal - t
-            absh = abs(h)
-            done = True
+        hmin, absh, done = clamp_step(t, tfinal, absh, hmax)
+        h = tfinal - t if done else tdir * absh
 
         nofailed = True
         while True:
@@ -363,11 +353,8 @@ def _adaptive_events(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shr
                 if absh <= hmin:
                     status = _Status.STEP_UNDERFLOW
                     break
-                if nofailed:
-                    nofailed = False
-                    absh = max(hmin, absh * max(shrink_min, 0.8 * (rtol / err) ** power))
-                else:
-                    absh = max(hmin, 0.5 * absh)
+                absh = shrink(absh, hmin, err, rtol, power, shrink_min, 0.8, nofailed)
+                nofailed = False
                 h = tdir * absh
                 done = False
             elif err <= rtol:
@@ -467,11 +454,7 @@ def _adaptive_events(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shr
             break
 
         if nofailed:
-            temp = 1.25 * (err / rtol) ** power
-            if temp > 0.2:
-                absh = absh / temp
-            else:
-                absh = 5.0 * absh
+            absh = grow(absh, err, rtol, power, 1.25, 5.0)
 
         t = tnew
         for j in range(n):

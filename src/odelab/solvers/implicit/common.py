@@ -24,7 +24,9 @@ import math
 
 import numpy as np
 
-__all__ = ["Work", "Output", "rms_or_max", "initial_step", "clamp_step", "newton", "Newton", "QuadraticSteps",
+from odelab.solvers.controller import first_step, given_step
+
+__all__ = ["Work", "Output", "rms_or_max", "initial_step", "newton", "Newton", "QuadraticSteps",
            "quadratic_through"]
 
 EPS = float(np.finfo(float).eps)
@@ -138,32 +140,16 @@ def rms_or_max(v: np.ndarray, scale: np.ndarray) -> float:
     return float(np.max(np.abs(v) / scale)) if v.size else 0.0
 
 
-def clamp_step(t: float, tf: float, absh: float, hmax: float) -> tuple[float, float, bool]:
-    """MATLAB's rule at the top of every step: ``absh`` within ``[hmin, hmax]`` with
-    ``hmin = 16 eps(t)``, and stretched (or shrunk) to land on ``tf`` when within 10 % of it.
-
-    Returns ``(hmin, absh, done)``; ``done`` means this step ends at ``tf``.
-    """
-    hmin = 16.0 * math.ulp(t)
-    absh = min(hmax, max(hmin, absh))
-    if 1.1 * absh >= abs(tf - t):
-        return hmin, abs(tf - t), True
-    return hmin, absh, False
-
-
 def initial_step(f0, y0, threshold, rtol, power, hmax, htspan, t0, htry, normcontrol=False):
-    """MATLAB's first step from ``y'(t0)``: ``1 / (||f0 / wt|| / (0.8 rtol^power))``, capped."""
-    hmin = 16.0 * math.ulp(t0)
+    """MATLAB's first step from ``y'(t0)``: ``1 / (||f0 / wt|| / (0.8 rtol^power))``, capped
+    (:func:`odelab.solvers.controller.first_step`)."""
     if htry == htry:  # given
-        return min(hmax, max(hmin, htry))
-    absh = min(hmax, htspan)
+        return given_step(htry, t0, hmax)
     if normcontrol:
         rh = (float(np.linalg.norm(f0)) / max(float(np.linalg.norm(y0)), float(np.max(threshold)))) / (0.8 * rtol**power)
     else:
         rh = float(np.max(np.abs(f0) / np.maximum(np.abs(y0), threshold))) / (0.8 * rtol**power)
-    if absh * rh > 1:
-        absh = 1.0 / rh
-    return max(absh, hmin)
+    return first_step(rh, htspan, hmax, t0)
 
 
 class Newton:

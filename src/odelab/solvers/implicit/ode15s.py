@@ -26,7 +26,8 @@ import warnings
 import numpy as np
 
 from odelab.solvers.status import Status
-from odelab.solvers.implicit.common import SQRT_EPS, Output, Work, clamp_step
+from odelab.solvers.controller import clamp_step, first_step, given_step, grow, shrink, shrink_after_newton
+from odelab.solvers.implicit.common import SQRT_EPS, Output, Work
 
 __all__ = ["integrate_ode15s", "KAPPA"]
 
@@ -82,17 +83,13 @@ def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
             else:
                 Md = M.toarray() if hasattr(M, "toarray") else np.asarray(M)
                 yp0 = np.linalg.lstsq(Md, f0, rcond=None)[0]
-            hmin = 16.0 * math.ulp(t)
             htspan = abs(float(tspan[1]) - t0)
             wt = np.maximum(np.abs(y), threshold)
             if htry == htry:
-                absh = min(hmax, max(hmin, htry))
+                absh = given_step(htry, t0, hmax)
             else:
                 rh = 1.25 * float(np.max(np.abs(yp0) / wt)) / math.sqrt(rtol)
-                absh = min(hmax, htspan)
-                if absh * rh > 1:
-                    absh = 1.0 / rh
-                absh = max(absh, hmin)
+                absh = first_step(rh, htspan, hmax, t0)
                 if not dae:
                     # The error of BDF1 is h^2/2 |y''|: estimate y'' = f_t + J y' and size h from it.
                     h = tdir * absh
@@ -102,10 +99,7 @@ def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                     if work.mass is not None:
                         ypp = np.linalg.lstsq(Md, ypp, rcond=None)[0]
                     rh = 1.25 * math.sqrt(0.5 * float(np.max(np.abs(ypp) / wt)) / rtol)
-                    absh = min(hmax, htspan)
-                    if absh * rh > 1:
-                        absh = 1.0 / rh
-                    absh = max(absh, hmin)
+                    absh = first_step(rh, htspan, hmax, t0)
 
             D = np.zeros((max_order + 3, n))
             D[0] = y
@@ -187,7 +181,7 @@ def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                             status = Status.STEP_UNDERFLOW
                             break
                         absh_old = absh
-                        absh = max(0.3 * absh, hmin)
+                        absh = shrink_after_newton(absh, hmin)
                         change_differences(D, k, absh / absh_old)
                         absh_D = absh
                         done = False
@@ -204,16 +198,16 @@ def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                             break
                         absh_old = absh
                         if nfails == 1:
-                            hopt = absh * max(0.1, 0.833 * (rtol / err) ** (1 / (k + 1)))  # 1/1.2
+                            hopt = shrink(absh, 0.0, err, rtol, 1 / (k + 1), 0.1, 0.833, True)  # 1/1.2
                             if k > 1:
                                 errkm1 = erconst[k - 1] * float(np.max(np.abs(D[k] + d) / scale))
-                                hkm1 = absh * max(0.1, 0.769 * (rtol / errkm1) ** (1 / k))  # 1/1.3
+                                hkm1 = shrink(absh, 0.0, errkm1, rtol, 1 / k, 0.1, 0.769, True)  # 1/1.3
                                 if hkm1 > hopt:
                                     hopt = min(absh, hkm1)
                                     k -= 1
                             absh = max(hmin, hopt)
                         else:
-                            absh = max(hmin, 0.5 * absh)
+                            absh = shrink(absh, hmin, err, rtol, 0.0, 0.0, 0.0, False)
                         change_differences(D, k, absh / absh_old)
                         absh_D = absh
                         done = False
@@ -251,8 +245,7 @@ def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                     status = Status.MAX_STEPS
                     break
                 if nofailed and nconhk >= k + 2:
-                    temp = 1.2 * (err / rtol) ** (1 / (k + 1))
-                    hopt = absh / temp if temp > 0.1 else 10 * absh
+                    hopt = grow(absh, err, rtol, 1 / (k + 1), 1.2, 10.0)
                     kopt = k
                     if k > 1:
                         errkm1 = erconst[k - 1] * float(np.max(np.abs(D[k]) / scale))

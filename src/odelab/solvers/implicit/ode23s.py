@@ -28,7 +28,8 @@ import warnings
 import numpy as np
 
 from odelab.solvers.status import Status
-from odelab.solvers.implicit.common import SQRT_EPS, Output, Work, clamp_step, initial_step
+from odelab.solvers.controller import clamp_step, grow, shrink
+from odelab.solvers.implicit.common import SQRT_EPS, Output, Work, initial_step
 
 __all__ = ["integrate_ode23s", "D", "E32"]
 
@@ -82,11 +83,8 @@ def integrate_ode23s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                         if absh <= hmin:
                             status = Status.STEP_UNDERFLOW
                             break
-                        if nofailed:
-                            nofailed = False
-                            absh = max(hmin, absh * max(0.5, 0.8 * (rtol / err) ** POWER))
-                        else:
-                            absh = max(hmin, 0.5 * absh)
+                        absh = shrink(absh, hmin, err, rtol, POWER, 0.5, 0.8, nofailed)
+                        nofailed = False
                         h = tdir * absh
                         done = False
                     elif err <= rtol:
@@ -114,8 +112,7 @@ def integrate_ode23s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                     status = Status.MAX_STEPS
                     break
                 if nofailed:
-                    temp = 1.25 * (err / rtol) ** POWER
-                    absh = absh / temp if temp > 0.2 else 5.0 * absh
+                    absh = grow(absh, err, rtol, POWER, 1.25, 5.0)
                 t, y, F0 = tnew, ynew, F2
         except Exception as exc:
             status, exception = Status.FUN_RAISED, exc

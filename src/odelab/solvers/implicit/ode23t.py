@@ -51,8 +51,9 @@ import warnings
 import numpy as np
 
 from odelab.solvers.status import Status
-from odelab.solvers.implicit.common import (EPS, SQRT_EPS, Newton, Output, QuadraticSteps, Work, clamp_step,
-                                           consistent_slope, quadratic_through)
+from odelab.solvers.controller import clamp_step, first_step, given_step, shrink, shrink_after_newton
+from odelab.solvers.implicit.common import (EPS, SQRT_EPS, Newton, Output, QuadraticSteps, Work, consistent_slope,
+                                           quadratic_through)
 
 __all__ = ["integrate_ode23t", "predict", "local_error", "rings", "interpolant", "solve_z", "hermite_midpoint"]
 
@@ -189,19 +190,15 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
             J = work.jacobian(t, y, f0, atol)  # numjac's thresh is AbsTol, as in MATLAB
             Jcurrent = True
             yp = consistent_slope(work, t, y, f0, J)
-            hmin = 16.0 * math.ulp(t)
             wt = np.maximum(np.abs(y), threshold)
             start, gamma, power = True, 1.0, 0.5  # the first step is BDF1
             damping = 0  # BDF1 steps left to damp a ringing component
             ringing = False
             if htry == htry:
-                absh = min(hmax, max(hmin, htry))
+                absh = given_step(htry, t0, hmax)
             else:
-                absh = min(hmax, abs(float(tspan[1]) - t0))
                 rh = 1.43 * float(np.max(np.abs(yp) / wt)) / rtol ** power
-                if absh * rh > 1:
-                    absh = 1.0 / rh
-                absh = max(absh, hmin)
+                absh = first_step(rh, abs(float(tspan[1]) - t0), hmax, t0)
                 if not dae:
                     # BDF1's error is h^2 |y''| / 2 with y'' = f_t + J y' (one evaluation).
                     h = tdir * absh
@@ -210,10 +207,7 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                     if work.mass is not None:
                         ypp = np.linalg.solve(Md, ypp)
                     rh = 1.43 * math.sqrt(0.5 * float(np.max(np.abs(ypp) / wt)) / rtol)
-                    absh = min(hmax, abs(float(tspan[1]) - t0))
-                    if absh * rh > 1:
-                        absh = 1.0 / rh
-                    absh = max(absh, hmin)
+                    absh = first_step(rh, abs(float(tspan[1]) - t0), hmax, t0)
             z = tdir * absh * yp
             history = [(t, y)]
             memory = Newton()
@@ -222,7 +216,6 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
             done = False
             err = 0.0
             while not done:
-                hmin = 16.0 * math.ulp(t)
                 absh_last = absh
                 hmin, absh, done = clamp_step(t, tf, absh, hmax)
                 h = tf - t if done else tdir * absh
@@ -273,7 +266,7 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                                 ratio = 0.7 / q
                             absh = max(ratio * absh, hmin)
                         else:
-                            absh = max(0.3 * absh, hmin)
+                            absh = shrink_after_newton(absh, hmin)
                         h = tdir * absh
                         z = (absh / absh_last) * z
                         need_lu = True
@@ -293,7 +286,7 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                             break
                         nofailed = False
                         absh_last = absh
-                        absh = max(absh_last * max(0.1, 0.7 * (rtol / err) ** power), hmin)
+                        absh = shrink(absh_last, hmin, err, rtol, power, 0.1, 0.7, True)
                         if not start and ringing:
                             start, gamma, power, damping = True, 1.0, 0.5, DAMPING_STEPS
                         h = tdir * absh

@@ -37,7 +37,8 @@ import warnings
 import numpy as np
 
 from odelab.solvers.status import Status
-from odelab.solvers.implicit.common import (Newton, Output, QuadraticSteps, Work, clamp_step, initial_step, newton,
+from odelab.solvers.controller import clamp_step, grow, shrink, shrink_after_newton
+from odelab.solvers.implicit.common import (Newton, Output, QuadraticSteps, Work, initial_step, newton,
                                            quadratic_through)
 
 __all__ = ["integrate_ode23tb", "trbdf2_attempt", "GAMMA", "D", "W", "B", "BHAT"]
@@ -131,7 +132,7 @@ def integrate_ode23tb(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine,
                         if absh <= hmin:
                             status = Status.STEP_UNDERFLOW
                             break
-                        absh = max(0.3 * absh, hmin)
+                        absh = shrink_after_newton(absh, hmin)
                         done = False
                         nofailed = False
                         continue
@@ -142,10 +143,7 @@ def integrate_ode23tb(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine,
                         if absh <= hmin:
                             status = Status.STEP_UNDERFLOW
                             break
-                        if nofailed:
-                            absh = max(hmin, absh * max(0.5, 0.8 * (rtol / err) ** POWER))
-                        else:
-                            absh = max(hmin, 0.5 * absh)
+                        absh = shrink(absh, hmin, err, rtol, POWER, 0.5, 0.8, nofailed)
                         done = False
                         nofailed = False
                         continue
@@ -171,8 +169,7 @@ def integrate_ode23tb(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine,
                     status = Status.MAX_STEPS
                     break
                 if nofailed:
-                    temp = 1.25 * (err / rtol) ** POWER
-                    absh = absh / temp if temp > 0.2 else 5.0 * absh
+                    absh = grow(absh, err, rtol, POWER, 1.25, 5.0)
         except Exception as exc:  # the user's right-hand side (or Jacobian) failed
             status, exception = Status.FUN_RAISED, exc
     t_out, y_out = out.arrays()
