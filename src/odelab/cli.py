@@ -162,7 +162,7 @@ def run(
     with _interruptible(err, total) as done:
         return _run_all(loaded, bad, out, err, runs=runs, json_out=json_out, table=table or trajectories, mat=mat,
                         max_steps=max_steps, store=store, total=total, done=done, backend=backend, jobs=jobs,
-                        executor=executor, scheduler=scheduler)
+                        executor=executor, scheduler=scheduler, limits=limits)
 
 
 def _fit_all(loaded, bad, validate_with):
@@ -235,7 +235,7 @@ def _interruptible(err, total: int):
 
 
 def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, store, total, done, jobs, executor,
-             scheduler, backend=None) -> None:
+             scheduler, backend=None, limits=None) -> None:
     from odelab.exceptions import InputError
     from odelab.experiment.executors import CaseError, run_cases
 
@@ -278,7 +278,7 @@ def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, st
     _prepare_references(cases, max_steps, err)  # in this process, before a pool forks (the workers inherit them)
     try:  # a process pool forks its workers here, before the progress bar starts its thread
         stream = run_cases(cases, executor=executor, jobs=jobs, scheduler=scheduler, max_steps=max_steps or None,
-                           on_done=on_done, backend=backend, on_result=on_result)
+                           on_done=on_done, backend=backend, on_result=on_result, limits=limits)
         iterator = iter(stream)
     except InputError as exc:
         err.print(f"[bold red]error:[/] {_escape(_error_text(exc))}")

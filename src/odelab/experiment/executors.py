@@ -109,12 +109,13 @@ def schedule(cases: list) -> list[int]:
     return [i for _, _, i in sorted(keys)]
 
 
-def _case_in_worker(source: str, file_hash: str, index: int, experiment: str):
+def _case_in_worker(source: str, file_hash: str, index: int, experiment: str, limits=None):
     key = (source, file_hash, experiment)
     if key not in _LOADED:
+        from odelab.experiment.limits import DEFAULT_LIMITS
         from odelab.experiment.loader import load_experiments
 
-        for exp in load_experiments(Path(source)):
+        for exp in load_experiments(Path(source), limits=limits or DEFAULT_LIMITS):
             _LOADED[(source, exp.file_hash, exp.name)] = exp.cases
     cases = _LOADED.get(key)
     if cases is None:
@@ -123,11 +124,13 @@ def _case_in_worker(source: str, file_hash: str, index: int, experiment: str):
     return cases[index]
 
 
-def _run_remote(source: str, file_hash: str, index: int, experiment: str, opts: dict):
-    """Run one case in a worker; the result travels without its (unpicklable) compiled case."""
+def _run_remote(source: str, file_hash: str, index: int, experiment: str, opts: dict, limits=None):
+    """Run one case in a worker; the result travels without its (unpicklable) compiled case.
+
+    ``limits``: those the file was loaded with (``--limit``), for a worker that loads it again."""
     from odelab.experiment.runner import run_case
 
-    case = _case_in_worker(source, file_hash, index, experiment)
+    case = _case_in_worker(source, file_hash, index, experiment, limits)
     try:
         result = run_case(case, **opts)
     except InputError as exc:
@@ -169,7 +172,8 @@ def _init_worker(parent: int) -> None:
 
 def run_cases(cases: Iterable, *, executor: str = "serial", jobs: int | None = None, scheduler: str | None = None,
               max_steps: int | None = None, on_done: Callable[[int, int], None] | None = None,
-              backend: str | None = None, on_result: Callable[[object], None] | None = None) -> Iterator:
+              backend: str | None = None, on_result: Callable[[object], None] | None = None,
+              limits=None) -> Iterator:
     """Run ``cases``; returns an iterator of each one's :class:`CaseResult` (or :class:`CaseError`), in case order.
 
     A process pool is started (its workers forked) before this returns; the cases run as the
@@ -184,6 +188,9 @@ def run_cases(cases: Iterable, *, executor: str = "serial", jobs: int | None = N
     on_result
         Called with each case's result (or :class:`CaseError`) as soon as it finishes, before
         ``on_done`` and before the iterator yields it in case order: the place to store it.
+    limits
+        The :class:`~odelab.experiment.limits.Limits` the cases' files were loaded with
+        (``--limit``): a Dask worker loads each file again, within the same budgets.
     """
     cases = list(cases)
     if executor not in EXECUTORS:
@@ -207,7 +214,7 @@ def run_cases(cases: Iterable, *, executor: str = "serial", jobs: int | None = N
         return _run_serial(cases, opts, done)
     if executor == "process":
         return _run_pool(cases, jobs, opts, done)
-    return _run_dask(cases, jobs, scheduler, opts, done)
+    return _run_dask(cases, jobs, scheduler, opts, done, limits)
 
 
 def _run_serial(cases, opts, done):
@@ -217,8 +224,13 @@ def _run_serial(cases, opts, done):
         yield item
 
 
+def _source(case) -> str:
+    """The case's file as an absolute path: a Dask worker may run in another folder."""
+    return os.path.abspath(str(case.source))
+
+
 def _submit_args(case, opts):
-    return (str(case.source), case.file_hash, case.index, case.experiment, opts)
+    return (_source(case), case.file_hash, case.index, case.experiment, opts)
 
 
 def _run_pool(cases, jobs, opts, done):
@@ -247,7 +259,7 @@ def _run_pool(cases, jobs, opts, done):
 
     def results():
         try:
-            yield from _in_order(cases, futures, lambda f: f.result(), done,
+            yield from _in_order(cases, [(f, [i]) for i, f in enumerate(futures)], lambda f: [f.result()], done,
                                  lambda pending: wait(pending, return_when=FIRST_COMPLETED)[0])
         except BaseException:
             _stop_pool(pool)
@@ -286,7 +298,7 @@ def _seed(cases) -> None:
     """Put the cases' experiments in the cache that forked workers inherit."""
     by_exp: dict[tuple[str, str, str], list] = {}
     for case in cases:
-        by_exp.setdefault((str(case.source), case.file_hash, case.experiment), []).append(case)
+        by_exp.setdefault((_source(case), case.file_hash, case.experiment), []).append(case)
     for key, members in by_exp.items():
         table = [None] * (max(c.index for c in members) + 1)
         for c in members:
@@ -294,46 +306,51 @@ def _seed(cases) -> None:
         _LOADED[key] = tuple(table)
 
 
-def _in_order(cases, futures, result_of, done, wait_some):
+def _in_order(cases, groups, result_of, done, wait_some):
     """Yield results in case order while reporting each completion as it happens.
+
+    ``groups``: (future, case indices) pairs; ``result_of(future)`` is the list of those cases'
+    outcomes (a pool's future runs one case, a Dask task a batch of them).
 
     If the wait is interrupted (Ctrl-C, SIGTERM), the cases that finished but could not be
     yielded yet (a case before them is still running) travel on the exception, as its
     ``finished`` list in case order, so that the caller can store them too.
     """
-    index_of = {f: i for i, f in enumerate(futures)}
+    members = {f: indices for f, indices in groups}
     ready: dict[int, object] = {}
-    pending = set(futures)
+    pending = set(members)
     nxt = 0
     try:
         while nxt < len(cases):
             for f in wait_some(pending):
                 pending.discard(f)
-                i = index_of[f]
-                ready[i] = _attach(cases[i], result_of(f))
-                done(ready[i])
+                for i, outcome in zip(members[f], result_of(f)):
+                    ready[i] = _attach(cases[i], outcome)
+                    done(ready[i])
             while nxt in ready:
                 yield ready.pop(nxt)
                 nxt += 1
     except BaseException as exc:
         for f in pending:  # finished while we were interrupted
             try:
-                if f.done() and index_of[f] not in ready:
-                    ready[index_of[f]] = _attach(cases[index_of[f]], result_of(f))
+                if f.done():
+                    for i, outcome in zip(members[f], result_of(f)):
+                        if i not in ready:
+                            ready[i] = _attach(cases[i], outcome)
             except BaseException:  # cancelled, failed or lost with its worker: not finished
                 pass
         exc.finished = [ready[i] for i in sorted(ready)]
         raise
 
 
-def _run_dask(cases, jobs, scheduler, opts, done):
+def _run_dask(cases, jobs, scheduler, opts, done, limits=None):
     try:
         from distributed import Client, LocalCluster, wait
     except ImportError:
         raise InputError("`--executor dask` needs Dask's distributed package: pip install 'odelab[dask]'.",
                          key="executor") from None
     _seed(cases)  # an in-process worker finds them here; others load the files
-    return _dask_results(cases, jobs, scheduler, opts, done, Client, LocalCluster, wait)
+    return _dask_results(cases, jobs, scheduler, opts, done, Client, LocalCluster, wait, limits)
 
 
 #: How long to wait for a Dask scheduler to answer, and for it to have a worker.
@@ -341,22 +358,46 @@ DASK_CONNECT_SECONDS = 10.0
 DASK_WORKERS_SECONDS = 30.0
 
 
-def _dask_results(cases, jobs, scheduler, opts, done, Client, LocalCluster, wait):
+#: A Dask task runs a batch of consecutive cases (in :func:`schedule`'s order) of at most this
+#: many, and there are at least :data:`DASK_TASKS_PER_WORKER` tasks per worker thread: the
+#: scheduler's and the client's bookkeeping cost about a millisecond a task, as much as a small
+#: case, so one task per case spends a core on bookkeeping; a few tasks per thread keep the
+#: workers evenly busy to the end.
+DASK_BATCH = 64
+DASK_TASKS_PER_WORKER = 8
+
+
+def dask_batches(order: list[int], threads: int) -> list[list[int]]:
+    """``order`` cut into consecutive batches for ``threads`` worker threads (see :data:`DASK_BATCH`)."""
+    size = max(1, min(DASK_BATCH, len(order) // max(1, threads * DASK_TASKS_PER_WORKER)))
+    return [order[k:k + size] for k in range(0, len(order), size)]
+
+
+def _run_batch(items: list, opts: dict, limits=None) -> list:
+    """In a Dask worker: :func:`_run_remote` for each case of a batch, in order."""
+    return [_run_remote(*item, opts, limits) for item in items]
+
+
+def _dask_results(cases, jobs, scheduler, opts, done, Client, LocalCluster, wait, limits=None):
     cluster = None
     if scheduler:
         client = _dask_client(scheduler, Client)
     else:
         cluster, client = _local_cluster(jobs, Client, LocalCluster)
+    futures: list = []
     try:
-        futures = [None] * len(cases)
-        order = schedule(cases)
-        for rank, i in enumerate(order):  # the scheduler runs higher priorities first
-            futures[i] = client.submit(_run_remote, *_submit_args(cases[i], opts), pure=False,
-                                       priority=len(order) - rank)
-        yield from _in_order(cases, futures, lambda f: f.result(), done,
+        threads = sum(client.nthreads().values()) or jobs
+        groups = []
+        batches = dask_batches(schedule(cases), threads)
+        for rank, batch in enumerate(batches):  # the scheduler runs higher priorities first
+            items = [_submit_args(cases[i], opts)[:4] for i in batch]
+            future = client.submit(_run_batch, items, opts, limits, pure=False, priority=len(batches) - rank)
+            futures.append(future)
+            groups.append((future, batch))
+        yield from _in_order(cases, groups, lambda f: f.result(), done,
                              lambda pending: wait(list(pending), return_when="FIRST_COMPLETED").done)
     except BaseException:
-        client.cancel([f for f in locals().get("futures") or [] if f is not None])
+        client.cancel(futures)
         raise
     finally:
         client.close()

@@ -23,7 +23,7 @@ import signal
 import sys
 import threading
 
-__all__ = ["POLL_SECONDS", "exit_with_parent"]
+__all__ = ["POLL_SECONDS", "exit_with_parent", "tied_command"]
 
 #: How often the portable watchdog looks at its parent's pid (where prctl is not available).
 POLL_SECONDS = 0.25
@@ -65,3 +65,40 @@ def exit_with_parent(parent: int, *, watchdog: bool = False) -> None:
         os._exit(1)
     if watchdog or not armed:
         threading.Thread(target=_watch, args=(parent,), name="odelab-parent-watch", daemon=True).start()
+
+
+def tied_command(argv: list[str], parent: int | None = None) -> list[str]:
+    """The command line that runs ``argv`` as a process that dies with ``parent`` (default: this process).
+
+    For a program that is not odelab's (``dask scheduler``, ``dask worker``): the command first
+    runs this module, which arms the parent-death signal (:func:`exit_with_parent`) and then
+    replaces itself with ``argv`` (the signal survives ``exec``). Start it from the thread that
+    outlives it (see the module docstring). Where the signal is not available, this module
+    stays as the program's parent instead and kills it when ``parent`` dies.
+    """
+    return [sys.executable, "-m", "odelab.experiment.lifeline", str(os.getpid() if parent is None else parent),
+            "--", *argv]
+
+
+def _run_tied(parent: int, argv: list[str]) -> int:  # pragma: no cover - runs in the child process
+    armed = _parent_death_signal(signal.SIGKILL)
+    if os.getppid() != parent:
+        return 1
+    if armed:
+        os.execvp(argv[0], argv)
+    import subprocess
+    import time
+
+    child = subprocess.Popen(argv)
+    while child.poll() is None:
+        if os.getppid() != parent:
+            child.kill()
+            break
+        time.sleep(POLL_SECONDS)
+    return child.wait()
+
+
+if __name__ == "__main__":  # pragma: no cover - see tied_command
+    if len(sys.argv) < 4 or sys.argv[2] != "--":
+        sys.exit("usage: python -m odelab.experiment.lifeline PARENT_PID -- PROGRAM [ARG...]")
+    sys.exit(_run_tied(int(sys.argv[1]), sys.argv[3:]))
