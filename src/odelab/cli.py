@@ -54,6 +54,17 @@ def _main(
     """odelab: MATLAB-faithful ODE experiments, error tables and lab reports."""
 
 
+def _one_blas_thread() -> None:
+    """One BLAS thread per process, set before numpy loads it (as joblib does for its workers),
+    unless the user's environment says otherwise. ``run`` and ``grade`` make thousands of tiny
+    calls (a 2-by-2 expm per case, a small LU per step), where OpenBLAS's threads only contend:
+    8 ms an expm on a busy 2-core machine, 35 us on one thread; --jobs runs processes instead."""
+    import os
+
+    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(var, "1")
+
+
 def _consoles():
     from rich.console import Console
 
@@ -121,6 +132,8 @@ def run(
 ) -> None:
     """Run experiments: solve every case, print the error tables and store the results."""
     import warnings
+
+    _one_blas_thread()  # before numpy's import
 
     from odelab.exceptions import InputError
     from odelab.experiment.executors import EXECUTORS
@@ -590,15 +603,9 @@ def grade(
                                          "machine and run), auto or compiled.")] = "python",
 ) -> None:
     """Grade a class's experiment files against a reference: summary.csv, feedback, results.json."""
-    import os
     import warnings
 
-    # One BLAS thread per process, before numpy loads it (as joblib does for its workers): grading
-    # makes thousands of tiny calls (a 2-by-2 expm per case), where OpenBLAS's threads only contend:
-    # 8 ms an expm on a busy 2-core machine, 35 us on one thread; --jobs runs processes instead.
-    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ.setdefault(var, "1")
-
+    _one_blas_thread()
     from odelab.exceptions import InputError
 
     warnings.simplefilter("ignore")

@@ -197,12 +197,15 @@ def _trajectory_csv(names: list[str], data: np.ndarray) -> str:
     return header + (body.replace("nan", "") if np.isnan(data).any() else body)
 
 
-def _trajectory_npz(names: list[str], data: np.ndarray) -> bytes:
-    import io
+def _trajectory_npz(names: list[str], data: np.ndarray):
+    """A writer of the ``.npz`` file, called with the open file: the archive goes straight to the
+    disk instead of through a buffer in memory (then a copy of it), two copies of the trajectory
+    fewer at the peak of a long run's store."""
 
-    buf = io.BytesIO()
-    np.savez(buf, names=np.array(names, dtype=str), data=data)
-    return buf.getvalue()
+    def write(f) -> None:
+        np.savez(f, names=np.array(names, dtype=str), data=data)
+
+    return write
 
 
 def trajectory_file(result: CaseResult) -> str:
@@ -241,8 +244,11 @@ def write_case(result: CaseResult, runs: Path, *, mat: bool = False, durable: bo
     return folder
 
 
-def commit_folder(folder: Path, files: dict[str, str | bytes], *, durable: bool = True) -> None:
+def commit_folder(folder: Path, files: dict, *, durable: bool = True) -> None:
     """Replace ``folder`` by a folder holding exactly ``files``, atomically for readers.
+
+    ``files`` maps each file's name to its text, its bytes, or a function that writes it to
+    the open (binary) file it is given.
 
     The files go into a hidden temporary sibling folder; once all are written (and, if
     ``durable``, flushed to disk), the old folder is renamed away, the new one renamed into its
@@ -289,9 +295,17 @@ def _new_folder(parent: Path, name: str) -> Path:
             continue
 
 
-def _write_file(path: Path, data: bytes, durable: bool) -> None:
-    """A new file holding ``data`` (flushed to disk if ``durable``), written with plain system calls."""
+def _write_file(path: Path, data, durable: bool) -> None:
+    """A new file holding ``data`` (flushed to disk if ``durable``), written with plain system calls;
+    ``data`` may also be a function that writes the file's contents to the open file it is given."""
     fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)  # the umask applies
+    if callable(data):
+        with os.fdopen(fd, "wb") as f:
+            data(f)
+            if durable:
+                f.flush()
+                os.fsync(f.fileno())
+        return
     try:
         view = memoryview(data)
         while view:

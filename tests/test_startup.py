@@ -1,0 +1,44 @@
+"""Start-up of the commands that solve: BLAS pinned to one thread before numpy loads it."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
+
+# Records the BLAS thread variables at the moment numpy is first imported.
+PROBE = """
+import os, sys
+seen = []
+class Probe:
+    def find_spec(self, name, path=None, target=None):
+        if name == "numpy" and not seen:
+            seen.append(tuple(os.environ.get(v) for v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")))
+        return None
+sys.meta_path.insert(0, Probe())
+from odelab.cli import app
+try:
+    app(sys.argv[1:])
+except SystemExit:
+    pass
+print("BLAS", *(seen[0] if seen else ("numpy never imported",)))
+"""
+
+
+def _blas_at_numpy_import(tmp_path, env_extra: dict, *args) -> list[str]:
+    env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS",
+                                                             "MKL_NUM_THREADS")}
+    env.update(env_extra)
+    out = subprocess.run([sys.executable, "-c", PROBE, *args], capture_output=True, text=True, env=env,
+                         cwd=tmp_path, check=True).stdout
+    return next(line for line in out.splitlines() if line.startswith("BLAS")).split()[1:]
+
+
+@pytest.mark.parametrize("extra", [{}, {"OPENBLAS_NUM_THREADS": "2"}])
+def test_odelab_run_pins_blas_to_one_thread_before_numpy_loads(tmp_path, extra):
+    seen = _blas_at_numpy_import(tmp_path, extra, "run", str(EXPERIMENTS / "exercise1.toml"), "--runs", "runs")
+    # the user's own setting is kept; otherwise one thread, as `odelab grade` does
+    assert seen == [extra.get("OPENBLAS_NUM_THREADS", "1"), "1", "1"]
