@@ -48,9 +48,12 @@ def build_ode(model: schema.Experiment, params: dict[str, float]) -> Built:
         raise ExperimentError("`system.outputs` of an equations system is a table of expressions, e.g. "
                               "[system.outputs] y = \"10*x\".", key="system.outputs")
     check_keys(system.equations, states, "system.equations", "states", require_all=True)
+    from odelab.systems.delay import uses_lag
+
+    delayed = uses_lag(system.equations.values()) or model.history is not None  # dde23: experiment/delays.py
     args = ["t", *states, *inputs]
-    F = ex.compile_vector([system.equations[s] for s in states], args=args, constants=params,
-                          keys=[f"system.equations.{s}" for s in states])
+    F = None if delayed else ex.compile_vector([system.equations[s] for s in states], args=args, constants=params,
+                                               keys=[f"system.equations.{s}" for s in states])
     outputs: tuple[str, ...] = ()
     output_fn = None
     resolved = {"states": list(states), "equations": dict(system.equations)}
@@ -70,6 +73,10 @@ def build_ode(model: schema.Experiment, params: dict[str, float]) -> Built:
             return np.asarray(_G(*cols), dtype=float).reshape(len(outputs), -1).T
 
         resolved["outputs"] = dict(system.outputs)
+    if delayed:
+        from odelab.experiment.delays import build_delay
+
+        return build_delay(model, params, states, outputs, output_fn, resolved)
 
     sys_obj = None
     fun = None  # with inputs, the runner integrates through odelab.simulate, which applies them

@@ -53,7 +53,8 @@ NOTES: dict[str, str] = {
     "system.states": "The state names, in order (the order of y in MATLAB).",
     "system.equations": "d(state)/dt for each state, in the expression language.",
     "system.equations.<name>": "The right-hand side of d(<name>)/dt: an expression of t, the states, the inputs "
-                               "and the parameters.",
+                               "and the parameters; `lag(x, tau)` is the state x at t - tau (a delay equation, "
+                               "solved by dde23; see docs/delays.md).",
     "system.function": "A Python function `def f(t, y)`, written \"file.py:name\" relative to the experiment file, "
                        "as a MATLAB function file (runs code: refused by `odelab grade` unless allowed).",
     "system.inputs": "The input names (u); each needs an [inputs.<name>] signal.",
@@ -77,8 +78,13 @@ NOTES: dict[str, str] = {
     "time.points": "A number of equally spaced output times over the span (linspace).",
     "exact": "The analytical solution, per state or output, for error tables.",
     "exact.<name>": "An expression of t and the parameters: the exact value of <name>.",
+    "history": "Delay equations (lag(x, tau) in [system.equations], solved by dde23): each state's value for "
+               "t <= t0, a number or an expression of t and the parameters; a state left out keeps its initial "
+               "value there. See docs/delays.md.",
+    "history.<name>": "The history of state <name>: x(t) for t <= t0, a number or an expression of t.",
     "solver": "The method and its options (MATLAB's odeset names work too).",
-    "solver.method": "The method: MATLAB's ode45, ode23, ode113, ode78, ode89, ode15s, ode23s, ode23t, ode23tb; "
+    "solver.method": "The method: MATLAB's ode45, ode23, ode113, ode78, ode89, ode15s, ode23s, ode23t, ode23tb, "
+                     "dde23 (delay equations; `auto` picks it for lag()); "
                      "fixed-step euler, heun, midpoint, rk3, rk4; SciPy's RK23, RK45, DOP853, Radau, BDF, LSODA "
                      "(`odelab solvers` lists them).",
     "solver.rtol": "Relative tolerance (MATLAB's RelTol; default 1e-3 for MATLAB's methods).",

@@ -449,7 +449,10 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
     from odelab.solvers.options import as_tspan, normalize_options, resolve_options
     from odelab.solvers.registry import get_method
 
-    method = get_method(model.solver.method, key="solver.method")
+    from odelab.experiment.delays import check_delay_method, method_name
+
+    method = get_method(method_name(model, built), key="solver.method")
+    check_delay_method(model, built, method)  # lag(...) runs with dde23 only (experiment/delays.py)
     options = {k: v for k, v in model.solver.model_dump().items()
                if k not in ("method", "backend", "zero_crossing") and v is not None}
     backend = model.solver.backend
@@ -544,6 +547,10 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
         kind = "high-accuracy"
     if ref.solver != "auto":
         get_method(ref.solver, key="reference.solver")
+    if method.kind == "delay":
+        from odelab.experiment.delays import check_delay_case
+
+        check_delay_case(model, method, kind)
     resolved["reference"] = {"method": kind, "solver": ref.solver, "rtol": ref.rtol, "atol": ref.atol}
     if model.units:
         resolved["units"] = _units(model.units, states, inputs, outputs, params)

@@ -198,6 +198,7 @@ class Experiment(_Section):
     initial: dict[str, Value] = Field(default_factory=dict)
     time: Time
     exact: dict[str, Value] | None = None
+    history: dict[str, Value] | None = None  # [history]: x(t) for t <= t0 of delay equations (experiment/delays.py)
     solver: Solver = Field(default_factory=Solver)
     reference: Reference = Field(default_factory=Reference)
     inputs: dict[str, Annotated[InputSignal, Field()]] | None = None

@@ -24,6 +24,7 @@ from odelab.expressions.functions import (
     shadowed_constants,
 )
 from odelab.expressions.parse import (
+    LAG,
     ParsedExpression,
     _did_you_mean,
     _too_deep_message,
@@ -60,6 +61,17 @@ def _unknown_name_error(
         return ExpressionError(
             message, expression=parsed.text, column=parsed.column(offset), source=source, key=key
         )
+    return None
+
+
+def _lag_error(parsed: ParsedExpression, key: str | None, source: str | None) -> ExpressionError | None:
+    """``lag(x, tau)`` outside [system.equations] (which rewrites it before compiling: systems/delay.py)."""
+    for node in ast.walk(parsed.tree):
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == LAG:
+            return ExpressionError(
+                "`lag(x, tau)` (a delayed state) is allowed in [system.equations] only, where dde23 solves the "
+                "delay equations; elsewhere write the value itself",
+                expression=parsed.text, column=parsed.column(node.col_offset), source=source, key=key)
     return None
 
 
@@ -272,7 +284,7 @@ def _compile_expression(text, names: tuple, key, source, complex_step: bool) -> 
     key = parsed.key if key is None else key
     source = parsed.source if source is None else source
     known = list(dict.fromkeys(names))
-    error = _unknown_name_error(parsed, known, key, source)
+    error = _lag_error(parsed, key, source) or _unknown_name_error(parsed, known, key, source)
     if error is not None:
         raise error
     namespace = _namespace(complex_step)
@@ -372,7 +384,8 @@ def compile_vector(
     known = [*args, *constants]
     parsed = [parse_expression(text, key=k, source=source, names=known) for text, k in zip(texts, keys)]
     for p, k in zip(parsed, keys):
-        error = _unknown_name_error(p, known, k if k is not None else p.key, source)
+        error = (_lag_error(p, k if k is not None else p.key, source)
+                 or _unknown_name_error(p, known, k if k is not None else p.key, source))
         if error is not None:
             raise error
 

@@ -41,6 +41,10 @@ MAX_DEPTH = 200
 # Brackets are limited more tightly than tree levels: CPython's tokenizer refuses 200 levels.
 _MAX_BRACKETS = 100
 
+#: ``lag(x, tau)``, a delayed state: parsed here, given meaning only in [system.equations] by
+#: :mod:`odelab.systems.delay` (compiling it anywhere else is refused, see compile.py).
+LAG = "lag"
+
 
 # --------------------------------------------------------------------------------------------
 # Parsing and validation
@@ -427,6 +431,8 @@ def _check_call(reader: _Reader, node: ast.Call) -> list[ast.AST]:
             paren,
         )
     name = func.id
+    if name == LAG and name not in FUNCTIONS:
+        return _check_lag(reader, node)
     if name not in FUNCTIONS:
         from odelab.expressions.matlab import indexing_hint
 
@@ -457,6 +463,17 @@ def _check_call(reader: _Reader, node: ast.Call) -> list[ast.AST]:
         plural = "argument" if arity == 1 else "arguments"
         what = " (condition, value if true, value if false)" if name == "where" else ""
         raise reader.error(f"`{name}` takes {arity} {plural}{what}; got {got}", func.col_offset)
+    return list(node.args)
+
+
+def _check_lag(reader: _Reader, node: ast.Call) -> list[ast.AST]:
+    """``lag(x, tau)``: two positional arguments, the first a plain name (the delayed state)."""
+    if node.keywords or len(node.args) != 2 or any(isinstance(a, ast.Starred) for a in node.args):
+        raise reader.error(f"`lag` takes 2 arguments (a state and its lag), e.g. `lag(x, 0.5)`; got "
+                           f"{len(node.args) + len(node.keywords)}", node.func.col_offset)
+    if not isinstance(node.args[0], ast.Name):
+        raise reader.error("the first argument of `lag` is a state name: `lag(x, tau)` is x at t - tau",
+                           node.args[0].col_offset)
     return list(node.args)
 
 

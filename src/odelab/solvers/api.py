@@ -193,7 +193,15 @@ def _solve_method(fun, tspan, y0, method: str, options: dict) -> Solution:
     m = get_method(method)
     if not callable(fun):
         raise InputError(f"`fun` must be a callable fun(t, y); got {fun!r}.", key="fun")
+    delayed = getattr(fun, "lags", None) is not None and hasattr(fun, "ddefun")
+    if delayed and m.kind != "delay":
+        raise InputError(f"this system has delayed states (lag(...)): {m.name} solves ordinary equations only; "
+                         "use method = \"dde23\" (MATLAB's solver for delay equations).", key="method")
     tspan_arr = as_tspan(tspan)
+    if m.kind == "delay":  # dde23 (odelab.solvers.dde23), which evaluates the delayed states itself
+        from odelab.solvers.dde23 import solve_delay
+
+        return solve_delay(fun, tspan_arr, as_y0(y0), normalize_options(options, m))
     y0_arr = as_y0(y0, allow_complex=True)
     if np.iscomplexobj(y0_arr) and m.kind not in ("adaptive", "multistep"):
         raise InputError(f"a complex `y0` is integrated by ode23/ode45/ode78/ode89/ode113 (as MATLAB's); {m.name} "

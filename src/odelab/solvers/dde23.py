@@ -674,3 +674,47 @@ def _tolerance_failure(t: float, hmin: float) -> tuple[str, str]:
     return "failed", (f"Unable to meet integration tolerances without reducing the step size below the smallest "
                       f"value allowed ({hmin:e}) at time t = {t:e} (MATLAB's dde23 stops there too). Loosen "
                       "RelTol/AbsTol, or check the equations for a singularity near that time.")
+
+
+def solve_delay(fun, tspan, y0, options: dict) -> DDESolution:
+    """``odelab.solve(fun, tspan, y0, method="dde23", ...)``.
+
+    ``fun`` is a delay system (an object with ``ddefun(t, y, Z)``, ``lags`` and ``history(y0)``,
+    such as :class:`odelab.systems.delay.DelayEquations`) or a plain ``f(t, y)``, solved as a
+    delay equation without lags. ``options`` are :func:`odelab.solve`'s canonical names. A
+    history whose value at ``t0`` differs from ``y0`` makes ``y0`` MATLAB's ``InitialY``.
+    With a ``tspan`` of more than two times the result holds the solution at those times
+    (interpolated on the Hermite cubics) and the statistics of the whole mesh.
+    """
+    import dataclasses
+
+    tspan = np.asarray(tspan, dtype=float)
+    y0 = np.atleast_1d(np.asarray(y0, dtype=float)).ravel()
+    opts = {k: v for k, v in options.items() if v is not None}
+    args = tuple(opts.pop("args", None) or ())
+    events = opts.pop("events", None)
+    if hasattr(fun, "ddefun") and hasattr(fun, "lags"):
+        ddefun, lags = fun.ddefun, fun.lags
+        history = fun.history(y0) if callable(getattr(fun, "history", None)) else y0
+    else:
+        def ddefun(t, y, Z, _f=fun):
+            return _f(t, y, *args)
+
+        lags, history = [], y0
+    if callable(history):
+        start = np.asarray(history(float(tspan[0])), dtype=float).ravel()
+        if start.shape != y0.shape or np.any(start != y0):
+            opts["initial_y"] = y0
+    elif np.any(np.asarray(history, dtype=float).ravel() != y0):
+        opts["initial_y"] = y0
+    if events is not None:
+        ev, _ = as_event_function(events, args, float(tspan[0]), y0.copy())
+        opts["events"] = lambda t, y, Z: ev(t, y)
+    sol = dde23(ddefun, lags, history, [tspan[0], tspan[-1]], opts)
+    if tspan.size > 2:
+        end = float(sol.t[-1])
+        times = tspan[tspan <= end]
+        if times[-1] != end:
+            times = np.append(times, end)
+        sol = dataclasses.replace(sol, t=times, y=sol.deval(times).reshape(times.size, -1))
+    return sol

@@ -63,6 +63,8 @@ class Method:
         """MATLAB's defaults for the method, one line."""
         if self.kind == "fixed":
             return "h required"
+        if self.kind == "delay":
+            return "rtol 1e-3, atol 1e-6, max_step 0.1*span"
         text = "rtol 1e-3, atol 1e-6"
         if self.kind in ("adaptive", "implicit", "multistep"):
             text += f", refine {self.refine}, max_step 0.1*span"
@@ -91,6 +93,8 @@ class Method:
                     "events", "nonnegative", "mass", "mstate_dependence", "output_fcn", "output_sel", "args")
         if self.kind == "fixed":
             return ("h", "args")
+        if self.kind == "delay":
+            return ("rtol", "atol", "max_step", "initial_step", "norm_control", "max_steps", "events", "args")
         if self.kind == "implicit":
             common = ("rtol", "atol", "max_step", "initial_step", "refine", "max_steps", "events", "jacobian",
                       "jpattern", "vectorized", "mass", "args")
@@ -149,6 +153,9 @@ METHODS: dict[str, Method] = {
                   "MATLAB's ode78: Verner's most efficient 8(7) pair, 8th-order interpolant, adaptive"),
         _adaptive("ode89", verner.VERNER98, 0.1, 1,
                   "MATLAB's ode89: Verner's most robust 9(8) pair, 8th-order interpolant, adaptive"),
+        # odelab.solvers.dde23: delay equations with constant lags (Shampine & Thompson 2001)
+        Method("dde23", "delay", 3, "MATLAB's dde23: delay equations y'(t) = f(t, y, y(t - tau)) with constant "
+               "lags; Bogacki-Shampine 3(2), discontinuity tracking", orders="3(2)", problem="delay (constant lags)"),
         _fixed("euler", tb.EULER, "Forward Euler, fixed step h"),
         _fixed("heun", tb.HEUN, "Heun's method (improved Euler), fixed step h"),
         _fixed("midpoint", tb.MIDPOINT, "Explicit midpoint, fixed step h"),

@@ -1,0 +1,92 @@
+"""Experiment files with delayed states: ``lag(x, tau)`` in [system.equations] and [history].
+
+The equations become a :class:`odelab.systems.delay.DelayEquations`, which the runner solves
+with dde23 through :func:`odelab.solve` like any other system; this module checks what a delay
+system cannot do yet (inputs, linearisation, control analysis) and says so, with the fix.
+"""
+
+from __future__ import annotations
+
+from odelab.exceptions import ExperimentError
+from odelab.experiment import schema
+from odelab.experiment.cases import Built
+
+__all__ = ["build_delay", "is_delay_system", "check_delay_case"]
+
+
+_NO_LAG = ("[history] gives x(t) for t <= t0 of delay equations, but no equation uses lag(x, tau): remove "
+           "[history], or write the delayed states with lag().")
+
+
+def is_delay_system(built: Built) -> bool:
+    return getattr(built.fun, "lags", None) is not None and hasattr(built.fun, "ddefun")
+
+
+def build_delay(model: schema.Experiment, params: dict[str, float], states: tuple[str, ...], outputs, output_fn,
+                resolved: dict) -> Built:
+    """A delay system from [system.equations] with ``lag(...)`` and the optional [history]."""
+    from odelab.systems.delay import DelayEquations
+
+    system = model.system
+    if system.inputs:
+        raise ExperimentError("a system with delayed states (lag(...)) takes no [inputs] yet: write the input as an "
+                              "expression of t in its equation (e.g. `+ (t >= 1)` for a unit step at t = 1).",
+                              key="system.inputs")
+    for section in ("linearize", "analysis"):
+        if getattr(model, section) is not None:
+            raise ExperimentError(f"[{section}] is not available for delay equations (an infinite-dimensional "
+                                  "system); a transport-delay block in a diagram is linearised with a Pade "
+                                  "approximation.", key=section)
+    if system.jacobian is not None:
+        raise ExperimentError("`system.jacobian` is for the stiff solvers; dde23 is explicit and needs none: "
+                              "remove it.", key="system.jacobian")
+    # expression errors carry their key (system.equations.x, history.x) and a caret; the loader adds the file
+    equations = DelayEquations({s: system.equations[s] for s in states}, parameters=params, history=model.history)
+    if equations.lags.size == 0:
+        raise ExperimentError(_NO_LAG, key="history")
+    resolved = dict(resolved)
+    resolved["lags"] = [float(v) for v in equations.lags]
+    if equations.history_texts:
+        resolved["history"] = dict(equations.history_texts)
+    return Built(states=states, inputs=(), outputs=outputs, fun=equations, output_fn=output_fn, resolved=resolved)
+
+
+def check_delay_case(model: schema.Experiment, method, reference_kind: str) -> None:
+    """The [solver] and [reference] of a delay system: dde23 only, and no high-accuracy reference."""
+    if method.kind != "delay":
+        raise ExperimentError(f"`solver.method` is {method.name!r}, but the equations have delayed states "
+                              "(lag(...)): they are solved by \"dde23\" (MATLAB's solver for delay equations). "
+                              "Write method = \"dde23\" (or \"auto\").", key="solver.method")
+    if reference_kind == "high-accuracy":
+        raise ExperimentError("`reference.method` is \"high-accuracy\", which odelab computes for ordinary "
+                              "equations only; for delay equations give the [exact] solution, or compare a case "
+                              "at a tight rtol.", key="reference.method")
+
+
+def method_name(model: schema.Experiment, built: Built) -> str:
+    """[solver] method as the case runs it: ``"auto"`` (or no method at all, for a delay system) is
+    dde23 for delay equations and ode45 (the default) otherwise."""
+    name = model.solver.method
+    delayed = is_delay_system(built)
+    if isinstance(name, str) and name.lower() == "auto":
+        return "dde23" if delayed else "ode45"
+    if delayed and "method" not in model.solver.model_fields_set:
+        return "dde23"
+    return name
+
+
+def check_delay_method(model: schema.Experiment, built: Built, method) -> None:
+    """A delay system runs with dde23 only; [history] belongs to delay equations; [events] are not
+    supported with delays yet."""
+    if not is_delay_system(built):
+        if model.history is not None:
+            raise ExperimentError(_NO_LAG, key="history")
+        if method.kind == "delay":
+            raise ExperimentError("`solver.method` is \"dde23\", MATLAB's solver for delay equations, but this "
+                                  "system has no delayed states (lag(x, tau) in [system.equations]): use ode23 or "
+                                  "ode45.", key="solver.method")
+        return
+    if model.events is not None:
+        raise ExperimentError("[events] are not located on delay equations yet: dde23 finds events from Python "
+                              "(odelab.dde23(..., Events=...)); remove [events] from this file.", key="events")
+    check_delay_case(model, method, "")
