@@ -103,6 +103,7 @@ def test_the_shipped_cases_left_on_python_are_the_documented_ones():
         # issue 21's sampled-data loop and relay: the hybrid driver runs them
         ("speed_control", "its block `sampler` (zero-order-hold) is discrete (sample time 0.05)"),
         ("thermostat", "its block `heater` (relay) switches with memory"),  # ", run by the Python driver"
+        ("delayed_feedback", "it solves ordinary differential equations"),  # dde23 runs on the Python path
     }
 
 

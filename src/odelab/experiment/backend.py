@@ -25,6 +25,8 @@ def why_not_compiled(method, compiled, options=None) -> str | None:
     """Why the compiled backend cannot run this method, system and options (None if it can)."""
     from odelab.solvers.compiled import PYTHON_ONLY_OPTIONS, unavailable
 
+    if method.kind == "delay":
+        return "it solves ordinary differential equations, and dde23 (delay equations) runs on the Python path"
     if compiled is None:
         return ("it compiles systems written as expressions (equations, a state-space model, a diagram of linear "
                 "blocks); this system is a Python function or a diagram with nonlinear blocks")
