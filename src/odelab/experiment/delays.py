@@ -7,7 +7,7 @@ system cannot do yet (inputs, linearisation, control analysis) and says so, with
 
 from __future__ import annotations
 
-from odelab.exceptions import ExperimentError
+from odelab.exceptions import ExperimentError, InputError
 from odelab.experiment import schema
 from odelab.experiment.cases import Built
 
@@ -90,3 +90,40 @@ def check_delay_method(model: schema.Experiment, built: Built, method) -> None:
         raise ExperimentError("[events] are not located on delay equations yet: dde23 finds events from Python "
                               "(odelab.dde23(..., Events=...)); remove [events] from this file.", key="events")
     check_delay_case(model, method, "")
+
+
+def build_delay_diagram(model: schema.Experiment, compiled, outputs: dict, t0: float) -> Built:
+    """A diagram with transport-delay blocks: delay equations solved by dde23
+    (:class:`odelab.systems.diagram.delay.DelayDiagram`). Its sources drive it as functions of t
+    (their breakpoints are dde23's Jumps); [analysis] and [linearize] are refused (the linear
+    model with the delays' Pade approximations is :func:`~odelab.systems.diagram.delay.pade_diagram`)."""
+    from odelab.systems.diagram.delay import DelayDiagram
+
+    from odelab.systems.diagram.delay import pade_diagram
+
+    if model.linearize is not None:
+        raise ExperimentError("[linearize] compares a diagram with its linear model by simulating both, and the "
+                              "linear model of a transport delay is its Pade approximation, not the delay: use "
+                              "[analysis] (poles, step response, Bode of the model with the Pade approximations), "
+                              "or odelab.systems.diagram.delay.pade_diagram in Python.", key="linearize")
+    if model.analysis is not None and model.analysis.loop is not None:
+        raise ExperimentError("`analysis.loop` of a diagram with a transport delay is not available yet; remove it "
+                              "(the [analysis] of the closed loop works, with the delays' Pade approximations).",
+                              key="analysis.loop")
+    try:
+        delays = DelayDiagram(compiled, t0)
+    except InputError as exc:
+        raise ExperimentError(exc.message, key=exc.key or "blocks") from None
+    resolved = {"kind": "diagram", "outputs": outputs, "lags": [float(v) for v in delays.lags]}
+    if model.system.states is not None:
+        resolved["states"] = list(model.system.states)
+    system, inputs = None, ()
+    if model.analysis is not None:
+        # [analysis] reads the linear model with each delay's Pade approximation (Simulink's linmod),
+        # from the sources to the outputs; the run itself is the delay equations
+        linear = pade_diagram(compiled, t0)
+        system, inputs = linear.system, compiled.inputs
+        compiled.notes.extend(n for n in linear.notes if n not in compiled.notes)
+    return Built(states=compiled.states, inputs=inputs, outputs=compiled.outputs, fun=delays,
+                 output_fn=delays.output_many if compiled.outputs else None, resolved=resolved, linear=False,
+                 system=system, x0=compiled.x0, signals=(), diagram=compiled, compiled=None)

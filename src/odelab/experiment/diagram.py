@@ -250,6 +250,12 @@ def build_diagram(model: schema.Experiment, params: dict[str, float], path: Path
                                   "(where it follows its input it is a gain of 1, as Simulink's linmod takes it). "
                                   f"For the analysis, replace it by a gain of 1 (`type = \"gain\", gain = 1`), or "
                                   f"remove [{section}].", key=section)
+    from odelab.systems.diagram.delay import TransportDelay
+
+    if any(isinstance(b, TransportDelay) for b in blocks.values()):  # delay equations, run by dde23
+        from odelab.experiment.delays import build_delay_diagram
+
+        return build_delay_diagram(model, compiled, outputs, t0)
     sys_obj = compiled.system
     resolved = {"kind": "diagram", "outputs": outputs}
     if system.states is not None:

@@ -335,6 +335,8 @@ class _Mesh:
         """The solution at ``tq >= t[0]`` from the mesh: the Hermite piece that covers it, the last
         piece extrapolated beyond the end (the tentative step counts when there is one)."""
         m = self.size + (1 if self.tentative else 0)
+        if m < 2:  # not reached: the first step is at most half the shortest lag
+            return self.y[0].copy()
         t = self.t
         # piece n with t[n] <= tq, n <= m - 2 (MATLAB's lagvals)
         n = int(np.searchsorted(t[: m - 1], tq, side="right")) - 1
@@ -707,10 +709,14 @@ def solve_delay(fun, tspan, y0, options: dict) -> DDESolution:
             opts["initial_y"] = y0
     elif np.any(np.asarray(history, dtype=float).ravel() != y0):
         opts["initial_y"] = y0
+    if callable(getattr(fun, "jumps", None)):  # known discontinuities (a diagram's sources, a delay's start)
+        opts["jumps"] = fun.jumps(float(tspan[0]), float(tspan[-1]))
     if events is not None:
         ev, _ = as_event_function(events, args, float(tspan[0]), y0.copy())
         opts["events"] = lambda t, y, Z: ev(t, y)
     sol = dde23(ddefun, lags, history, [tspan[0], tspan[-1]], opts)
+    if callable(getattr(fun, "remember", None)):  # a system whose outputs need the solution's past
+        fun.remember(sol)
     if tspan.size > 2:
         end = float(sol.t[-1])
         times = tspan[tspan <= end]

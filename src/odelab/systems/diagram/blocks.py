@@ -881,8 +881,9 @@ from odelab.systems.diagram import discrete as _discrete  # noqa: E402
 from odelab.systems.diagram import switching as _switching  # noqa: E402
 from odelab.systems.diagram import tables as _tables  # noqa: E402
 from odelab.systems.diagram import ratelimit as _ratelimit  # noqa: E402
+from odelab.systems.diagram import delay as _delay  # noqa: E402
 
 for _cls in (_discrete.PID, _switching.Abs, _switching.Sign, _switching.Switch, _switching.Relay, _switching.MinMax,
              _discrete.ZeroOrderHold, _discrete.UnitDelay, _discrete.DiscreteTransferFcn, _discrete.DiscreteStateSpace,
-             _discrete.DiscretePID, _tables.LookupTable, _ratelimit.RateLimiter):
+             _discrete.DiscretePID, _tables.LookupTable, _ratelimit.RateLimiter, _delay.TransportDelay):
     register(_cls)
