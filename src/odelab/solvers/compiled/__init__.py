@@ -375,7 +375,9 @@ def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dic
             *args, events, v0, _c(system.terminal), _c(system.direction))
         found = {"te": te, "ye": ye, "ie": ie}
     else:
-        (t_out, y_out, count, nsteps, nfailed, nfevals, status, t_stop, h_stop) = kernels.loop("adaptive")(*args)
+        no_events = np.empty(0)
+        (t_out, y_out, count, nsteps, nfailed, nfevals, status, t_stop, h_stop, *_) = kernels.loop("adaptive")(
+            *args, None, no_events, no_events, no_events)
     t = t_out[:count]
     y = y_out[:count]
     if count < t_out.size // 2:  # do not keep a mostly empty buffer alive

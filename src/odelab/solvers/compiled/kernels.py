@@ -64,7 +64,11 @@ def _grow(t_out, y_out, needed):
 
 
 def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min, rtol, threshold, hmax, htry, refine,
-             norm_control, max_steps, capacity):
+              norm_control, max_steps, capacity, _ev, v0, isterminal, direction):
+    """integrate_adaptive: MATLAB's controller on an FSAL pair, with [events] when ``_ev`` is a
+    function (None compiles the loop without them: numba prunes every ``_ev is not None``
+    branch). After each accepted step _locate (MATLAB's odezero) finds the events; a terminal
+    one cuts the step at te, its stages replaced by the interpolant's slopes (engine.py)."""
     s = c.shape[0]
     n = y0.shape[0]
     t0 = tspan[0]
@@ -123,6 +127,13 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
     refine_output = ntspan == 2
     nxt = 1
 
+    nevents = v0.shape[0]
+    v_left = v0.copy()
+    vnew = _np.empty(nevents)
+    te = _np.empty(4 * nevents + 4)
+    ye = _np.empty((te.shape[0], n))
+    ie = _np.empty(te.shape[0], dtype=_np.int64)
+    nev = 0
     nsteps = 0
     nfailed = 0
     nfevals = 0
@@ -206,6 +217,34 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
             break
         nsteps += 1
 
+        stop = False
+        if _ev is not None:  # pruned from the loop compiled without events
+            if nev + nevents > te.shape[0]:
+                cap = 2 * te.shape[0] + nevents
+                te2 = _np.empty(cap)
+                ye2 = _np.empty((cap, n))
+                ie2 = _np.empty(cap, dtype=_np.int64)
+                for q in range(nev):
+                    te2[q] = te[q]
+                    ie2[q] = ie[q]
+                    for j in range(n):
+                        ye2[q, j] = ye[q, j]
+                te, ye, ie = te2, ye2, ie2
+            before = nev
+            nev, stop = _locate(_ev, p, isterminal, direction, v_left, t, y, tnew, ynew, h, K, dense, t0, vnew, te, ye, ie,
+                                nev)
+            for j in range(nevents):
+                v_left[j] = vnew[j]
+            if nev > before and stop:
+                t_event = te[nev - 1]
+                _cut_slopes(t, t_event, h, K, dense, c)
+                tnew = t_event
+                for j in range(n):
+                    ynew[j] = ye[nev - 1, j]
+                h = tnew - t
+                done = True
+                status = _Status.TERMINAL_EVENT
+
         if refine_output:
             needed = count + refine
             if needed > t_out.shape[0]:
@@ -227,6 +266,13 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
             while nxt < ntspan:
                 tn = tspan[nxt]
                 if tdir * (tnew - tn) < 0:
+                    if stop:  # MATLAB outputs the terminal event's point too
+                        if count + 1 > t_out.shape[0]:
+                            t_out, y_out = _grow(t_out[:count], y_out[:count], count + 1)
+                        t_out[count] = tnew
+                        for j in range(n):
+                            y_out[count, j] = ynew[j]
+                        count += 1
                     break
                 t_out[count] = tn
                 if tn == tnew:
@@ -273,7 +319,7 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
         for j in range(n):
             K[0, j] = K[last, j]
 
-    return t_out, y_out, count, nsteps, nfailed, nfevals, status, t, abs(h)
+    return t_out, y_out, count, nsteps, nfailed, nfevals, status, t, abs(h), te[:nev].copy(), ye[:nev].copy(), ie[:nev].copy()
 
 
 def _fixed(_rhs, grid, y0, p, A, b, c):
@@ -328,14 +374,28 @@ def _fixed(_rhs, grid, y0, p, A, b, c):
 
 # Each loop is compiled (or loaded from numba's cache) when first asked for: a fixed-step run
 # never pays for the adaptive loop's compile, nor the other way round.
+_ADAPTIVE = (_RHS_ARG, _V, _V, _V, _V, _M, _V, _V, _M, _M, _F8, _F8, _F8, _V, _F8, _F8, _I8, _types.boolean, _I8, _I8)
 _SIGNATURES = {
-    "adaptive": (_RHS_ARG, _V, _V, _V, _V, _M, _V, _V, _M, _M, _F8, _F8, _F8, _V, _F8, _F8, _I8, _types.boolean, _I8,
-                 _I8),
+    "adaptive": (*_ADAPTIVE, _types.none, _V, _V, _V),  # _adaptive without events (_ev None)
     "fixed": (_RHS_ARG, _V, _V, _V, _M, _V, _V),
+    "events": (*_ADAPTIVE, _RHS_ARG, _V, _V, _V),  # the same loop with an events function
 }
-_SIGNATURES["events"] = (*_SIGNATURES["adaptive"], _RHS_ARG, _V, _V, _V)  # kernels_events._adaptive_events
 _LOOPS = {"adaptive": "_adaptive", "fixed": "_fixed", "events": "_adaptive_events"}
 _COMPILED = {}
+
+
+def _named(function, name):
+    """``function`` under another name: numba caches a function's machine code by its name, so
+    the loop with events and the one without are kept (and found by is_built) apart."""
+    import types
+
+    copy = types.FunctionType(function.__code__.replace(co_name=name), function.__globals__, name,
+                              function.__defaults__, function.__closure__)
+    copy.__qualname__ = name
+    return copy
+
+
+_adaptive_events = _named(_adaptive, "_adaptive_events")
 
 
 def loop(name):
