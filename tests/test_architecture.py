@@ -16,8 +16,6 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "odelab"
 # with who and why. A circle with a module outside every entry fails; an entry that no longer
 # matches a circle fails too (delete it).
 KNOWN_CIRCLES = {
-    ("odelab.solvers.", "odelab.solution"):
-        "solvers (core26): dense.odextend imports api.solve while Solution.deval imports dense",
     ("odelab.systems.diagram.",):
         "diagram blocks (loops): the block registry imports the block modules, which import its base class",
 }
@@ -31,8 +29,7 @@ MAX_FUNCTION_LINES = 150
 # Functions over MAX_FUNCTION_LINES that other rooms own and have not yet cut (name: reason).
 LONG_FUNCTIONS = {
     "odelab.solvers.adams.integrate_ode113": "core26: the shared controller and output collector",
-    "odelab.solvers.compiled.kernels._adaptive": "core26: one kernel with events optional",
-    "odelab.solvers.compiled.kernels_events._adaptive_events": "core26: one kernel with events optional",
+    "odelab.solvers.compiled.kernels._adaptive": "core26: one kernel now (events optional); its blocks into njit helpers",
     "odelab.solvers.engine.integrate_adaptive": "core26: the shared controller and output collector",
     "odelab.solvers.implicit.ode15s.integrate_ode15s": "core26: one attempt loop for the implicit solvers",
     "odelab.solvers.implicit.ode23t.integrate_ode23t": "core26: one attempt loop for the implicit solvers",

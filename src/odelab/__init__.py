@@ -17,8 +17,8 @@ _LAZY = {
     "ode45": "odelab.solvers.api",
     "solve": "odelab.solvers.api",
     "dde23": "odelab.solvers.dde23",
-    "deval": "odelab.solvers.dense",
-    "odextend": "odelab.solvers.dense",
+    "deval": "odelab.solution",
+    "odextend": "odelab.solvers.api",
     "OdelabWarning": "odelab.exceptions",
     "SolverWarning": "odelab.exceptions",
     **{name: "odelab.solvers.suite" for name in ("ode15s", "ode23s", "ode23t", "ode23tb", "ode113", "ode78", "ode89")},
@@ -80,10 +80,9 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
                                    SolverWarning)
     from odelab.experiment.loader import load_experiment
     from odelab.experiment.runner import run_experiment
-    from odelab.solution import Solution, Stats
-    from odelab.solvers.api import ode23, ode45, solve
+    from odelab.solution import Solution, Stats, deval
+    from odelab.solvers.api import ode23, ode45, odextend, solve
     from odelab.solvers.dde23 import dde23
-    from odelab.solvers.dense import deval, odextend
     from odelab.solvers.registry import METHODS
     from odelab.solvers.suite import ode15s, ode23s, ode23t, ode23tb, ode113, ode78, ode89
     from odelab.systems.nonlinear import NonlinearSystem

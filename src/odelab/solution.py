@@ -7,7 +7,9 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Solution", "Stats"]
+from odelab.exceptions import InputError
+
+__all__ = ["Solution", "Stats", "deval"]
 
 
 @dataclass(frozen=True)
@@ -111,8 +113,6 @@ class Solution:
         Returns shape (n,) for one time, (k, n) for k times; with ``derivative=True`` the pair
         ``(y, yp)``, MATLAB's ``[y, yp] = deval(sol, t)``. See :func:`odelab.deval`.
         """
-        from odelab.solvers.dense import deval
-
         return deval(self, t, derivative=derivative)
 
     def __call__(self, t) -> np.ndarray:
@@ -134,3 +134,46 @@ class Solution:
             f"states={self.y.shape[1] if self.y.ndim == 2 else 0}, nsteps={self.stats.nsteps}, "
             f"nfailed={self.stats.nfailed}, nfevals={self.stats.nfevals})"
         )
+
+
+def deval(sol, t, derivative: bool = False):
+    """Evaluate a solution anywhere in its span with the method's own interpolant (MATLAB's ``deval``).
+
+    Parameters
+    ----------
+    sol : Solution
+        A solution of a method with dense output (ode23, ode45, ode78, ode89, ode113, ode23t,
+        ode23tb, or anything :func:`odelab.solve` ran with them).
+    t : float or sequence of float
+        Times inside ``[sol.t[0], sol.t[-1]]``.
+    derivative : bool
+        Also return the slope of the interpolant there (MATLAB's ``[y, yp] = deval(sol, t)``,
+        "Slope of Interpolating Function").
+
+    Returns
+    -------
+    numpy.ndarray or (numpy.ndarray, numpy.ndarray)
+        Shape (n,) for a scalar ``t``, (k, n) for k times (rows are states, as in ``sol.y``;
+        MATLAB's ``deval`` returns the transpose). With ``derivative=True`` the pair
+        ``(y, yp)``, both of that shape: ``yp`` is d/dt of the interpolant, which equals
+        ``f(t, y)`` at the ends of the steps of ode23/ode45 and approximates it in between.
+
+    Examples
+    --------
+    >>> import numpy as np, odelab
+    >>> sol = odelab.ode45(lambda t, y: -y, [0, 1], 1.0)
+    >>> bool(abs(odelab.deval(sol, 0.5)[0] - np.exp(-0.5)) < 1e-4)
+    True
+    """
+    interpolant = getattr(sol, "interpolant", None)  # any result with an interpolant (duck-typed)
+    if interpolant is None:
+        method = getattr(sol, "method", "") or "this method"
+        raise InputError(
+            f"this solution has no dense output: {method} does not provide one. Solve with ode23, ode45 "
+            "(their ntrp23/ntrp45 interpolants), ode78 or ode89 (Verner's), ode113 (Adams), ode23t or ode23tb "
+            "(their quadratics), or with a vector tspan of the times you need.",
+            key="sol",
+        )
+    if derivative:
+        return interpolant(t, derivative=True)
+    return interpolant(t)

@@ -16,7 +16,7 @@ from odelab.solvers.options import SolverOptions, as_tspan, as_y0, normalize_opt
 from odelab.solvers.registry import Method, get_method
 from odelab.solvers.status import Status
 
-__all__ = ["ode23", "ode45", "solve"]
+__all__ = ["ode23", "ode45", "solve", "odextend"]
 
 
 def ode23(fun, tspan, y0, *, rtol=1e-3, atol=1e-6, max_step=None, initial_step=None, refine=None,
@@ -156,6 +156,47 @@ def solve(fun, tspan, y0, method: str = "ode45", **options) -> Solution:
     _warn_if_failed(sol, 3)
     _warn_if_implausible(sol, 3)
     return sol
+
+
+def odextend(sol, fun, tfinal: float, y0=None, **options):
+    """Continue a solution to ``tfinal`` (MATLAB's ``solext = odextend(sol, odefun, tfinal)``).
+
+    The integration restarts at ``sol.t[-1]`` from ``sol.y[-1]`` (or ``y0``) with the same method
+    and options (override any with ``**options``; ``fun=None`` keeps the original function) and
+    the result is joined to ``sol``: times, states, events, statistics and dense output.
+    """
+    setup = getattr(sol, "setup", None)
+    if setup is None:
+        raise InputError(
+            "odextend needs a solution returned by ode23, ode45, ode78, ode89 or odelab.solve with one of them.", key="sol"
+        )
+    if fun is None:
+        fun = setup["fun"]
+    merged = {**setup["options"], **options}
+    start = sol.y[-1] if y0 is None else y0
+    more = solve(fun, [float(sol.t[-1]), float(tfinal)], start, method=sol.method, **merged)
+    interpolant = None
+    if sol.interpolant is not None and more.interpolant is not None:
+        interpolant = sol.interpolant.extended(more.interpolant)
+    n = sol.y.shape[1]
+    ye = np.concatenate([sol.ye.reshape(-1, n), more.ye.reshape(-1, n)])
+    return Solution(
+        t=np.concatenate([sol.t, more.t[1:]]),
+        y=np.concatenate([sol.y, more.y[1:]]),
+        stats=Stats(nsteps=sol.stats.nsteps + more.stats.nsteps,
+                    nfailed=sol.stats.nfailed + more.stats.nfailed,
+                    nfevals=sol.stats.nfevals + more.stats.nfevals),
+        status=more.status,
+        reason=more.reason,
+        message=more.message,
+        method=sol.method,
+        warnings=sol.warnings + more.warnings,
+        te=np.concatenate([sol.te, more.te]),
+        ye=ye,
+        ie=np.concatenate([sol.ie, more.ie]),
+        interpolant=interpolant,
+        setup={"fun": fun, "options": merged},
+    )
 
 
 def _warn_if_failed(sol: Solution, stacklevel: int) -> None:

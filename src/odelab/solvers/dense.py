@@ -1,4 +1,4 @@
-"""Dense output: each step's continuous extension, ``deval`` and ``odextend``.
+"""Dense output: each step's continuous extension, the interpolant ``Solution.deval`` asks.
 
 An embedded Runge-Kutta step from ``(t, y)`` with step ``h`` and stage derivatives ``K`` (s, n)
 has a continuous extension (MATLAB's ``ntrp23``/``ntrp45``; Shampine & Reichelt, *The MATLAB
@@ -8,7 +8,8 @@ ODE Suite*, SIAM J. Sci. Comput. 18(1), 1997, Sec. 4)
 
 with ``D`` the tableau's ``dense`` array. The same formula serves the solver's ``Refine``
 output, MATLAB's vector-``tspan`` output, event location (:mod:`odelab.solvers.events`) and
-``deval``; a new method plugs in by giving its tableau a ``dense`` array.
+``deval`` (:func:`odelab.solution.deval`); a new method plugs in by giving its tableau a
+``dense`` array. ``odextend`` lives beside ``solve`` (:mod:`odelab.solvers.api`).
 
 With ``NonNegative`` components the interpolated values of those components are clipped at
 zero (and their slopes zeroed where clipped), as MATLAB's ``ntrp45`` does.
@@ -268,90 +269,3 @@ class DenseOutput:
             nonnegative=self.nonnegative,
             basis=self.basis,
         )
-
-
-def deval(sol, t, derivative: bool = False):
-    """Evaluate a solution anywhere in its span with the method's own interpolant (MATLAB's ``deval``).
-
-    Parameters
-    ----------
-    sol : Solution
-        A solution of a method with dense output (ode23, ode45, ode78, ode89, ode113, ode23t,
-        ode23tb, or anything :func:`odelab.solve` ran with them).
-    t : float or sequence of float
-        Times inside ``[sol.t[0], sol.t[-1]]``.
-    derivative : bool
-        Also return the slope of the interpolant there (MATLAB's ``[y, yp] = deval(sol, t)``,
-        "Slope of Interpolating Function").
-
-    Returns
-    -------
-    numpy.ndarray or (numpy.ndarray, numpy.ndarray)
-        Shape (n,) for a scalar ``t``, (k, n) for k times (rows are states, as in ``sol.y``;
-        MATLAB's ``deval`` returns the transpose). With ``derivative=True`` the pair
-        ``(y, yp)``, both of that shape: ``yp`` is d/dt of the interpolant, which equals
-        ``f(t, y)`` at the ends of the steps of ode23/ode45 and approximates it in between.
-
-    Examples
-    --------
-    >>> import numpy as np, odelab
-    >>> sol = odelab.ode45(lambda t, y: -y, [0, 1], 1.0)
-    >>> bool(abs(odelab.deval(sol, 0.5)[0] - np.exp(-0.5)) < 1e-4)
-    True
-    """
-    interpolant = getattr(sol, "interpolant", None)
-    if interpolant is None:
-        method = getattr(sol, "method", "") or "this method"
-        raise InputError(
-            f"this solution has no dense output: {method} does not provide one. Solve with ode23, ode45 "
-            "(their ntrp23/ntrp45 interpolants), ode78 or ode89 (Verner's), ode113 (Adams), ode23t or ode23tb "
-            "(their quadratics), or with a vector tspan of the times you need.",
-            key="sol",
-        )
-    if derivative:
-        return interpolant(t, derivative=True)
-    return interpolant(t)
-
-
-def odextend(sol, fun, tfinal: float, y0=None, **options):
-    """Continue a solution to ``tfinal`` (MATLAB's ``solext = odextend(sol, odefun, tfinal)``).
-
-    The integration restarts at ``sol.t[-1]`` from ``sol.y[-1]`` (or ``y0``) with the same method
-    and options (override any with ``**options``; ``fun=None`` keeps the original function) and
-    the result is joined to ``sol``: times, states, events, statistics and dense output.
-    """
-    from odelab.solution import Solution, Stats
-    from odelab.solvers.api import solve
-
-    setup = getattr(sol, "setup", None)
-    if setup is None:
-        raise InputError(
-            "odextend needs a solution returned by ode23, ode45, ode78, ode89 or odelab.solve with one of them.", key="sol"
-        )
-    if fun is None:
-        fun = setup["fun"]
-    merged = {**setup["options"], **options}
-    start = sol.y[-1] if y0 is None else y0
-    more = solve(fun, [float(sol.t[-1]), float(tfinal)], start, method=sol.method, **merged)
-    interpolant = None
-    if sol.interpolant is not None and more.interpolant is not None:
-        interpolant = sol.interpolant.extended(more.interpolant)
-    n = sol.y.shape[1]
-    ye = np.concatenate([sol.ye.reshape(-1, n), more.ye.reshape(-1, n)])
-    return Solution(
-        t=np.concatenate([sol.t, more.t[1:]]),
-        y=np.concatenate([sol.y, more.y[1:]]),
-        stats=Stats(nsteps=sol.stats.nsteps + more.stats.nsteps,
-                    nfailed=sol.stats.nfailed + more.stats.nfailed,
-                    nfevals=sol.stats.nfevals + more.stats.nfevals),
-        status=more.status,
-        reason=more.reason,
-        message=more.message,
-        method=sol.method,
-        warnings=sol.warnings + more.warnings,
-        te=np.concatenate([sol.te, more.te]),
-        ye=ye,
-        ie=np.concatenate([sol.ie, more.ie]),
-        interpolant=interpolant,
-        setup={"fun": fun, "options": merged},
-    )
