@@ -220,7 +220,7 @@ def test_events_are_located_on_the_extension(name):
 def test_registry_rows_and_backend():
     for name, order, label in (("ode78", 8, "8(7)"), ("ode89", 9, "9(8)")):
         m = METHODS[name]
-        assert (m.kind, m.order, m.order_label, m.refine, m.runs_as) == ("adaptive", order, label, 1, "")
+        assert (m.kind, m.order, m.order_label, m.refine) == ("adaptive", order, label, 1)
         assert m.power == 1 / (order) and m.tableau is PAIRS[name] and m.kind_label == "non-stiff"
         sol = getattr(odelab, name)(lambda t, y: -y, [0, 1], 1.0)
         assert sol.warnings == () and sol.method == name

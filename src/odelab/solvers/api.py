@@ -526,8 +526,8 @@ def _status_message(status, m: Method, t_stop, h_stop, y, y0, opts: SolverOption
             "the solution may be unbounded near there (it grew from "
             f"{float(np.max(np.abs(y0))):g} to {float(np.max(np.abs(y[-1]))):.3g}): a finite-time blow-up"
             if grown
-            else "the solution may have a singularity there, or the problem is stiff (try method 'Radau' "
-            "or 'BDF'), or the tolerances are tighter than double precision allows (loosen rtol/atol)"
+            else "the solution may have a singularity there, or the problem is stiff (try method 'ode15s', "
+            "or 'ode23s' at crude tolerances), or the tolerances are tighter than double precision allows (loosen rtol/atol)"
         )
         return (
             f"{m.name} failed {where}: the step size fell below {hmin:.2g}, the smallest allowed, "

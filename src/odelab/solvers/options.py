@@ -322,8 +322,6 @@ def resolve_options(method: Method, opts: Mapping[str, object], tspan: np.ndarra
         from odelab.solvers.implicit import resolve_extras
 
         extra = resolve_extras(method, opts, n)
-    if method.note:
-        notes.append(method.note)
     return SolverOptions(
         extra=extra,
         events=opts.get("events"),

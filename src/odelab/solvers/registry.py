@@ -50,8 +50,6 @@ class Method:
     stiff: bool = False
     orders: str = ""
     problem: str = "non-stiff"
-    runs_as: str = ""
-    note: str = ""
 
     @property
     def kind_label(self) -> str:
@@ -72,8 +70,6 @@ class Method:
             text += ", max_order 5, NDF (bdf off)"
         if self.kind == "implicit":
             text += ", Jacobian by finite differences"
-        if self.runs_as:
-            text += f" (runs {self.runs_as})"
         return text
 
     @property
@@ -119,11 +115,6 @@ def _adaptive(name, tableau, shrink_min, refine, description):
 def _implicit(name, order, orders, problem, description):
     return Method(name=name, kind="implicit", order=order, orders=orders, description=description, stiff=True,
                   problem=problem)
-
-
-def _mapped(name, runs_as, order, orders, description, note):
-    return Method(name=name, kind="scipy", order=order, orders=orders, description=description, runs_as=runs_as,
-                  note=note)
 
 
 def _fixed(name, tableau, description):

@@ -24,7 +24,7 @@ _EVALS_PER_ATTEMPT = {"RK23": 3, "RK45": 6, "DOP853": 12}
 def solve_scipy(fun, tspan: np.ndarray, y0: np.ndarray, m: Method, opts: SolverOptions) -> Solution:
     from scipy import integrate
 
-    cls = getattr(integrate, m.runs_as or m.name)
+    cls = getattr(integrate, m.name)
     n = y0.size
     kwargs = dict(rtol=opts.rtol, atol=opts.atol, max_step=opts.max_step)
     if opts.initial_step == opts.initial_step:  # not NaN
@@ -41,7 +41,7 @@ def solve_scipy(fun, tspan: np.ndarray, y0: np.ndarray, m: Method, opts: SolverO
 
     t_out = [t0]
     y_out = [y0.copy()]
-    per_attempt = _EVALS_PER_ATTEMPT.get(m.runs_as or m.name)
+    per_attempt = _EVALS_PER_ATTEMPT.get(m.name)
     nsteps = 0
     nfailed = 0 if per_attempt else None
     status, message = "success", f"{m.name} reached t = {tf:g}."

@@ -97,7 +97,7 @@ def solve_implicit(fun, tspan, y0, f0, m, opts, events=None):
         mass = mass.toarray()
     work = Work(fun, n, jacobian=extra["jacobian"], jpattern=jpattern, vectorized=extra["vectorized"], mass=mass)
     atol = np.broadcast_to(np.asarray(opts.atol, dtype=float), (n,))
-    name = m.runs_as or m.name
+    name = m.name
     if name == "ode15s":
         from odelab.solvers.implicit.ode15s import integrate_ode15s
 
