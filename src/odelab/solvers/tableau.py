@@ -142,20 +142,33 @@ def _roundings(orders, stages: int):
     return np.asarray(orders) * (stages + 1)
 
 
+def _conditions(A: np.ndarray, weights: np.ndarray, magnitudes: np.ndarray, max_order: int, extra: int = 0):
+    """The tree conditions of each row of ``weights`` (m, s): ``w . Phi(t)`` for every rooted
+    tree t up to ``max_order``, ``Phi`` built from ``A``, with the round-off coefficients given as
+    doubles can leave in it: eps times the number of roundings (``extra`` more for a sum over
+    the columns of a continuous extension) times ``sum |w_j| |Phi|_j``, the terms' size
+    (``magnitudes`` the rows' ``|w|``, ``|Phi|`` built from ``|A|``).
+
+    Returns ``(orders (T,), gammas (T,), values (m, T), tolerances (m, T))``; what a value
+    must equal depends on the weights (``1/gamma`` for a solution's, see the callers).
+    """
+    orders, gammas, phis = _tree_data(A, max_order)
+    phi_sizes = _tree_data(np.abs(A), max_order)[2]
+    values = _products(weights[:, None, :], phis[None, :, :])
+    scales = _products(magnitudes[:, None, :], phi_sizes[None, :, :])
+    tolerances = (_roundings(orders, A.shape[0])[None, :] + extra) * _EPS * scales
+    return orders, gammas, values, tolerances
+
+
 def _order_conditions(A: np.ndarray, b: np.ndarray, c: np.ndarray,
                       max_order: int = MAX_CHECKED_ORDER) -> list[tuple[int, float, float, float]]:
     """(order, value, required, tolerance) for the Runge-Kutta order conditions up to ``max_order``.
 
     One condition per rooted tree: ``b . Phi(t) = 1/gamma(t)``, with ``Phi`` built from ``A``
-    (the row sums of ``A``, checked separately, are ``c``). ``tolerance`` is the round-off that
-    coefficients given as doubles can leave in ``value``: eps times the number of roundings
-    times ``sum |b_j| |Phi|_j`` (the terms' size, ``|Phi|`` built from ``|A|``).
+    (the row sums of ``A``, checked separately, are ``c``); ``tolerance`` as :func:`_conditions`.
     """
-    orders, gammas, phis = _tree_data(A, max_order)
-    magnitudes = _tree_data(np.abs(A), max_order)[2]
-    values = _products(phis, b)
-    tolerances = _roundings(orders, A.shape[0]) * _EPS * _products(magnitudes, np.abs(b))
-    return list(zip(orders.tolist(), values.tolist(), (1.0 / gammas).tolist(), tolerances.tolist()))
+    orders, gammas, values, tolerances = _conditions(A, np.asarray(b)[None], np.abs(b)[None], max_order)
+    return list(zip(orders.tolist(), values[0].tolist(), (1.0 / gammas).tolist(), tolerances[0].tolist()))
 
 
 def _condition_ok(value, required, tolerance):
@@ -238,9 +251,8 @@ class ButcherTableau:
             if not 1 <= self.order <= MAX_CHECKED_ORDER:
                 problems.append(f"order {self.order} is outside the checked range 1..{MAX_CHECKED_ORDER}")
             checked = min(self.order + 1, MAX_CHECKED_ORDER)
-            orders, _, _ = _tree_data(self.A, checked)
-            conditions = _order_conditions(self.A, self.b, self.c, checked)
-            values, required, tolerances = (np.array(x) for x in list(zip(*conditions))[1:])
+            orders, gammas, values, tolerances = _conditions(self.A, self.b[None], np.abs(self.b)[None], checked)
+            values, required, tolerances = values[0], 1.0 / gammas, tolerances[0]
             ok = np.abs(values - required) <= tolerances
             failed = np.flatnonzero(~ok & (orders <= self.order))
             if failed.size:
@@ -389,20 +401,17 @@ class ButcherTableau:
     def _dense_order_problems(self) -> list[str]:
         """The continuous extension's conditions, one per tree and power of s, each to the
         round-off its terms can leave (the conversion to powers of s included)."""
-        orders, gammas, phis = _tree_data(self.full_A, self.dense_order)
-        magnitudes = _tree_data(np.abs(self.full_A), self.dense_order)[2]
-        dense, dense_abs = self.dense_powers, self._dense_magnitudes
         q = self.dense.shape[1]
+        orders, gammas, values, tolerances = _conditions(self.full_A, self.dense_powers.T, self._dense_magnitudes.T,
+                                                         self.dense_order, extra=q)
         if self.dense_basis == "chebyshev":
             at_zero = _products(self.dense, (-1.0) ** np.arange(q))
             if not _sum_ok(at_zero, 0.0, np.abs(self.dense).sum(axis=1), q):
                 return ["the continuous extension must vanish at s = 0"]
-        powers = np.arange(1, dense.shape[1] + 1)
+        powers = np.arange(1, self.dense_powers.shape[1] + 1)
+        # the power s^m of the extension carries the trees of order m, the others vanish
         required = np.where(powers[:, None] == orders[None, :], 1.0 / gammas[None, :], 0.0)  # (q, trees)
-        values = _products(dense.T[:, None, :], phis[None, :, :])
-        scales = _products(dense_abs.T[:, None, :], magnitudes[None, :, :])
-        roundings = _roundings(orders, self.full_c.size)[None, :] + q
-        bad = np.abs(values - required) > roundings * _EPS * scales
+        bad = np.abs(values - required) > tolerances
         if bad.any():
             m, k = np.argwhere(bad)[0]
             return [f"the continuous extension fails an order-{orders[k]} condition (power s^{m + 1}): "
