@@ -115,3 +115,17 @@ def test_initial_modes_come_from_where_the_switching_functions_go():
     k = np.searchsorted(r.t, np.pi)
     np.testing.assert_allclose(r.y[-1], [np.pi - (4 - np.pi), 2 + 1 - np.cos(4 - np.pi)], rtol=0, atol=1e-8)
     assert r.y[k - 1, 0] == pytest.approx(r.t[k - 1], abs=1e-9)  # x = t while sin > 0
+
+
+def test_a_sources_jump_is_listed_before_and_after_with_the_inputs_and_outputs_of_each_side():
+    # what the report draws as a step: the row before the jump reads the source's left limit
+    d = dg.Diagram({"u": Step(time=1.0, final=2.0), "g": dg.Gain(gain=3.0, input="u"),
+                    "i": dg.Integrator(input="u"), "sat": dg.Saturation(input="i")}, {"g": "g", "s": "sat"})
+    r = d.compile().simulate([0, 2])
+    rows = np.flatnonzero(r.t == 1.0)
+    assert rows.size == 2 and rows[1] == rows[0] + 1
+    assert r.u[rows[0], 0] == 0.0 and r.u[rows[1], 0] == 2.0
+    assert r.y[rows[0], 0] == 0.0 and r.y[rows[1], 0] == 6.0
+    # the crossing of the saturation's corner (i = 0.5 at t = 1.25) is listed twice too
+    t_sat = r.crossings["sat"][0]
+    assert np.count_nonzero(r.t == t_sat) == 2 and abs(t_sat - 1.25) <= 256 * EPS * 1.25  # odezero: 128 ulps

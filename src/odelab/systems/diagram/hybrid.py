@@ -336,6 +336,12 @@ def simulate_hybrid(diagram, tspan, x0=None, *, method: str = "ode45", zero_cros
     U = np.zeros((t.size, len(signals)))
     for j, s in enumerate(signals):
         U[:, j] = s(t)
+    # a breakpoint listed twice: the row before the jump reads the sources before it (their left
+    # limits), so an input, and an output that feeds it through, is drawn as the step it is
+    twice = np.flatnonzero((t[:-1] == t[1:]) & np.isin(t[:-1], cuts)) if t.size > 1 and cuts.size else []
+    for i in twice:
+        before = float(np.nextafter(t[i], -math.inf if forward else math.inf))
+        U[i] = [s(before) for s in signals]
     Y = diagram.output_many(t, X, U) if diagram.outputs else np.zeros((t.size, 0))
     for arr in (t, X, U, Y):
         arr.setflags(write=False)
