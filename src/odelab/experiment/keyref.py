@@ -189,6 +189,12 @@ NOTES: dict[str, str] = {
     "plot.scale": "Display multipliers, e.g. `{ y2 = 1e4 }` draws 10^4 y2 (labelled so), for a quantity far "
                   "smaller than the others; the stored values are not changed.",
     "plot.scale.<name>": "The factor the report multiplies the quantity by.",
+    "report": "The experiment's place in the report and a note for its readers (never what is computed).",
+    "report.order": "Where the section stands: experiments with an order come first, lowest first (the lab "
+                    "sheet's order); the rest follow, linearisation studies first, then alphabetically.",
+    "report.note": "A paragraph at the head of the section (plain text; `**bold**` is kept).",
+    "report.quote": "Stored cases, as \"experiment/case\", whose maximum relative errors the note quotes, each with "
+                    "its time span and number of points (e.g. [\"exercise1/ode23\", \"exercise1_2pi/ode23\"]).",
     "units": "A unit per time, state, input, output or parameter, shown on the report's axes (`x = \"m\"`).",
     "units.<name>": "The unit of <name>, as text (\"m/s\"), shown as \"x (m)\".",
     "events": "Zero-crossing events (MATLAB's Events), one table per event, and `max_events`.",

@@ -357,6 +357,8 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
         resolved["expect"] = model.expect
     if model.plot is not None:
         resolved["plot"] = _plain(model.plot.model_dump(exclude_none=True))
+    if model.report is not None:
+        resolved["report"] = _report(model.report)
     if params:
         resolved["parameters"] = dict(params)
 
@@ -574,6 +576,26 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
         compiled=fast, analysis=analysis, data=data, network=built.network,
     )
     return problem, resolved
+
+
+MAX_QUOTED = 20
+
+
+def _report(spec: schema.Report) -> dict:
+    """[report] checked: ``quote`` names stored cases as "experiment/case"."""
+    quote = spec.quote or []
+    if len(quote) > MAX_QUOTED:
+        raise ExperimentError(f"`report.quote` lists {len(quote)} cases; a note quotes at most {MAX_QUOTED}.",
+                              key="report.quote")
+    for i, entry in enumerate(quote):
+        experiment, slash, case = entry.partition("/")
+        if not (slash and experiment.strip() and case.strip()) or "/" in case:
+            raise ExperimentError(f"`report.quote[{i}]` is {entry!r}; name a stored case as \"experiment/case\", "
+                                  "e.g. \"exercise1/ode23\".", key=f"report.quote[{i}]")
+    if quote and spec.note is None:
+        raise ExperimentError("`report.quote` quotes errors in the section's note: add `note` under [report].",
+                              key="report.quote")
+    return _plain(spec.model_dump(exclude_none=True))
 
 
 def _units(units: dict[str, str], states, inputs, outputs, params) -> dict[str, str]:

@@ -184,6 +184,14 @@ class Plot(_Section):
     scale: dict[str, Number] | None = None  # display multipliers per quantity: y2 = 1e4 draws 10^4 y2
 
 
+class Report(_Section):
+    """[report]: where the experiment's section stands in the report and a note for its readers."""
+
+    order: StrictInt | None = None  # sections with an order come first, lowest first (the lab sheet's order)
+    note: StrictStr | None = None  # a paragraph above the section's figures; **bold** is kept
+    quote: list[StrictStr] | None = None  # "experiment/case": stored maximum relative errors the note quotes
+
+
 class Experiment(_Section):
     """A whole experiment file, or one case after merging it over the base."""
 
@@ -207,6 +215,7 @@ class Experiment(_Section):
     blocks: dict[str, dict[str, Any]] | None = None  # kind = "diagram"; checked by experiment/diagram.py
     elements: dict[str, dict[str, Any]] | None = None  # kind = "network"; checked by systems/network
     plot: Plot | None = None
+    report: Report | None = None
     units: dict[str, StrictStr] | None = None  # [units]: x = "m", f = "N", t = "s": axis labels
     events: dict[str, Any] | None = None  # checked and compiled by experiment/events.py
     data: Data | None = None  # [data]: measurements, the reference of every case (experiment/data.py)

@@ -15,12 +15,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["LAB_ORDER", "ExperimentRuns", "QuantityErrors", "StoredRun", "collect_runs", "parse_record"]
+__all__ = ["ExperimentRuns", "QuantityErrors", "StoredRun", "collect_runs", "parse_record"]
 
-# The lab's experiments in the order of the lab sheet; linearisation studies come next, then
-# everything else alphabetically.
-LAB_ORDER = ("exercise1", "exercise1_2pi", "rigid_body", "exercise2")
-LINEARISATION_NAMES = ("linearisation", "linearization")
 
 # Source files are read only to order cases and to notice a file edited since its runs.
 _MAX_SOURCE_BYTES = 1_000_000
@@ -125,6 +121,12 @@ class ExperimentRuns:
     @property
     def file_hashes(self) -> list[str]:
         return sorted({r.file_sha256 for r in self.runs if r.file_sha256})
+
+    @property
+    def report(self) -> dict:
+        """The experiment file's [report] table as stored (``order``, ``note``, ``quote``), or {}."""
+        value = self.runs[0].config.get("report")
+        return value if isinstance(value, dict) else {}
 
     @property
     def linearisation(self) -> bool:
@@ -407,9 +409,12 @@ def _order_cases(group: ExperimentRuns) -> None:
 
 
 def experiment_sort_key(group: ExperimentRuns) -> tuple:
-    if group.name in LAB_ORDER:
-        return (0, LAB_ORDER.index(group.name), "")
-    if group.name in LINEARISATION_NAMES or group.linearisation:
+    """Experiments with a [report] ``order`` first (lowest first), then linearisation studies, then the rest
+    alphabetically."""
+    order = group.report.get("order")
+    if isinstance(order, int) and not isinstance(order, bool):
+        return (0, order, group.name)
+    if group.linearisation:
         return (1, 0, group.name)
     return (2, 0, group.name)
 

@@ -145,10 +145,18 @@ class CaseView:
 
 @dataclass(frozen=True)
 class LabNote:
-    """The lab sheet's 6.907e-4, computed from the stored Exercise 1 runs."""
+    """An experiment file's [report] note, with the stored errors it quotes (``quote``).
 
-    entries: list[dict]  # {"experiment", "interval", "max_rel", "points", "anchor"}
-    missing: list[str]  # experiments of the pair with no usable ode23 run
+    Exercise 1's note says that the lab sheet's 6.907e-4 is ode23 on [0, 2 pi], quoting the
+    stored maximum relative errors of exercise1/ode23 and exercise1_2pi/ode23: the numbers come
+    from the runs, the words from the file, nothing from the experiment's name.
+    """
+
+    parts: list[tuple[bool, str]]  # the note's text, (bold, text) pieces: **bold** in the file
+    lead: str  # "From the stored runs, the maximum relative error of ode23 is" (empty: nothing quoted)
+    entries: list[dict]  # {"experiment", "case", "label", "quantity", "interval", "max_rel", "points", "anchor"}
+    missing: list[str]  # quoted experiments with no usable run of the quoted case
+    missing_case: str = ""  # the case they lack, when they all lack the same one
 
 
 @dataclass(frozen=True)
@@ -427,27 +435,43 @@ def linearisation_view(case: str, lin: dict[str, Any]) -> LinearisationView:
 # --- sections -------------------------------------------------------------------------------
 
 
-def _lab_note(groups: dict[str, ExperimentRuns], anchors: dict[str, str]) -> LabNote | None:
-    """Exercise 1's maximum relative error of ode23 on [0, pi] and on [0, 2 pi], from the runs."""
-    pair = ("exercise1", "exercise1_2pi")
-    if not any(name in groups for name in pair):
+def _note_parts(text: str) -> list[tuple[bool, str]]:
+    """A note's text as (bold, text) pieces: ``**...**`` marks bold, as in Markdown; nothing else is markup."""
+    pieces = text.split("**")
+    if len(pieces) % 2 == 0:  # an unmatched ** is literal
+        pieces[-2:] = [pieces[-2] + "**" + pieces[-1]]
+    return [(i % 2 == 1, p) for i, p in enumerate(pieces) if p]
+
+
+def _lab_note(group: ExperimentRuns, groups: dict[str, ExperimentRuns], anchors: dict[str, str]) -> LabNote | None:
+    """The note of ``group``'s [report] table, quoting the maximum relative errors of the stored runs it names."""
+    spec = group.report
+    note = spec.get("note")
+    if not isinstance(note, str) or not note.strip():
         return None
     entries, missing = [], []
-    for name in pair:
-        group = groups.get(name)
-        runs = [r for r in (group.runs if group else []) if r.method == "ode23" and r.ok and r.errors]
-        run = next((r for r in runs if r.case == "ode23"), runs[0] if runs else None)
-        if run is None:
-            missing.append(name)
+    for quoted in spec.get("quote") or []:
+        name, _, case = str(quoted).partition("/")
+        other = groups.get(name)
+        run = next((r for r in (other.runs if other else []) if r.case == case and r.ok and r.errors), None)
+        err = run.errors[next(iter(run.errors))] if run is not None else None
+        if err is None or err.max_rel is None:
+            missing.append((name, case))
             continue
-        quantity = "y" if "y" in run.errors else next(iter(run.errors))
-        err = run.errors[quantity]
-        if err.max_rel is None:
-            missing.append(name)
-            continue
-        entries.append({"experiment": name, "case": run.case, "quantity": quantity, "interval": _interval(run),
-                        "max_rel": err.max_rel, "points": run.points, "anchor": anchors[name]})
-    return LabNote(entries, missing)
+        entries.append({"experiment": name, "case": case, "method": run.method, "quantity": next(iter(run.errors)),
+                        "interval": _interval(run), "max_rel": err.max_rel, "points": run.points,
+                        "anchor": anchors[name]})
+    methods = sorted({e["method"] for e in entries})
+    lead = ""
+    if len(methods) == 1:
+        lead = f"From the stored runs, the maximum relative error of {methods[0]} is"
+    elif methods:
+        lead = "From the stored runs, the maximum relative errors are"
+    for e in entries:  # named one by one where they are not all the same method
+        e["label"] = "" if len(methods) == 1 else f"{e['experiment']}/{e['case']} ({e['method']}): "
+    cases = {c for _, c in missing}
+    return LabNote(_note_parts(note), lead, entries, [n for n, _ in missing] if len(cases) == 1 else
+                   [f"{n}/{c}" for n, c in missing], cases.pop() if len(cases) == 1 else "")
 
 
 #: An experiment with more stored cases than this (a large sweep) is summarised: counts and the
@@ -490,7 +514,6 @@ def build_sections(groups: list[ExperimentRuns]) -> tuple[list[Section], list[st
     taken: set[str] = {"summary", "header", "problems", "contents", "failed", "provenance", "settings"}
     anchors = {g.name: anchor_for(g.name, taken) for g in groups}
     by_name = {g.name: g for g in groups}
-    lab_note = _lab_note(by_name, anchors)
     every = list(groups)
     sections = []
     for group in every:
@@ -578,8 +601,6 @@ def build_sections(groups: list[ExperimentRuns]) -> tuple[list[Section], list[st
         from odelab.report.fit import fit_view
 
         section.fit = fit_view(anchor, runs, units)
-        if group.name in ("exercise1", "exercise1_2pi") and lab_note is not None and not any(
-                s.lab_note for s in sections):
-            section.lab_note = lab_note
+        section.lab_note = _lab_note(group, by_name, anchors)
         sections.append(section)
     return sections, warnings

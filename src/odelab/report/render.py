@@ -82,6 +82,14 @@ def md_html(value: Any) -> MarkdownText:
     return MarkdownText(str(escape(" ".join(str(value).split()))))
 
 
+def md_inline(value: Any) -> MarkdownText:
+    """:func:`md_escape` for a piece of a sentence: a space at either end is kept (``**bold**`` then " text")."""
+    text = str(value)
+    lead = " " if text[:1].isspace() else ""
+    trail = " " if text[-1:].isspace() and text.strip() else ""
+    return MarkdownText(lead + md_escape(text) + trail)
+
+
 def md_raw(value: Any) -> MarkdownText:
     """Mark template output (a macro's, a ``{% set %}`` block's) as Markdown already escaped."""
     return MarkdownText(str(value))
@@ -202,6 +210,7 @@ def environments(template_dir: Path | None = None):
     md.filters["md_fence"] = md_fence
     md.filters["md_code"] = md_code
     md.filters["md_raw"] = md_raw
+    md.filters["md_inline"] = md_inline
     md.filters["md_html"] = md_html
     return html, md
 
