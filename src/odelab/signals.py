@@ -33,17 +33,23 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from numbers import Real
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 from odelab.exceptions import InputError
 
 __all__ = [
+    "SIGNALS",
+    "SignalContext",
+    "SignalKey",
+    "plain_description",
+    "register_signal",
     "Signal",
     "Step",
     "Ramp",
@@ -57,6 +63,7 @@ __all__ = [
     "Sum",
     "Scaled",
     "Constant",
+    "Expression",
     "Terms",
     "Term",
     "Piece",
@@ -271,14 +278,106 @@ class ExactForm:
         return ExactForm(generate)
 
 
+# -- the registry of signal types that experiment files name ----------------------------------
+
+
+@dataclass(frozen=True)
+class SignalKey:
+    """One key of a signal type in an experiment file (``[inputs.f]`` or a source block).
+
+    ``default`` None makes the key required. ``kind`` says how the file gives it: ``"number"``
+    (a number or an expression of the parameters, evaluated when the file is loaded),
+    ``"text"`` (a string such as a file name) or ``"expression"`` (an expression of t and the
+    parameters). ``unit`` is "t" for a time, "u" for the signal's own unit, or a fixed unit.
+    """
+
+    default: Any = None
+    kind: str = "number"
+    unit: str = ""
+
+
+@dataclass(frozen=True)
+class SignalContext:
+    """What building a signal from an experiment file needs from the experiment layer.
+
+    ``key`` is the table's key path (``inputs.f``, ``blocks.force``), ``what`` the noun for
+    messages ("input", "source block"), ``params`` the file's parameter values,
+    ``resolve_file(name, key)`` a user file's path (relative to the experiment file, confined),
+    ``max_rows`` the budget of a table's rows (None: no limit).
+    """
+
+    key: str
+    what: str
+    params: Mapping[str, float]
+    resolve_file: Callable[[str, str], Path]
+    max_rows: int | None = None
+
+
+#: The signal types of experiment files, by TOML name, in the order messages list them.
+SIGNALS: dict[str, type[Signal]] = {}
+
+
+def register_signal(cls: type[Signal]) -> type[Signal]:
+    """Class decorator: make ``cls`` the signal type ``cls.TOML`` of experiment files.
+
+    The class declares its keys (``KEYS``, name -> :class:`SignalKey`), builds itself from
+    them (:meth:`Signal.from_toml`), describes itself for the report (:meth:`Signal.describe`),
+    gives its compiled source (:meth:`Signal.numba_source`) and its exact form
+    (:meth:`Signal.exact_terms`). The schema, the builder, ``odelab explain``, the report and
+    the compiled backend read the registry: nothing else names the type.
+    """
+    name = getattr(cls, "TOML", None)
+    if not isinstance(name, str) or not re.fullmatch(r"[a-z][a-z0-9_-]*", name):
+        raise ValueError(f"a registered signal needs TOML = a lower-case name; {cls.__name__} has {name!r}")
+    if name in SIGNALS and SIGNALS[name] is not cls:
+        raise ValueError(f"the signal type {name!r} is registered already ({SIGNALS[name].__name__})")
+    SIGNALS[name] = cls
+    return cls
+
+
+def plain_description(name: str, kind: str | None, values: Mapping[str, Any]) -> str:
+    """``f: pulse (amplitude 1, period 2, ...)``: a signal listed by its keys, where it has no formula."""
+    args = ", ".join(f"{k} {_g(x)}" for k, x in values.items() if k != "type")
+    return f"{name}: {kind or 'signal'}" + (f" ({args})" if args else "")
+
+
+def _g(value: Any) -> str:
+    """A number as the report writes it in a formula (``0.2``, ``1e-05``); anything else as text."""
+    return f"{value:g}" if isinstance(value, (int, float)) and not isinstance(value, bool) else str(value)
+
+
 # -- signals -----------------------------------------------------------------------------
 
 
 class Signal:
     """Base class of the input signals: arithmetic, breakpoints and exact forms.
 
-    Subclasses implement ``__call__``, ``breakpoints`` and ``exact_terms``.
+    Subclasses implement ``__call__``, ``breakpoints`` and ``exact_terms``. A signal type that
+    experiment files name also sets ``TOML`` and ``KEYS`` and is :func:`register_signal`-ed.
     """
+
+    TOML: ClassVar[str | None] = None  # its name in experiment files ([inputs.f] type = "step")
+    KEYS: ClassVar[Mapping[str, SignalKey]] = {}  # its keys there, with their defaults
+
+    @classmethod
+    def from_toml(cls, values: Mapping[str, Any], ctx: SignalContext) -> Signal:
+        """The signal from its keys (defaults filled in, numbers evaluated); InputError names the key."""
+        return cls(**{k: float(values[k]) for k in cls.KEYS})
+
+    @classmethod
+    def describe(cls, name: str, values: Mapping[str, Any]) -> str:
+        """The input ``name`` as the report writes it, from its stored keys: ``f: pulse (amplitude 1, ...)``."""
+        return plain_description(name, cls.TOML, values)
+
+    def compiled_reason(self) -> str | None:
+        """Why the compiled backend cannot generate this signal (None when :meth:`numba_source` can)."""
+        return f"a {type(self).__name__} input is not generated by the compiled engine"
+
+    def numba_source(self, slot: Callable[..., list[str]]) -> str:
+        """The expression of u at ``_tu`` in the compiled module (numba), operation for operation
+        the numpy of ``__call__``. ``slot(*numbers)`` stores numbers as run-time data and returns
+        the names that read them (``_p[7]``): never paste a number into the source."""
+        raise NotImplementedError(self.compiled_reason())
 
     def __call__(self, t: Any) -> float | np.ndarray:  # pragma: no cover - abstract
         raise NotImplementedError
@@ -336,7 +435,21 @@ class Signal:
 class Constant(Signal):
     """u(t) = value."""
 
+    TOML: ClassVar[str] = "constant"
+    KEYS: ClassVar[Mapping[str, SignalKey]] = {"value": SignalKey(None, unit="u")}
+
     value: float = 0.0
+
+    @classmethod
+    def describe(cls, name: str, values: Mapping[str, Any]) -> str:
+        return f"{name} = {_g(values.get('value'))}"
+
+    def compiled_reason(self) -> str | None:
+        return None
+
+    def numba_source(self, slot) -> str:
+        (value,) = slot(self.value)
+        return value
 
     def __post_init__(self):
         object.__setattr__(self, "value", _real("Constant", "value", self.value))
@@ -357,9 +470,25 @@ class Step(Signal):
     defaults to a step time of 1; odelab's ``Step()`` is the unit step at t = 0.
     """
 
+    TOML: ClassVar[str] = "step"
+    KEYS: ClassVar[Mapping[str, SignalKey]] = {"time": SignalKey(0.0, unit="t"), "initial": SignalKey(0.0, unit="u"),
+                                               "final": SignalKey(1.0, unit="u")}
+
     time: float = 0.0
     initial: float = 0.0
     final: float = 1.0
+
+    @classmethod
+    def describe(cls, name: str, values: Mapping[str, Any]) -> str:
+        v = values
+        return f"{name} steps {_g(v.get('initial', 0))} → {_g(v.get('final', 1))} at t = {_g(v.get('time', 0))}"
+
+    def compiled_reason(self) -> str | None:
+        return None
+
+    def numba_source(self, slot) -> str:
+        time, initial, final = slot(self.time, self.initial, self.final)
+        return f"({final} if _tu >= {time} else {initial})"  # np.where(t >= time, final, initial)
 
     def __post_init__(self):
         for name in ("time", "initial", "final"):
@@ -383,9 +512,28 @@ class Step(Signal):
 class Ramp(Signal):
     """u(t) = initial + slope*(t - start) for t >= start, ``initial`` before (Simulink's Ramp)."""
 
+    TOML: ClassVar[str] = "ramp"
+    KEYS: ClassVar[Mapping[str, SignalKey]] = {"slope": SignalKey(1.0, unit="u/t"), "start": SignalKey(0.0, unit="t"),
+                                               "initial": SignalKey(0.0, unit="u")}
+
     slope: float = 1.0
     start: float = 0.0
     initial: float = 0.0
+
+    @classmethod
+    def describe(cls, name: str, values: Mapping[str, Any]) -> str:
+        slope, start, initial = values.get("slope", 1), values.get("start", 0), values.get("initial", 0)
+        var = "t" if not start else f"(t - {_g(start)})"
+        term = var if slope == 1 else f"{_g(slope)} {var}"
+        text = f"{_g(initial)} + {term}" if initial else term
+        return f"{name} = {text}" + (f" for t >= {_g(start)}" if start else "")
+
+    def compiled_reason(self) -> str | None:
+        return None
+
+    def numba_source(self, slot) -> str:
+        slope, start, initial = slot(self.slope, self.start, self.initial)
+        return f"({initial} + {slope} * _max(_tu - {start}, 0.0))"
 
     def __post_init__(self):
         for name in ("slope", "start", "initial"):
@@ -409,10 +557,31 @@ class Ramp(Signal):
 class Sine(Signal):
     """u(t) = bias + amplitude*sin(frequency*t + phase), frequency in rad/s (Simulink's Sine Wave)."""
 
+    TOML: ClassVar[str] = "sine"
+    KEYS: ClassVar[Mapping[str, SignalKey]] = {
+        "amplitude": SignalKey(1.0, unit="u"), "frequency": SignalKey(1.0, unit="rad/s"),
+        "phase": SignalKey(0.0, unit="rad"), "bias": SignalKey(0.0, unit="u")}
+
     amplitude: float = 1.0
     frequency: float = 1.0
     phase: float = 0.0
     bias: float = 0.0
+
+    @classmethod
+    def describe(cls, name: str, values: Mapping[str, Any]) -> str:
+        v = values
+        a, w, phi, bias = (v.get("amplitude", 1), v.get("frequency", 1), v.get("phase", 0), v.get("bias", 0))
+        arg = f"{_g(w)} t" if w != 1 else "t"
+        arg += f" + {_g(phi)}" if phi else ""
+        term = ("" if a == 1 else "-" if a == -1 else f"{_g(a)} ") + f"sin({arg})"
+        return f"{name} = " + (f"{_g(bias)} + {term}" if bias else term)
+
+    def compiled_reason(self) -> str | None:
+        return None
+
+    def numba_source(self, slot) -> str:
+        amplitude, frequency, phase, bias = slot(self.amplitude, self.frequency, self.phase, self.bias)
+        return f"({bias} + {amplitude} * _np.sin({frequency} * _tu + {phase}))"
 
     def __post_init__(self):
         for name in ("amplitude", "frequency", "phase", "bias"):
@@ -442,10 +611,22 @@ class Pulse(Signal):
     fraction of the period, 0 < width < 1 (Simulink asks for a percentage).
     """
 
+    TOML: ClassVar[str] = "pulse"
+    KEYS: ClassVar[Mapping[str, SignalKey]] = {
+        "amplitude": SignalKey(1.0, unit="u"), "period": SignalKey(1.0, unit="t"), "width": SignalKey(0.5),
+        "delay": SignalKey(0.0, unit="t")}
+
     amplitude: float = 1.0
     period: float = 1.0
     width: float = 0.5
     delay: float = 0.0
+
+    def compiled_reason(self) -> str | None:
+        return None
+
+    def numba_source(self, slot) -> str:
+        args = slot(self.amplitude, self.period, self.width, self.delay)
+        return f"_pulse(_tu, {', '.join(args)})"  # the helper of solvers/compiled/inputs.INPUT_PRELUDE
 
     def __post_init__(self):
         object.__setattr__(self, "amplitude", _real("Pulse", "amplitude", self.amplitude))
@@ -680,11 +861,53 @@ class Table(Signal):
     table, or ``"flat"``).
     """
 
+    TOML: ClassVar[str] = "table"
+    KEYS: ClassVar[Mapping[str, SignalKey]] = {
+        "file": SignalKey(None, kind="text"), "interpolation": SignalKey("linear", kind="text"),
+        "extrapolation": SignalKey("clip", kind="text")}
+
     t: Any
     values: Any
     label: str = ""
     interpolation: str = "linear"
     extrapolation: str = "clip"
+
+    @classmethod
+    def from_toml(cls, values: Mapping[str, Any], ctx: SignalContext) -> Table:
+        import difflib
+
+        key = ctx.key
+        csv_path = ctx.resolve_file(values["file"], f"{key}.file")
+        if not csv_path.is_file():
+            raise InputError(f"`{key}.file`: {values['file']!r} does not exist (looked for {csv_path}).",
+                             key=f"{key}.file")
+        for k, allowed_values in (("interpolation", INTERPOLATIONS), ("extrapolation", EXTRAPOLATIONS)):
+            if values[k] not in allowed_values:
+                close = difflib.get_close_matches(str(values[k]), allowed_values, n=1)
+                hint = f" Did you mean {close[0]!r}?" if close else ""
+                raise InputError(f"`{key}.{k}` is {values[k]!r}; use one of "
+                                 f"{', '.join(repr(a) for a in allowed_values)} (Simulink's names).{hint}",
+                                 key=f"{key}.{k}")
+        try:
+            return cls.from_csv(csv_path, max_rows=ctx.max_rows, interpolation=values["interpolation"],
+                                extrapolation=values["extrapolation"])
+        except InputError as exc:  # named from the experiment file, which is what the user runs
+            text = exc.message[:1].lower() + exc.message[1:]
+            if ctx.max_rows and text.startswith("the table file has more than"):
+                text += (f" The budget is {ctx.max_rows:,} rows per input table (each row is a breakpoint at which "
+                         f"the solver restarts); raise it with `odelab run --limit table_rows=N` if you mean it.")
+            raise InputError(f"`{key}.file` {values['file']!r}: {text}", key=f"{key}.file") from None
+
+    @classmethod
+    def describe(cls, name: str, values: Mapping[str, Any]) -> str:
+        return f"{name}: table {values.get('file')}"
+
+    def compiled_reason(self) -> str | None:
+        return None
+
+    def numba_source(self, slot) -> str:
+        t, u = slot(*self.t.tolist()), slot(*self.values.tolist())  # each stored as one slice (.span)
+        return f"_np.interp(_tu, {t.span}, {u.span})"
 
     def __post_init__(self):
         try:
@@ -914,6 +1137,56 @@ class Function(Signal):
             return f"Function({self.label!r})"
         return f"Function({getattr(self.fun, '__name__', type(self.fun).__name__)})"
 
+    def compiled_reason(self) -> str | None:
+        return "a Python function of t (an experiment file's `expression` input is compiled; a callable is not)"
+
+
+@dataclass(frozen=True, repr=False)
+class Expression(Function):
+    """u = an expression of t and the parameters, as an experiment file writes it (``type = "expression"``).
+
+    ``text``, ``key`` and ``params`` are the checked expression, its key path and the
+    parameter values it was compiled with: the compiled backend generates it from them.
+    """
+
+    TOML: ClassVar[str] = "expression"
+    KEYS: ClassVar[Mapping[str, SignalKey]] = {"expression": SignalKey(None, kind="expression", unit="u")}
+
+    text: str = ""
+    key: str = ""
+    params: Mapping[str, float] | None = None
+
+    @classmethod
+    def from_toml(cls, values: Mapping[str, Any], ctx: SignalContext) -> Expression:
+        from odelab import expressions
+
+        params = dict(ctx.params)
+        text = str(values["expression"])
+        compiled = expressions.compile_expression(values["expression"], names=["t", *params],
+                                                  key=f"{ctx.key}.expression")
+
+        def expression_signal(t, _e=compiled, _p=params):
+            return _e(t=t, **_p)
+
+        return cls(expression_signal, label=text, text=text, key=f"{ctx.key}.expression", params=params)
+
+    @classmethod
+    def describe(cls, name: str, values: Mapping[str, Any]) -> str:
+        return f"{name} = {values.get('expression')}"
+
+    def compiled_reason(self) -> str | None:
+        return None
+
+    def numba_source(self, slot) -> str:
+        from odelab.expressions import parse_expression
+        from odelab.solvers.compiled.codegen import expression_source
+
+        params = dict(self.params or {})
+        parsed = parse_expression(self.text, key=self.key, names=["t", *params])  # a parameter `e` shadows e
+        used = [name for name in params if name in set(parsed.names)]
+        rename = {"t": "_tu", **dict(zip(used, slot(*(params[name] for name in used))))}
+        return f"({expression_source(parsed, rename)})"
+
 
 @dataclass(frozen=True)
 class Scaled(Signal):
@@ -921,6 +1194,13 @@ class Scaled(Signal):
 
     gain: float
     signal: Signal
+
+    def compiled_reason(self) -> str | None:
+        return self.signal.compiled_reason()
+
+    def numba_source(self, slot) -> str:
+        (gain,) = slot(self.gain)
+        return f"({gain} * {self.signal.numba_source(slot)})"
 
     def __post_init__(self):
         object.__setattr__(self, "gain", _real("Scaled", "gain", self.gain))
@@ -966,6 +1246,15 @@ class Sum(Signal):
         parts = [term.breakpoints(t0, tf) for term in self.terms]
         return np.unique(np.concatenate(parts)) if parts else np.empty(0)
 
+    def compiled_reason(self) -> str | None:
+        return next((r for r in (term.compiled_reason() for term in self.terms) if r), None)
+
+    def numba_source(self, slot) -> str:
+        text = "0.0"  # Sum.__call__: out = zeros; out = out + term(t), term by term
+        for term in self.terms:
+            text = f"({text} + {term.numba_source(slot)})"
+        return text
+
     def exact_terms(self) -> ExactForm | None:
         forms = [term.exact_terms() for term in self.terms]
         if any(form is None for form in forms):
@@ -976,6 +1265,12 @@ class Sum(Signal):
 
 
 # -- coercion ------------------------------------------------------------------------------
+
+
+# the types of experiment files, in the order their messages list them
+for _cls in (Step, Ramp, Sine, Pulse, Table, Expression, Constant):
+    register_signal(_cls)
+del _cls
 
 
 def as_signal(value: Any, *, name: str = "u") -> Signal:

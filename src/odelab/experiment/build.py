@@ -8,6 +8,7 @@ import importlib.machinery
 import importlib.util
 import sys
 from pathlib import Path
+from collections.abc import Mapping
 from typing import Callable
 
 import numpy as np
@@ -206,16 +207,34 @@ def build_state_space(model: schema.Experiment, params: dict[str, float]) -> Bui
                  resolved=resolved, linear=True, system=ss, compiled=compiled, jacobian=A)
 
 
+class _SignalKeys(Mapping):
+    """type -> {key: default} of every registered signal type (:data:`odelab.signals.SIGNALS`),
+    read from the registry at each use, so a type registered later is known too."""
+
+    def __getitem__(self, kind: str) -> dict:
+        from odelab.signals import SIGNALS
+
+        return {k: spec.default for k, spec in SIGNALS[kind].KEYS.items()}
+
+    def __iter__(self):
+        from odelab.signals import SIGNALS
+
+        return iter(tuple(SIGNALS))
+
+    def __len__(self) -> int:
+        from odelab.signals import SIGNALS
+
+        return len(SIGNALS)
+
+
 # Keys each signal type takes, with their defaults (the rest are errors, not silently ignored).
-SIGNAL_KEYS = {
-    "step": {"time": 0.0, "initial": 0.0, "final": 1.0},
-    "ramp": {"slope": 1.0, "start": 0.0, "initial": 0.0},
-    "sine": {"amplitude": 1.0, "frequency": 1.0, "phase": 0.0, "bias": 0.0},
-    "pulse": {"amplitude": 1.0, "period": 1.0, "width": 0.5, "delay": 0.0},
-    "table": {"file": None, "interpolation": "linear", "extrapolation": "clip"},
-    "expression": {"expression": None},
-    "constant": {"value": None},
-}
+SIGNAL_KEYS: Mapping[str, dict] = _SignalKeys()
+
+
+def signal_type_list(last: str = ", ") -> str:
+    """The registered signal types for a message: "step, ramp, ..., constant" (``last`` before the final one)."""
+    names = list(SIGNAL_KEYS)
+    return ", ".join(names[:-1]) + last + names[-1] if len(names) > 1 else "".join(names)
 
 
 def build_inputs(model: schema.Experiment, inputs: tuple[str, ...], path: Path, tspan: np.ndarray, *,
@@ -233,8 +252,8 @@ def build_inputs(model: schema.Experiment, inputs: tuple[str, ...], path: Path, 
     for name in inputs:
         spec = specs.get(name)
         if spec is None:
-            raise ExperimentError(f"input {name!r} has no signal: add [inputs.{name}] with a `type` (step, ramp, "
-                                  "sine, pulse, table, expression, constant).", key=f"inputs.{name}")
+            raise ExperimentError(f"input {name!r} has no signal: add [inputs.{name}] with a `type` "
+                                  f"({signal_type_list()}).", key=f"inputs.{name}")
         given = {k: v for k, v in spec.model_dump().items() if v is not None and k != "type"}
         signal, values = build_signal(spec.type, given, key=f"inputs.{name}", path=path, params=model_params(model),
                                       what="input", max_rows=max_rows)
@@ -258,8 +277,9 @@ def build_signal(kind: str, given: dict, *, key: str, path: Path, params: dict[s
     (``inputs.f``, ``blocks.force``) and ``what`` the noun for messages. Returns the signal and
     its resolved keys (defaults filled in).
     """
-    from odelab import signals as sg
+    from odelab.signals import SIGNALS, SignalContext
 
+    cls = SIGNALS[kind]
     allowed = SIGNAL_KEYS[kind]
     for k in given:
         if k not in allowed:
@@ -267,58 +287,19 @@ def build_signal(kind: str, given: dict, *, key: str, path: Path, params: dict[s
                                   f"{', '.join(allowed)}.", key=f"{key}.{k}")
     values = {**allowed, **given}
     for k in allowed:
-        if values[k] is None and k in ("file", "expression", "value"):
+        if values[k] is None:
             raise ExperimentError(f"`{key}.{k}` is required for a {kind} {what}.", key=f"{key}.{k}")
     for k, value in values.items():
         if isinstance(value, float) and not np.isfinite(value):
             raise ExperimentError(f"`{key}.{k}` must be finite; got {value!r}.", key=f"{key}.{k}")
+    ctx = SignalContext(key=key, what=what, params=params, max_rows=max_rows,
+                        resolve_file=lambda name, k: resolve_user_file(name, k, path))
     try:
-        if kind == "step":
-            signal = sg.Step(time=float(values["time"]), initial=float(values["initial"]),
-                             final=float(values["final"]))
-        elif kind == "ramp":
-            signal = sg.Ramp(slope=float(values["slope"]), start=float(values["start"]),
-                             initial=float(values["initial"]))
-        elif kind == "sine":
-            signal = sg.Sine(amplitude=float(values["amplitude"]), frequency=float(values["frequency"]),
-                             phase=float(values["phase"]), bias=float(values["bias"]))
-        elif kind == "pulse":
-            signal = sg.Pulse(amplitude=float(values["amplitude"]), period=float(values["period"]),
-                              width=float(values["width"]), delay=float(values["delay"]))
-        elif kind == "table":
-            csv = resolve_user_file(values["file"], f"{key}.file", path)
-            if not csv.is_file():
-                raise ExperimentError(f"`{key}.file`: {values['file']!r} does not exist (looked for {csv}).",
-                                      key=f"{key}.file")
-            for k, allowed_values in (("interpolation", sg.INTERPOLATIONS), ("extrapolation", sg.EXTRAPOLATIONS)):
-                if values[k] not in allowed_values:
-                    close = difflib.get_close_matches(str(values[k]), allowed_values, n=1)
-                    hint = f" Did you mean {close[0]!r}?" if close else ""
-                    raise ExperimentError(f"`{key}.{k}` is {values[k]!r}; use one of "
-                                          f"{', '.join(repr(a) for a in allowed_values)} (Simulink's names).{hint}",
-                                          key=f"{key}.{k}")
-            try:
-                signal = sg.Table.from_csv(csv, max_rows=max_rows, interpolation=values["interpolation"],
-                                           extrapolation=values["extrapolation"])
-            except InputError as exc:  # named from the experiment file, which is what the user runs
-                text = exc.message[:1].lower() + exc.message[1:]
-                if max_rows and text.startswith("the table file has more than"):
-                    text += (f" The budget is {max_rows:,} rows per input table (each row is a breakpoint at which "
-                             f"the solver restarts); raise it with `odelab run --limit table_rows=N` if you mean it.")
-                raise ExperimentError(f"`{key}.file` {values['file']!r}: {text}", key=f"{key}.file") from None
-        elif kind == "constant":
-            signal = sg.Constant(float(values["value"]))
-        else:
-            compiled = expr().compile_expression(values["expression"], names=["t", *params],
-                                                 key=f"{key}.expression")
-            def expression_signal(t, _e=compiled, _p=params):
-                return _e(t=t, **_p)
-
-            # its text, key and parameters: the compiled backend generates it (solvers/compiled/inputs.py)
-            expression_signal.odelab_expression = (str(values["expression"]), f"{key}.expression", dict(params))
-            signal = sg.Function(expression_signal, label=str(values["expression"]))
-    except InputError as exc:
-        raise exc.located(key=key) from None
+        signal = cls.from_toml(values, ctx)
+    except ExperimentError:
+        raise
+    except InputError as exc:  # the signal names the key; an experiment file's error all the same
+        raise ExperimentError(exc.message, source=exc.source, key=exc.key or key) from None
     return signal, {k: v for k, v in values.items() if v is not None}
 
 

@@ -76,6 +76,7 @@ def _value(kind: str, value, key: str, params: dict[str, float]):
 
 
 def _source(name: str, spec: dict, path: Path, params: dict[str, float], max_rows: int | None = None):
+    from odelab.signals import SIGNALS
     from odelab.systems.diagram.blocks import Source
 
     kind = spec["type"]
@@ -89,8 +90,9 @@ def _source(name: str, spec: dict, path: Path, params: dict[str, float], max_row
                                   key=f"{key}.{k}")
         if k not in SIGNAL_KEYS[kind]:
             given[k] = v  # build_signal names the keys that do not apply
-        elif k in ("file", "expression", "interpolation", "extrapolation"):
-            given[k] = _value("expression" if k == "expression" else "text", v, f"{key}.{k}", params)
+        elif SIGNALS[kind].KEYS[k].kind != "number":  # a file name, a method's name, an expression of t
+            given[k] = _value("expression" if SIGNALS[kind].KEYS[k].kind == "expression" else "text", v,
+                              f"{key}.{k}", params)
         else:
             given[k] = _value("number", v, f"{key}.{k}", params)
     signal, values = build_signal(kind, given, key=key, path=path, params=params, what="block", max_rows=max_rows)

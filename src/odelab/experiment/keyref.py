@@ -3,7 +3,7 @@
 Every key the pydantic schema (:mod:`odelab.experiment.schema`) accepts is listed with its
 type, default and choices read from the model itself; the free-form tables that other modules
 check (``[sweep]``, ``[study]``, ``[events]``, ``[[case]]``, ``[[problem]]``) and each input
-signal type's keys (from :data:`odelab.experiment.build.SIGNAL_KEYS`) are added from the
+signal type's keys (from the signal registry, :data:`odelab.signals.SIGNALS`) are added from the
 modules that check them. A sentence per key comes from :data:`NOTES`; a key without one is
 still listed, with its type and default. ``odelab explain KEY`` and the documentation's key
 reference page both read :func:`entries`.
@@ -386,33 +386,32 @@ def _walk(model, prefix: str, out: list[KeyEntry]) -> None:
 
 
 def _inputs(out: list[KeyEntry]) -> None:
+    """Each type of the signal registry, with its keys, defaults and units."""
     from odelab.experiment import schema
-    from odelab.experiment.build import SIGNAL_KEYS
+    from odelab.signals import SIGNALS
 
-    kinds = tuple(SIGNAL_KEYS)
+    kinds = tuple(SIGNALS)
     out.append(KeyEntry("inputs.<name>", "table", None, (), NOTES.get("inputs.<name>", ""),
-                        children=("type", *sorted({k for keys in SIGNAL_KEYS.values() for k in keys}))))
-    type_field = schema.InputSignal.model_fields["type"]
-    _, choices, _ = _type_text(type_field.annotation)
-    out.append(KeyEntry("inputs.<name>.type", "string", "required", choices or kinds,
-                        NOTES.get("inputs.<name>.type", "")))
-    fields = schema.InputSignal.model_fields
-    for kind, keys in SIGNAL_KEYS.items():
-        out.append(KeyEntry(f"inputs.{kind}", "signal type", None, (), NOTES.get(f"inputs.{kind}", ""),
-                            children=tuple(keys)))
-        for key, default in keys.items():
+                        children=("type", *sorted({k for cls in SIGNALS.values() for k in cls.KEYS}))))
+    out.append(KeyEntry("inputs.<name>.type", "string", "required", kinds, NOTES.get("inputs.<name>.type", "")))
+    fields = schema.input_signal_model().model_fields
+    for kind, cls in SIGNALS.items():
+        doc = " ".join((cls.__doc__ or "").strip().split("\n\n")[0].split()).replace("``", "`")
+        out.append(KeyEntry(f"inputs.{kind}", "signal type", None, (), NOTES.get(f"inputs.{kind}", doc),
+                            children=tuple(cls.KEYS)))
+        for key, spec in cls.KEYS.items():
             text = _type_text(fields[key].annotation)[0] if key in fields else "value"
-            shown = None if default is None else repr(default)
+            shown = None if spec.default is None else repr(spec.default)
             path = f"inputs.{kind}.{key}"
-            out.append(KeyEntry(path, text, "required" if default is None else shown, (), NOTES.get(path, "")))
+            out.append(KeyEntry(path, text, "required" if spec.default is None else shown, (), NOTES.get(path, "")))
 
 
 def _blocks(out: list[KeyEntry]) -> None:
     """Each block type of the diagram registry, with its keys, defaults and meanings."""
-    from odelab.experiment.build import SIGNAL_KEYS
+    from odelab.signals import SIGNALS
     from odelab.systems.diagram.blocks import BLOCKS, REQUIRED
 
-    out.append(KeyEntry("blocks.<name>.type", "string", "required", (*SIGNAL_KEYS, *BLOCKS),
+    out.append(KeyEntry("blocks.<name>.type", "string", "required", (*SIGNALS, *BLOCKS),
                         "The block type: a source (any input signal type, with that type's keys) or one of the "
                         "diagram blocks listed under blocks.<type>."))
     out.append(KeyEntry("blocks.<name>.input", "string", None, (),
@@ -476,12 +475,24 @@ def _free_form(out: list[KeyEntry]) -> None:
 
 
 _CACHE: list[tuple[KeyEntry, ...]] = []
+_CACHED_FOR: list[tuple] = []  # the registries the cache was read from
+
+
+def _registries() -> tuple:
+    from odelab.signals import SIGNALS
+
+    return tuple(SIGNALS.items())
 
 
 def entries() -> tuple[KeyEntry, ...]:
     """Every key of an experiment file, in the schema's order, then the free-form tables."""
+    if _CACHED_FOR and _CACHED_FOR[0] != _registries():  # a type was registered since
+        _CACHE.clear()
+        _CACHED_FOR.clear()
     if not _CACHE:
         from odelab.experiment import schema
+
+        _CACHED_FOR.append(_registries())
 
         out: list[KeyEntry] = []
         _walk(schema.Experiment, "", out)

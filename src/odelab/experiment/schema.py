@@ -9,9 +9,10 @@ A value written ``Value`` is a number or a string in the expression language (``
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal, Optional, Union
 
-from pydantic import BaseModel, ConfigDict, Field, StrictBool, StrictFloat, StrictInt, StrictStr
+from pydantic import (BaseModel, ConfigDict, Field, StrictBool, StrictFloat, StrictInt, StrictStr, WrapValidator,
+                      create_model)
 
 Number = Union[StrictInt, StrictFloat]
 Value = Union[StrictInt, StrictFloat, StrictStr]
@@ -86,33 +87,41 @@ class Reference(_Section):
     atol: Number = 1e-14
 
 
-class InputSignal(_Section):
-    """One entry of [inputs]: u(t) for one input name."""
+# How a signal key is given (odelab.signals.SignalKey.kind) -> its type in the schema
+_SIGNAL_KEY_TYPES = {"number": Number, "text": StrictStr, "expression": Value}
+_SIGNAL_MODELS: dict[tuple, type[BaseModel]] = {}
 
-    type: Literal["step", "ramp", "sine", "pulse", "table", "expression", "constant"]
-    # step
-    time: Number | None = None
-    initial: Number | None = None
-    final: Number | None = None
-    # ramp
-    slope: Number | None = None
-    start: Number | None = None
-    # sine
-    amplitude: Number | None = None
-    frequency: Number | None = None
-    phase: Number | None = None
-    bias: Number | None = None
-    # pulse
-    period: Number | None = None
-    width: Number | None = None
-    delay: Number | None = None
-    # table
-    interpolation: StrictStr | None = None  # linear | flat | nearest | cubic-spline (odelab.signals.interpolate_1d)
-    extrapolation: StrictStr | None = None  # clip | linear
-    file: StrictStr | None = None
-    # expression / constant
-    expression: Value | None = None
-    value: Number | None = None
+
+def input_signal_model() -> type[BaseModel]:
+    """The model of one [inputs.<name>] table, built from the signal registry (:data:`odelab.signals.SIGNALS`).
+
+    ``type`` is one of the registered types and the other keys are every type's keys (which of
+    them apply to the given type is checked when the signal is built). Rebuilt when a type is
+    registered, so a signal type is one class in one file.
+    """
+    from odelab.signals import SIGNALS
+
+    shape = tuple((name, tuple((k, spec.kind) for k, spec in cls.KEYS.items())) for name, cls in SIGNALS.items())
+    model = _SIGNAL_MODELS.get(shape)
+    if model is None:
+        fields: dict[str, Any] = {"type": (Literal[tuple(SIGNALS)], ...)}
+        for cls in SIGNALS.values():
+            for k, spec in cls.KEYS.items():
+                fields.setdefault(k, (Optional[_SIGNAL_KEY_TYPES[spec.kind]], None))
+        model = create_model("InputSignal", __base__=_Section, __doc__="One entry of [inputs]: u(t) for one input "
+                             "name.", **fields)
+        _SIGNAL_MODELS.clear()  # one registry at a time
+        _SIGNAL_MODELS[shape] = model
+    return model
+
+
+def _input_signal(value: Any, handler) -> BaseModel:
+    model = input_signal_model()
+    return value if isinstance(value, model) else model.model_validate(value)
+
+
+#: One entry of [inputs]: validated by the model of the signal registry as it is now.
+InputSignal = Annotated[Any, WrapValidator(_input_signal)]
 
 
 class Linearize(_Section):
@@ -209,7 +218,7 @@ class Experiment(_Section):
     history: dict[str, Value] | None = None  # [history]: x(t) for t <= t0 of delay equations (experiment/delays.py)
     solver: Solver = Field(default_factory=Solver)
     reference: Reference = Field(default_factory=Reference)
-    inputs: dict[str, Annotated[InputSignal, Field()]] | None = None
+    inputs: dict[str, InputSignal] | None = None
     linearize: Linearize | None = None
     analysis: Analysis | None = None
     blocks: dict[str, dict[str, Any]] | None = None  # kind = "diagram"; checked by experiment/diagram.py

@@ -89,8 +89,15 @@ _REQUIRED_HINT = {
     "system": "add a [system] table with `states` and [system.equations] (or `function`, or kind = \"state-space\")",
     "time": "add a [time] table with at least `stop`",
     "time.stop": "add `stop = 10` (or an expression such as \"2*pi\") under [time]",
-    "type": "give the signal's `type`: step, ramp, sine, pulse, table, expression or constant",
 }
+
+
+def _required_hint(key: str) -> str:
+    if key.rsplit(".", 1)[-1] == "type" and key not in _REQUIRED_HINT:
+        from odelab.experiment.build import signal_type_list
+
+        return f"give the signal's `type`: {signal_type_list(' or ')}"
+    return _REQUIRED_HINT.get(key) or _REQUIRED_HINT.get(key.rsplit(".", 1)[-1], "")
 
 
 def schema_error(exc: ValidationError, *, source: str, case: str | None, data: Any = None) -> ExperimentError:
@@ -113,7 +120,7 @@ def schema_error(exc: ValidationError, *, source: str, case: str | None, data: A
 
             lines.append(unknown_key_message(key, _node_at(data, err["loc"][:-1])))
         elif "missing" in kinds:
-            hint = _REQUIRED_HINT.get(key) or _REQUIRED_HINT.get(key.rsplit(".", 1)[-1], "")
+            hint = _required_hint(key)
             lines.append(f"`{key}` is required" + (f": {hint}." if hint else "."))
         elif "literal_error" in kinds:
             expected = err.get("ctx", {}).get("expected", "")

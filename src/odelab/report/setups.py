@@ -38,36 +38,23 @@ def _g(value: Any) -> str:
 
 
 def describe_signal(name: str, spec: Any) -> str:
-    """An input signal as a formula where it has one: ``f = sin(0.2 t)``, ``f steps 0 → 1 at t = 0``."""
+    """An input signal as a formula where it has one: ``f = sin(0.2 t)``, ``f steps 0 → 1 at t = 0``.
+
+    The signal type describes itself (``describe`` of its class in the signal registry).
+    """
+    from odelab.signals import SIGNALS, plain_description
+
     if not isinstance(spec, dict):
         return f"{name} = {spec}"
     kind = spec.get("type")
     v = {k: x for k, x in spec.items() if x is not None}
+    cls = SIGNALS.get(kind) if isinstance(kind, str) else None
     try:
-        if kind == "step":
-            return f"{name} steps {_g(v.get('initial', 0))} → {_g(v.get('final', 1))} at t = {_g(v.get('time', 0))}"
-        if kind == "sine":
-            a, w, phi, bias = (v.get("amplitude", 1), v.get("frequency", 1), v.get("phase", 0), v.get("bias", 0))
-            arg = f"{_g(w)} t" if w != 1 else "t"
-            arg += f" + {_g(phi)}" if phi else ""
-            term = ("" if a == 1 else "-" if a == -1 else f"{_g(a)} ") + f"sin({arg})"
-            return f"{name} = " + (f"{_g(bias)} + {term}" if bias else term)
-        if kind == "ramp":
-            slope, start, initial = v.get("slope", 1), v.get("start", 0), v.get("initial", 0)
-            var = "t" if not start else f"(t - {_g(start)})"
-            term = var if slope == 1 else f"{_g(slope)} {var}"
-            text = f"{_g(initial)} + {term}" if initial else term
-            return f"{name} = {text}" + (f" for t >= {_g(start)}" if start else "")
-        if kind == "constant":
-            return f"{name} = {_g(v.get('value'))}"
-        if kind == "expression":
-            return f"{name} = {v.get('expression')}"
-        if kind == "table":
-            return f"{name}: table {v.get('file')}"
+        if cls is not None:
+            return cls.describe(name, v)
     except TypeError:  # a hand-edited record with odd values: fall through to the plain listing
         pass
-    args = ", ".join(f"{k} {_g(x)}" for k, x in v.items() if k != "type")
-    return f"{name}: {kind or 'signal'}" + (f" ({args})" if args else "")
+    return plain_description(name, kind if isinstance(kind, str) else None, v)
 
 
 def inputs_text(run: StoredRun) -> str:
