@@ -38,8 +38,6 @@ LONG_FUNCTIONS = {
     "odelab.systems.diagram.hybrid.simulate_hybrid": "loops: the hybrid diagram driver",
     "odelab.systems.network.derive.derive": "network: the symbolic derivation",
     "odelab.systems.simulate.simulate": "systems: one driver per response kind",
-    "odelab.experiment.loader.compile_case": "arch26: splitting the loader (issue 26, step 4)",
-    "odelab.experiment.fit._fit_case": "arch26: splitting the loader (issue 26, step 4)",
 }
 
 

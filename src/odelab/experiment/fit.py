@@ -280,7 +280,7 @@ def _matrix_texts(value) -> list | None:
 def _fit_case(case, model: schema.Experiment, names: tuple[str, ...], quantities, spec: schema.Fit, path: Path):
     """Compile a case's model as complex-step functions of the fitted parameters ``names``."""
     from odelab.analysis.sensitivity import ParametricModel
-    from odelab.expressions import compile_expression, compile_vector
+    from odelab.expressions import compile_vector
 
     p = case.problem
     system = model.system
@@ -289,41 +289,8 @@ def _fit_case(case, model: schema.Experiment, names: tuple[str, ...], quantities
                      f"{'`function`' if system.function is not None else system.kind} system.", "fit")
     if p.events is not None or p.linearize is not None:
         raise _error(f"[fit] cannot fit case {case.name!r}, which has [events] or [linearize].", "fit")
-    raw_params = dict(model.parameters)
-    values = dict(p.parameters)
-    # parameters computed from fitted ones are recomputed from them: in their order of dependence
-    depends: dict[str, set[str]] = {}
-    compiled_params: dict[str, Any] = {}
-    for pname, text in raw_params.items():
-        if isinstance(text, str) and pname not in names:
-            ce = compile_expression(text, names=list(raw_params), key=f"parameters.{pname}", complex_step=True)
-            compiled_params[pname] = ce
-            depends[pname] = set(ce.names) & set(raw_params)
-    dependent = list(names)
-    changed = True
-    while changed:
-        changed = False
-        for pname, deps in depends.items():
-            if pname not in dependent and deps & set(dependent):
-                dependent.append(pname)
-                changed = True
-    derived = [n for n in dependent if n not in names]
-    order: list[str] = []
-    while len(order) < len(derived):  # the loader has refused cycles already
-        for pname in derived:
-            if pname not in order and not (depends[pname] & (set(derived) - set(order))):
-                order.append(pname)
-    fixed = {k: float(v) for k, v in values.items() if k not in dependent}
-
-    def parameter_values(P) -> list:
-        """Values of the dependent parameters (fitted, then derived) for parameter rows P."""
-        env: dict[str, Any] = dict(fixed)
-        env.update({n: P[i] for i, n in enumerate(names)})
-        for pname in order:
-            ce = compiled_params[pname]
-            env[pname] = ce(**{k: env[k] for k in ce.names if k in env})
-        return [env[n] for n in dependent]
-
+    dependent, derived, depends, fixed, parameter_values = _dependent_parameters(
+        dict(model.parameters), dict(p.parameters), names)
     states, inputs, outputs = p.states, p.inputs, p.outputs
     n = len(states)
     used: set[str] = set()
@@ -447,6 +414,51 @@ def _fit_case(case, model: schema.Experiment, names: tuple[str, ...], quantities
     model_obj = ParametricModel(states=tuple(states), parameters=names, rhs=rhs, initial=initial,
                                 breakpoints=tuple(sorted(set(breakpoints))))
     return FitCase(case.name, model_obj, observe, case_quantities, data.t, measured, weights, t0, tf, atol), reach
+
+
+def _dependent_parameters(raw_params: dict, values: dict, names: tuple[str, ...]):
+    """The parameters that depend on the fitted ``names`` and how to compute them from a row of values.
+
+    Parameters computed from fitted ones are recomputed from them, in their order of
+    dependence. Returns (dependent: the fitted then the derived names, derived, depends: each
+    computed parameter's parameters, fixed: the others' values, parameter_values(P)).
+    """
+    from odelab.expressions import compile_expression
+
+    # parameters computed from fitted ones are recomputed from them: in their order of dependence
+    depends: dict[str, set[str]] = {}
+    compiled_params: dict[str, Any] = {}
+    for pname, text in raw_params.items():
+        if isinstance(text, str) and pname not in names:
+            ce = compile_expression(text, names=list(raw_params), key=f"parameters.{pname}", complex_step=True)
+            compiled_params[pname] = ce
+            depends[pname] = set(ce.names) & set(raw_params)
+    dependent = list(names)
+    changed = True
+    while changed:
+        changed = False
+        for pname, deps in depends.items():
+            if pname not in dependent and deps & set(dependent):
+                dependent.append(pname)
+                changed = True
+    derived = [n for n in dependent if n not in names]
+    order: list[str] = []
+    while len(order) < len(derived):  # the loader has refused cycles already
+        for pname in derived:
+            if pname not in order and not (depends[pname] & (set(derived) - set(order))):
+                order.append(pname)
+    fixed = {k: float(v) for k, v in values.items() if k not in dependent}
+
+    def parameter_values(P) -> list:
+        """Values of the dependent parameters (fitted, then derived) for parameter rows P."""
+        env: dict[str, Any] = dict(fixed)
+        env.update({n: P[i] for i, n in enumerate(names)})
+        for pname in order:
+            ce = compiled_params[pname]
+            env[pname] = ce(**{k: env[k] for k in ce.names if k in env})
+        return [env[n] for n in dependent]
+
+    return dependent, derived, depends, fixed, parameter_values
 
 
 def _closure(pname: str, depends: dict[str, set[str]]) -> set[str]:
