@@ -354,6 +354,20 @@ def test_an_expression_input_runs_compiled(tmp_path):
     np.testing.assert_allclose(compiled.x, python.x, rtol=0, atol=1e-12 * np.max(np.abs(python.x)))
 
 
+def test_an_expression_input_with_a_parameter_named_e_runs_compiled(tmp_path):
+    # a parameter e shadows Euler's number in an input's expression too, on both engines: the
+    # same run as the literal 0.5 (odelab.expressions.functions.shadowed_constants)
+    named = EXPRESSION_INPUT.replace("w = 1.7", "w = 1.7\ne = 0.5").replace('"0.5*sin(w*t)', '"e*sin(w*t)')
+    (tmp_path / "named.toml").write_text(named, encoding="utf-8")
+    (tmp_path / "forced.toml").write_text(EXPRESSION_INPUT, encoding="utf-8")
+    case = load_experiment(tmp_path / "named.toml").cases[0]
+    literal = run_case(load_experiment(tmp_path / "forced.toml").cases[0], backend="python")
+    python, compiled = run_case(case, backend="python"), run_case(case, backend="compiled")
+    assert compiled.backend == "compiled" and compiled.stats == python.stats == literal.stats
+    np.testing.assert_array_equal(python.x, literal.x)
+    np.testing.assert_allclose(compiled.x, python.x, rtol=0, atol=1e-12 * np.max(np.abs(python.x)))
+
+
 LONG_INPUT = """
 title = "Exercise 2's plant driven by a pulse train for a long time"
 [parameters]
