@@ -35,17 +35,18 @@ from odelab.solvers.status import Status as _Status
 
 # The step-size rules: this module's text begins with odelab/solvers/controller.py (see
 # cache._KERNELS), whose pure functions are compiled here, so both engines take the same steps.
-@_njit(cache=True, error_model="numpy")
+# Inlined into the loops (numba's IR): no compile unit or cache entry of their own.
+@_njit(inline="always", error_model="numpy")
 def _ulp(x):
     return _np.spacing(abs(x))
 
 
-min_step = _njit(cache=True, error_model="numpy")(min_step)  # noqa: F821 (controller.py's)
-given_step = _njit(cache=True, error_model="numpy")(given_step)  # noqa: F821
-first_step = _njit(cache=True, error_model="numpy")(first_step)  # noqa: F821
-clamp_step = _njit(cache=True, error_model="numpy")(clamp_step)  # noqa: F821
-shrink = _njit(cache=True, error_model="numpy")(shrink)  # noqa: F821
-grow = _njit(cache=True, error_model="numpy")(grow)  # noqa: F821
+min_step = _njit(inline="always", error_model="numpy")(min_step)  # noqa: F821 (controller.py's)
+given_step = _njit(inline="always", error_model="numpy")(given_step)  # noqa: F821
+first_step = _njit(inline="always", error_model="numpy")(first_step)  # noqa: F821
+clamp_step = _njit(inline="always", error_model="numpy")(clamp_step)  # noqa: F821
+shrink = _njit(inline="always", error_model="numpy")(shrink)  # noqa: F821
+grow = _njit(inline="always", error_model="numpy")(grow)  # noqa: F821
 
 
 @_njit(cache=True, error_model="numpy")
