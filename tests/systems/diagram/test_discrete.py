@@ -112,8 +112,9 @@ def test_continuous_pid_is_its_transfer_function():
     assert d.linear
     A, B, C, Dm = d.matrices()
     H = ct.ss2tf(ct.ss(A, B, C, Dm))
-    np.testing.assert_allclose(np.polyval(H.num[0][0], 1.7j) / np.polyval(H.den[0][0], 1.7j),
-                               G(1.7j), rtol=1e-13)
+    w = np.logspace(-2, 3, 26)  # across the integral, proportional and filtered-derivative bands
+    np.testing.assert_allclose(np.polyval(H.num[0][0], 1j * w) / np.polyval(H.den[0][0], 1j * w),
+                               G(1j * w), rtol=1e-13)
     t = np.linspace(0, 2, 21)
     r = d.simulate(t, rtol=1e-12, atol=1e-14)
     np.testing.assert_allclose(r.y[:, 0], P + I * t + D * N * np.exp(-N * t), rtol=1e-10, atol=1e-10)
