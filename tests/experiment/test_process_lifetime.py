@@ -114,6 +114,16 @@ def _wait_children(proc, count: int, seen: set[int], timeout: float = 120.0, set
     raise AssertionError(f"the run did not start {count} worker processes (exit {proc.poll()}, saw {sorted(seen)})")
 
 
+GONE_WITHIN = 30.0  # s: generous, so that a machine under load cannot fail the test
+
+
+def _cmdline(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()[:120]
+    except OSError:
+        return "?"
+
+
 def _killed_run_leaves_nothing(tmp_path, *args, count: int):
     (tmp_path / "four.toml").write_text(FOUR_LONG)
     proc = _start(tmp_path, "four.toml", *args)
@@ -123,10 +133,12 @@ def _killed_run_leaves_nothing(tmp_path, *args, count: int):
         proc.kill()
         proc.wait(timeout=10)
         killed = time.monotonic()
-        while time.monotonic() - killed < 3.0 and any(map(_alive, workers)):
+        # The kernel kills them at once (PR_SET_PDEATHSIG); the bound only waits for a loaded
+        # machine to schedule their exit, it measures nothing (bench/ measures the time).
+        while time.monotonic() - killed < GONE_WITHIN and any(map(_alive, workers)):
             time.sleep(0.02)
-        left = sorted(p for p in workers if _alive(p))
-        assert not left, f"still running 3 s after the SIGKILL: {left}"
+        left = {p: _cmdline(p) for p in sorted(workers) if _alive(p)}
+        assert not left, f"still running {GONE_WITHIN:.0f} s after the SIGKILL: {left}"
         return time.monotonic() - killed
     finally:
         if proc.poll() is None:
