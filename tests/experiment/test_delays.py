@@ -143,8 +143,31 @@ def test_lag_elsewhere_is_refused(tmp_path):
 def test_what_delay_systems_cannot_do_yet_is_said(tmp_path):
     with pytest.raises(ExperimentError, match="high-accuracy"):
         load_experiment(write(tmp_path, BASE + '[reference]\nmethod = "high-accuracy"\n'))
-    with pytest.raises(ExperimentError, match=r"\[events\]"):
-        load_experiment(write(tmp_path, BASE + '[events.zero]\nwhen = "y"\n'))
+    with pytest.raises(ExperimentError, match="restarting delay equations") as info:
+        load_experiment(write(tmp_path, BASE + '[events.zero]\nwhen = "y"\nterminal = true\nreset = { y = 1 }\n'))
+    assert info.value.key == "events.zero.reset"
+
+
+def test_events_on_delay_equations(tmp_path):
+    # y = 1 - t on [0, 1]: y = 0.5 at t = 0.5 exactly; y rises through 0 where the quartic of [3, 4]
+    # (t^4 - 16 t^3 + 90 t^2 - 204 t + 149)/24 vanishes, t = 3.3459398..., which stops the run
+    root = min(r.real for r in np.roots([1, -16, 90, -204, 149]) if abs(r.imag) < 1e-12 and 3 < r.real < 4)
+    text = BASE + """[solver]
+rtol = 1e-8
+atol = 1e-11
+[events.half]
+when = "y - 0.5"
+direction = "falling"
+[events.zero]
+when = "y"
+direction = "rising"
+terminal = true
+"""
+    (r,) = run_experiment(write(tmp_path, text))
+    assert r.status == "success" and [e["name"] for e in r.events] == ["half", "zero"]
+    assert abs(r.events[0]["t"] - 0.5) <= 1e-12
+    assert abs(r.events[1]["t"] - root) <= 1e-6  # the solution's error at rtol 1e-8 over its slope 0.16
+    assert r.t[-1] == r.events[1]["t"]
 
 
 def test_a_parameter_named_lag_still_works(tmp_path):

@@ -76,8 +76,8 @@ def method_name(model: schema.Experiment, built: Built) -> str:
 
 
 def check_delay_method(model: schema.Experiment, built: Built, method) -> None:
-    """A delay system runs with dde23 only; [history] belongs to delay equations; [events] are not
-    supported with delays yet."""
+    """A delay system runs with dde23 only; [history] belongs to delay equations; its [events] are
+    located by dde23, without resets."""
     if not is_delay_system(built):
         if model.history is not None:
             raise ExperimentError(_NO_LAG, key="history")
@@ -86,9 +86,13 @@ def check_delay_method(model: schema.Experiment, built: Built, method) -> None:
                                   "system has no delayed states (lag(x, tau) in [system.equations]): use ode23 or "
                                   "ode45.", key="solver.method")
         return
-    if model.events is not None:
-        raise ExperimentError("[events] are not located on delay equations yet: dde23 finds events from Python "
-                              "(odelab.dde23(..., Events=...)); remove [events] from this file.", key="events")
+    for name, spec in (model.events or {}).items():
+        if isinstance(spec, dict) and "reset" in spec:
+            # a restart needs the whole past as its history (MATLAB: dde23(ddefun, lags, sol, [te tf]))
+            raise ExperimentError(f"`events.{name}.reset`: restarting delay equations after an event is not supported "
+                                  "yet (the restart needs the solution so far as its history); events that stop the "
+                                  "run (terminal = true) or are only recorded work. Remove `reset`.",
+                                  key=f"events.{name}.reset")
     check_delay_case(model, method, "")
 
 
