@@ -235,7 +235,7 @@ def _case_events(model: schema.Experiment, method, inputs, states, params: dict,
 
     if method.kind not in ("adaptive", "multistep", "implicit", "delay"):
         raise ExperimentError(f"[events] are located by ode23, ode45, ode78, ode89, ode113, ode15s, ode23s, ode23t "
-                              f"and ode23tb (MATLAB's Events), and by dde23 for delay equations; `solver.method` is "
+                              f"and ode23tb (MATLAB's Events); `solver.method` is "
                               f"{method.name!r}.", key="solver.method")
     if inputs or model.linearize is not None:
         raise ExperimentError("[events] work with systems without [inputs] and without [linearize]; remove one "
