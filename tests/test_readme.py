@@ -20,3 +20,25 @@ def test_readme_starts_with_exactly_two_setup_lines():
 def test_ci_runs_the_readme_test_line_verbatim():
     ci = (ROOT / ".ci" / "run").read_text().splitlines()
     assert setup_lines()[1] in ci
+
+
+def test_readme_lists_every_block_with_its_keys_and_defaults():
+    """Issue 21: the README's table of blocks names every registered block, each of its keys,
+    and whether a key is required or what its default is."""
+    from odelab.systems.diagram.blocks import BLOCKS, REQUIRED
+
+    text = (ROOT / "README.md").read_text()
+    table = text.split("## Diagram blocks", 1)[1].split("\n## ", 1)[0]
+    rows = {line.split("|")[1].strip().strip("`"): line.split("|")[2] for line in table.splitlines()
+            if line.startswith("| `")}
+    assert set(rows) == set(BLOCKS), sorted(set(rows) ^ set(BLOCKS))
+    for name, cls in BLOCKS.items():
+        for key, spec in cls.KEYS.items():
+            if spec.default is REQUIRED:
+                assert f"`{key}`" in rows[name], f"{name}: required key {key}"
+            elif spec.default is None:
+                assert f"`{key}` (optional)" in rows[name], f"{name}: optional key {key}"
+            else:
+                assert f"`{key} = " in rows[name], f"{name}: key {key} with its default"
+        if isinstance(getattr(cls.KEYS.get("initial"), "default", None), float):
+            assert f"`initial = {cls.KEYS['initial'].default:g}`" in rows[name], name
