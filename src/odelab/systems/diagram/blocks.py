@@ -803,6 +803,23 @@ class StateSpaceBlock(_Linear):
         return f"{name}\nx' = Ax + Bu\ny = Cx + Du"
 
 
+
+def polynomial_pair(params) -> tuple[np.ndarray, np.ndarray]:
+    """A transfer function's ``num`` and ``den`` keys checked (finite coefficients, a nonzero
+    denominator) with their leading zeros trimmed (a zero numerator is ``[0]``); the causality
+    check, whose words differ between s and z, is the block's."""
+    num = np.atleast_1d(np.asarray(params["num"], dtype=float))
+    den = np.atleast_1d(np.asarray(params["den"], dtype=float))
+    for key, c in (("num", num), ("den", den)):
+        if c.ndim != 1 or not c.size or not np.all(np.isfinite(c)):
+            raise BlockError(f"`{key}` must be a list of finite coefficients; got {params[key]!r}.", key=key)
+    den = np.trim_zeros(den, "f")
+    if not den.size:
+        raise BlockError("`den` is all zeros; the denominator needs a nonzero coefficient.", key="den")
+    num = np.trim_zeros(num, "f") if np.any(num) else np.zeros(1)
+    return num, den
+
+
 class TransferFcn(_Linear):
     """Simulink's Transfer Fcn: num(s)/den(s), coefficients in descending powers, as MATLAB's
     ``tf``; realised in MATLAB's controller canonical form (``tf2ss``)."""
@@ -813,15 +830,7 @@ class TransferFcn(_Linear):
     DOC = "y = num(s)/den(s) u"
 
     def check(self):
-        num = np.atleast_1d(np.asarray(self.params["num"], dtype=float))
-        den = np.atleast_1d(np.asarray(self.params["den"], dtype=float))
-        for key, c in (("num", num), ("den", den)):
-            if c.ndim != 1 or not c.size or not np.all(np.isfinite(c)):
-                raise BlockError(f"`{key}` must be a list of finite coefficients; got {self.params[key]!r}.", key=key)
-        den = np.trim_zeros(den, "f")
-        if not den.size:
-            raise BlockError("`den` is all zeros; the denominator needs a nonzero coefficient.", key="den")
-        num = np.trim_zeros(num, "f") if np.any(num) else np.zeros(1)
+        num, den = polynomial_pair(self.params)
         if num.size > den.size:
             raise BlockError(f"the transfer function is improper (num has degree {num.size - 1}, den degree "
                              f"{den.size - 1}); a transfer-fcn block needs deg num <= deg den.", key="num")

@@ -16,7 +16,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from odelab.systems.diagram.blocks import REQUIRED, Block, BlockError, Key, _scalar, controller_canonical
+from odelab.systems.diagram.blocks import REQUIRED, Block, BlockError, Key, _scalar, controller_canonical, polynomial_pair
 
 __all__ = ["ZeroOrderHold", "UnitDelay", "DiscreteTransferFcn", "DiscreteStateSpace", "DiscretePID"]
 
@@ -179,15 +179,7 @@ class DiscreteTransferFcn(_Discrete):
     DOC = "y = num(z)/den(z) u"
 
     def check_discrete(self):
-        num = np.atleast_1d(np.asarray(self.params["num"], dtype=float))
-        den = np.atleast_1d(np.asarray(self.params["den"], dtype=float))
-        for key, c in (("num", num), ("den", den)):
-            if c.ndim != 1 or not c.size or not np.all(np.isfinite(c)):
-                raise BlockError(f"`{key}` must be a list of finite coefficients; got {self.params[key]!r}.", key=key)
-        den = np.trim_zeros(den, "f")
-        if not den.size:
-            raise BlockError("`den` is all zeros; the denominator needs a nonzero coefficient.", key="den")
-        num = np.trim_zeros(num, "f") if np.any(num) else np.zeros(1)
+        num, den = polynomial_pair(self.params)
         if num.size > den.size:
             raise BlockError(f"the transfer function is not causal (num has degree {num.size - 1} in z, den degree "
                              f"{den.size - 1}); a discrete-transfer-fcn needs deg num <= deg den.", key="num")
