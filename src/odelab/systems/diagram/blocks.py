@@ -15,219 +15,16 @@ limits, dead zone) is taken on real parts, so the derivative through it is exact
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 
 from odelab.exceptions import InputError
+from odelab.systems.diagram.base import (BLOCKS, REQUIRED, ZC_KEY, Block, BlockError, Key, _broadcast_width, _column,
+                                         _real, _scalar, controller_canonical, polynomial_pair, register)
 
-__all__ = ["BLOCKS", "Block", "BlockError", "Key", "Source", "Clock", "Gain", "Sum", "Product", "Integrator",
-           "StateSpaceBlock", "TransferFcn", "Saturation", "DeadZone", "Fcn", "Mux", "Demux", "block_class"]
-
-REQUIRED = object()
-
-
-class BlockError(InputError):
-    """A block's parameters or wiring are wrong; ``key`` is the block's key (e.g. ``signs``)."""
-
-
-@dataclass(frozen=True)
-class Key:
-    """One key a block type takes: its kind, default and meaning (for messages and the README).
-
-    ``kind`` is ``number``, ``numbers`` (a number or a list), ``matrix``, ``text`` (a string
-    taken as is), ``expression`` (expression-language text) or ``count`` (a whole number).
-    """
-
-    kind: str
-    default: Any = REQUIRED
-    doc: str = ""
-
-
-def _real(v):
-    return v.real if np.iscomplexobj(v) else v
-
-
-#: the key every block with switching functions takes
-ZC_KEY = Key("bool", True, "locate the instants the output's formula changes (Simulink's zero-crossing "
-                           "detection); false steps over them")
-
-
-def _column(mode, v):
-    """A per-element mode shaped to broadcast against a signal ``v`` of shape (w,) or (w, N)."""
-    return np.reshape(mode, (-1,) + (1,) * (np.ndim(v) - 1))
-
-
-class Block:
-    """Base class: a block with named inputs (references to other blocks' outputs)."""
-
-    TYPE: ClassVar[str] = ""
-    KEYS: ClassVar[dict[str, Key]] = {}
-    INPUTS: ClassVar[tuple[int, int | None]] = (1, 1)  # least and most number of inputs
-    LINEAR: ClassVar[bool] = True
-    SOURCE: ClassVar[bool] = False
-    DOC: ClassVar[str] = ""
-    SHAPE: ClassVar[str] = "box"  # Graphviz node shape of the drawing
-    #: the block has switching functions (zero crossings, :mod:`~odelab.systems.diagram.zerocross`)
-    ZC: ClassVar[bool] = False
-    #: the block's states are discrete (updated at its sample hits, held between them)
-    DISCRETE: ClassVar[bool] = False
-    #: the block needs the hybrid driver even with zero-crossing detection off (a relay's memory)
-    STATEFUL_MODE: ClassVar[bool] = False
-
-    #: the block's mode, held during a step by the hybrid driver; None: decided from the inputs
-    mode = None
-
-    def __init__(self, *, input: str | None = None, inputs: Sequence[str] | None = None, **values: Any):
-        if input is not None and inputs is not None:
-            raise BlockError("give either `input` or `inputs`, not both.", key="inputs")
-        refs = () if input is None and inputs is None else ((input,) if input is not None else tuple(inputs))
-        for i, ref in enumerate(refs):
-            if not isinstance(ref, str) or not ref:
-                raise BlockError(f"input {i + 1} must be the name of a block; got {ref!r}.", key="inputs")
-        self.inputs: tuple[str, ...] = refs
-        for name in values:
-            if name not in self.KEYS:
-                known = ", ".join(["input", "inputs", *self.KEYS]) if not self.SOURCE else ", ".join(self.KEYS)
-                raise BlockError(f"`{name}` does not apply to a {self.TYPE} block; it takes {known}.", key=name)
-        self.params: dict[str, Any] = {}
-        for name, key in self.KEYS.items():
-            value = values.get(name, key.default)
-            if value is REQUIRED:
-                raise BlockError(f"`{name}` is required for a {self.TYPE} block ({key.doc}).", key=name)
-            self.params[name] = value
-        lo, hi = self.INPUTS
-        n = len(self.inputs)
-        if self.SOURCE and n:
-            raise BlockError(f"a {self.TYPE} block is a source: it takes no `input`.", key="input")
-        if not self.SOURCE and not (lo <= n and (hi is None or n <= hi)):
-            want = str(lo) if lo == hi else (f"at least {lo}" if hi is None else f"{lo} to {hi}")
-            what = "`input = \"name\"`" if hi == 1 else "`inputs = [...]`"
-            raise BlockError(f"a {self.TYPE} block takes {want} input{'s' if want != '1' else ''}; got {n}: "
-                             f"give {what}.", key="inputs" if n > 1 or hi != 1 else "input")
-        self.check()
-
-    # -- what subclasses declare or override -----------------------------------------------------
-
-    def check(self) -> None:
-        """Check the parameters (after defaults are filled in)."""
-
-    def ports(self) -> tuple[str, ...]:
-        """Names of the output ports; a block with one output has the single port ``""``."""
-        return ("",)
-
-    def fixed_widths(self) -> list[int] | None:
-        """Output widths known from the parameters alone (blocks without direct feedthrough)."""
-        return None
-
-    def setup(self, widths: list[int]) -> list[int]:
-        """Check the input widths; return the output width of each port."""
-        return [max(widths)] if widths else [1]
-
-    @property
-    def feedthrough(self) -> bool:
-        """Whether the outputs depend on the inputs at the same instant (direct feedthrough)."""
-        return not self.SOURCE
-
-    @property
-    def linear(self) -> bool:
-        return self.LINEAR
-
-    nstates: int = 0
-
-    def state_names(self, name: str) -> list[str]:
-        return [name] if self.nstates == 1 else [f"{name}.x{i + 1}" for i in range(self.nstates)]
-
-    def initial_state(self) -> np.ndarray:
-        return np.zeros(self.nstates)
-
-    def outputs(self, t, x, u: list, cplx: bool = False) -> list:
-        raise NotImplementedError
-
-    def derivative(self, t, x, u: list):
-        return np.zeros((0,) + np.shape(t))
-
-    def describe(self) -> str:
-        """A short label for drawings and reports, e.g. ``gain 1/m``."""
-        return self.TYPE
-
-    def label(self, name: str) -> str:
-        """The text of the block's node in the drawing (lines separated by newlines)."""
-        return f"{name}\n{self.describe()}"
-
-    def node(self, name: str) -> tuple[str, str, dict]:
-        """How the drawing shows the block: (label, Graphviz shape, other node attributes)."""
-        return self.label(name), self.SHAPE, {}
-
-    def input_mark(self, i: int) -> str | None:
-        """The mark drawn at the head of the arrow into input ``i`` (a sum's sign), or None."""
-        return None
-
-    # -- the compiled backend (:mod:`~odelab.systems.diagram.codegen`) -------------------------
-
-    @property
-    def generated(self) -> bool:
-        """Whether the compiled backend writes this block out (it overrides generate_outputs)."""
-        return type(self).generate_outputs is not Block.generate_outputs
-
-    def generate_outputs(self, g, name: str, ins: list[str]) -> list[str]:
-        """Write the block's outputs as numba lines with ``g`` (a codegen Writer), in the same
-        order of operations as :meth:`outputs`; return one variable per port."""
-        raise NotImplementedError
-
-    def generate_derivative(self, g, name: str, ins: list[str]) -> None:
-        """Write the block's state derivatives (``g.derivative``), as :meth:`derivative`."""
-
-    # -- zero crossings (blocks with ZC = True) ---------------------------------------------------
-
-    @property
-    def zero_crossing(self) -> bool:
-        """Whether this block's switching instants are located (its ``zero_crossing`` key)."""
-        return bool(self.ZC and self.params.get("zero_crossing", True))
-
-    def zc_values(self, x, u) -> np.ndarray:
-        """The block's switching functions at one point (a fixed number of them)."""
-        raise NotImplementedError
-
-    def zc_mode(self, signs: np.ndarray, x, u):
-        """The mode the signs of the switching functions (each +1 or -1) select."""
-        raise NotImplementedError
-
-    def zc_directions(self, mode) -> np.ndarray:
-        """Per switching function: the direction of a crossing that leaves ``mode`` (+1 rising,
-        -1 falling, 0 either) or NaN where the function cannot leave it (not watched)."""
-        raise NotImplementedError
-
-    def zc_reset(self, x, mode):
-        """The block's state on entering ``mode`` (e.g. an integrator put exactly at its limit)."""
-        return x
-
-    def __repr__(self) -> str:
-        inputs = f", inputs={list(self.inputs)}" if self.inputs else ""
-        params = ", ".join(f"{k}={v!r}" for k, v in self.params.items())
-        return f"{type(self).__name__}({params}{inputs})"
-
-
-def _scalar(block: Block, name: str) -> float:
-    value = block.params[name]
-    try:
-        out = float(value)
-    except (TypeError, ValueError):
-        raise BlockError(f"`{name}` must be a number; got {value!r}.", key=name) from None
-    if not np.isfinite(out):
-        raise BlockError(f"`{name}` must be finite; got {value!r}.", key=name)
-    return out
-
-
-def _broadcast_width(block: Block, widths: list[int]) -> int:
-    wide = {w for w in widths if w != 1}
-    if len(wide) > 1:
-        raise BlockError(f"the inputs of a {block.TYPE} block have different widths ({', '.join(map(str, widths))}); "
-                         "scalar inputs combine with vectors, vectors must match.", key="inputs")
-    return wide.pop() if wide else 1
-
+__all__ = ["BLOCKS", "REQUIRED", "ZC_KEY", "Block", "BlockError", "Key", "controller_canonical", "polynomial_pair", "Source", "Clock", "Gain", "Sum", "Product", "Integrator",
+           "StateSpaceBlock", "TransferFcn", "Saturation", "DeadZone", "Fcn", "Mux", "Demux", "block_class", "register"]
 
 # --- sources ------------------------------------------------------------------------------
 
@@ -261,6 +58,7 @@ class Source(Block):
         return f"Source({self.signal!r})"
 
 
+@register
 class Clock(Block):
     """Simulink's Clock: the simulation time t (a source)."""
 
@@ -278,6 +76,7 @@ class Clock(Block):
 # --- static blocks ------------------------------------------------------------------------------
 
 
+@register
 class Gain(Block):
     """y = K u: a scalar gain (elementwise) or a matrix gain K @ u."""
 
@@ -325,6 +124,7 @@ class Gain(Block):
         return label, "triangle", {"orientation": 270, "margin": 0, "xlabel": name}
 
 
+@register
 class Sum(Block):
     """y = ±u1 ± u2 ...: Simulink's Sum with its list of signs (``"+--"``; ``|`` is a spacer)."""
 
@@ -370,6 +170,7 @@ class Sum(Block):
         return "+" if self.signs[i] > 0 else "−"
 
 
+@register
 class Product(Block):
     """y = u1 * u2 ... (``ops = "*/"`` divides by the inputs marked /), elementwise."""
 
@@ -444,6 +245,7 @@ class _Limits(Block):
         return np.concatenate([up, down])
 
 
+@register
 class Saturation(_Limits):
     """y = min(max(u, lower), upper), as Simulink's Saturation (defaults -0.5 and 0.5)."""
 
@@ -468,6 +270,7 @@ class Saturation(_Limits):
         return f"{name}\nsat [{self.lo:g}, {self.hi:g}]"
 
 
+@register
 class DeadZone(_Limits):
     """y = 0 inside [lower, upper], u - upper above, u - lower below (Simulink's Dead Zone)."""
 
@@ -492,6 +295,7 @@ class DeadZone(_Limits):
         return f"{name}\ndead zone [{self.lo:g}, {self.hi:g}]"
 
 
+@register
 class Fcn(Block):
     """y = f(u, t): an expression of ``u`` (one input; ``u1, u2...`` its elements) or of
     ``u1, u2...`` (several inputs), ``t`` and the parameters, as Simulink's Fcn block."""
@@ -534,6 +338,7 @@ class Fcn(Block):
         return f"{name}\n{self.params['expression']}"
 
 
+@register
 class Mux(Block):
     """y = [u1; u2; ...]: several signals into one vector."""
 
@@ -549,6 +354,7 @@ class Mux(Block):
         return [np.concatenate([np.broadcast_to(v, (v.shape[0],) + shape) for v in u], axis=0)]
 
 
+@register
 class Demux(Block):
     """Splits a vector into its elements, addressed as ``name.1``, ``name.2``..."""
 
@@ -578,6 +384,7 @@ class Demux(Block):
 # --- blocks with state --------------------------------------------------------------------------
 
 
+@register
 class Integrator(Block):
     """x' = u, y = x; with ``lower``/``upper`` the state stays within them, as Simulink's
     saturating integrator (the derivative is zero at a limit while u pushes outward).
@@ -760,6 +567,7 @@ class _Linear(Block):
             g.derivative(name, i, f"({g.linear_part(self.A, i, xs)} + {g.linear_part(self.B, i, ins)})")
 
 
+@register
 class StateSpaceBlock(_Linear):
     """Simulink's State-Space block: x' = Ax + Bu, y = Cx + Du; outputs addressed ``name.y``."""
 
@@ -804,22 +612,7 @@ class StateSpaceBlock(_Linear):
 
 
 
-def polynomial_pair(params) -> tuple[np.ndarray, np.ndarray]:
-    """A transfer function's ``num`` and ``den`` keys checked (finite coefficients, a nonzero
-    denominator) with their leading zeros trimmed (a zero numerator is ``[0]``); the causality
-    check, whose words differ between s and z, is the block's."""
-    num = np.atleast_1d(np.asarray(params["num"], dtype=float))
-    den = np.atleast_1d(np.asarray(params["den"], dtype=float))
-    for key, c in (("num", num), ("den", den)):
-        if c.ndim != 1 or not c.size or not np.all(np.isfinite(c)):
-            raise BlockError(f"`{key}` must be a list of finite coefficients; got {params[key]!r}.", key=key)
-    den = np.trim_zeros(den, "f")
-    if not den.size:
-        raise BlockError("`den` is all zeros; the denominator needs a nonzero coefficient.", key="den")
-    num = np.trim_zeros(num, "f") if np.any(num) else np.zeros(1)
-    return num, den
-
-
+@register
 class TransferFcn(_Linear):
     """Simulink's Transfer Fcn: num(s)/den(s), coefficients in descending powers, as MATLAB's
     ``tf``; realised in MATLAB's controller canonical form (``tf2ss``)."""
@@ -850,49 +643,10 @@ class TransferFcn(_Linear):
         return f"{name}\n[{num}] / [{den}]"
 
 
-def controller_canonical(num: np.ndarray, den: np.ndarray):
-    """MATLAB's ``tf2ss`` realisation of num/den (controller canonical form; its A's first
-    row is -den[1:]/den[0]). num and den are coefficient arrays in descending powers."""
-    num = np.asarray(num, dtype=float) / den[0]
-    den = np.asarray(den, dtype=float) / den[0]
-    n = den.size - 1
-    num = np.concatenate([np.zeros(den.size - num.size), num])
-    D = np.array([[num[0]]])
-    if n == 0:
-        return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), D
-    A = np.zeros((n, n))
-    A[0, :] = -den[1:]
-    A[1:, :-1] = np.eye(n - 1)
-    B = np.zeros((n, 1))
-    B[0, 0] = 1.0
-    C = (num[1:] - num[0] * den[1:]).reshape(1, n)
-    return A, B, C, D
-
-
-# One registry: TOML type name -> block class. Source types (step, ramp, ...) are the input
-# signal types of experiment files and are built from odelab.signals by the loader.
-BLOCKS: dict[str, type[Block]] = {cls.TYPE: cls for cls in (
-    Clock, Gain, Sum, Product, Integrator, StateSpaceBlock, TransferFcn, Saturation, DeadZone, Fcn, Mux, Demux)}
-
-
-def register(cls: type[Block]) -> type[Block]:
-    """Add a block class to :data:`BLOCKS` under its TYPE (the other block modules use it)."""
-    BLOCKS[cls.TYPE] = cls
-    return cls
-
-
 def block_class(type_name: str) -> type[Block]:
     return BLOCKS[type_name]
 
 
-# The blocks defined in their own modules join the registry here (after everything they import).
-from odelab.systems.diagram import discrete as _discrete  # noqa: E402
-from odelab.systems.diagram import switching as _switching  # noqa: E402
-from odelab.systems.diagram import tables as _tables  # noqa: E402
-from odelab.systems.diagram import ratelimit as _ratelimit  # noqa: E402
-from odelab.systems.diagram import delay as _delay  # noqa: E402
-
-for _cls in (_discrete.PID, _switching.Abs, _switching.Sign, _switching.Switch, _switching.Relay, _switching.MinMax,
-             _discrete.ZeroOrderHold, _discrete.UnitDelay, _discrete.DiscreteTransferFcn, _discrete.DiscreteStateSpace,
-             _discrete.DiscretePID, _tables.LookupTable, _ratelimit.RateLimiter, _delay.TransportDelay):
-    register(_cls)
+# The block families in their own modules register themselves (each imports only base.py);
+# importing them here is what fills BLOCKS.
+from odelab.systems.diagram import discrete, ratelimit, switching, tables, transport  # noqa: E402,F401

@@ -20,8 +20,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from odelab.systems.diagram import blocks as bk
-
 __all__ = ["why_not", "diagram_source"]
 
 class Writer:

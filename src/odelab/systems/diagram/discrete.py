@@ -16,7 +16,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from odelab.systems.diagram.blocks import REQUIRED, Block, BlockError, Key, _scalar, controller_canonical, polynomial_pair
+from odelab.systems.diagram.base import REQUIRED, Block, BlockError, Key, _scalar, controller_canonical, polynomial_pair, register
 
 __all__ = ["ZeroOrderHold", "UnitDelay", "DiscreteTransferFcn", "DiscreteStateSpace", "DiscretePID"]
 
@@ -100,6 +100,7 @@ class _Discrete(Block):
         return f"{self.TYPE}, Ts = {self.sample}"
 
 
+@register
 class ZeroOrderHold(_Discrete):
     """Simulink's Zero-Order Hold: samples its input at each hit and holds it (any width)."""
 
@@ -129,6 +130,7 @@ class ZeroOrderHold(_Discrete):
         return f"{name}\nZOH, Ts = {self.sample}"
 
 
+@register
 class UnitDelay(_Discrete):
     """Simulink's Unit Delay 1/z: y[k] = u[k-1], y[0] = ``initial`` (a number or a list)."""
 
@@ -168,6 +170,7 @@ class UnitDelay(_Discrete):
         return f"{name}\n1/z, Ts = {self.sample}"
 
 
+@register
 class DiscreteTransferFcn(_Discrete):
     """Simulink's Discrete Transfer Fcn, MATLAB's ``tf(num, den, Ts)``: coefficients in
     descending powers of z; realised in controller canonical form (as ``tf2ss``)."""
@@ -192,6 +195,7 @@ class DiscreteTransferFcn(_Discrete):
         return f"{name}\n[{num}] / [{den}] (z)\nTs = {self.sample}"
 
 
+@register
 class DiscreteStateSpace(_Discrete):
     """Simulink's Discrete State-Space: x[k+1] = A x[k] + B u[k], y[k] = C x[k] + D u[k];
     outputs addressed ``name.y1``... (or the names given)."""
@@ -229,6 +233,7 @@ class DiscreteStateSpace(_Discrete):
         return f"{name}\nx[k+1] = Ax + Bu\ny = Cx + Du, Ts = {self.sample}"
 
 
+@register
 class DiscretePID(_Discrete):
     """Simulink's Discrete PID Controller, parallel form, Forward Euler integrator and filter
     (its defaults): u = P e + I Ts/(z - 1) e + D N / (1 + N Ts/(z - 1)) e.
@@ -259,6 +264,7 @@ class DiscretePID(_Discrete):
         return f"{name}\nPID(z) P {P:g}, I {I:g}, D {D:g}, N {N:g}\nTs = {self.sample}"
 
 
+@register
 class PID(Block):
     """Simulink's continuous PID Controller, parallel form: u = P e + I/s e + D N s/(s + N) e.
 

@@ -15,7 +15,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from odelab.exceptions import InputError
-from odelab.systems.diagram.blocks import Block, BlockError
+from odelab.systems.diagram.base import Block, BlockError
 
 __all__ = ["DiagramError", "Wiring", "find_loop", "located", "resolve", "wire"]
 

@@ -27,13 +27,14 @@ import math
 
 import numpy as np
 
-from odelab.systems.diagram.blocks import ZC_KEY, Block, BlockError, Key, _real, _scalar
+from odelab.systems.diagram.base import ZC_KEY, Block, BlockError, Key, _real, _scalar, register
 
 __all__ = ["RateLimiter", "signal_slope"]
 
 RISING, TRACK, FALLING = 2, 1, 0
 
 
+@register
 class RateLimiter(Block):
     """Simulink's Rate Limiter: y follows u with its slope limited to [falling, rising]
     (Simulink's defaults 1 and -1); y starts at ``initial`` (0). The instants the limit engages

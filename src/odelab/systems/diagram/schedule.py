@@ -46,7 +46,7 @@ class SampleTime(tuple):
 
 def sample_time(value, key: str = "sample_time") -> SampleTime:
     """Check a ``sample_time`` value: a positive number, or ``[Ts, offset]`` with 0 <= offset < Ts."""
-    from odelab.systems.diagram.blocks import BlockError
+    from odelab.systems.diagram.base import BlockError
 
     vals = list(value) if isinstance(value, (list, tuple, np.ndarray)) else [value]
     try:

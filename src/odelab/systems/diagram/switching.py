@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from odelab.systems.diagram.blocks import ZC_KEY, Block, BlockError, Key, _broadcast_width, _column, _real, _scalar
+from odelab.systems.diagram.base import ZC_KEY, Block, BlockError, Key, _broadcast_width, _column, _real, _scalar, register
 
 __all__ = ["Abs", "Sign", "Switch", "Relay", "MinMax"]
 
@@ -20,6 +20,7 @@ def _flat(v) -> np.ndarray:
     return np.asarray(v, dtype=float).reshape(-1)
 
 
+@register
 class Abs(Block):
     """y = |u| (Simulink's Abs); switches where u crosses 0 (modes 1: u >= 0, 0: u < 0)."""
 
@@ -50,6 +51,7 @@ class Abs(Block):
         return f"{name}\n|u|"
 
 
+@register
 class Sign(Block):
     """y = sign(u): 1, 0 or -1 (Simulink's Sign); switches where u crosses 0."""
 
@@ -85,6 +87,7 @@ class Sign(Block):
 _CRITERIA = ("u2 >= threshold", "u2 > threshold", "u2 ~= 0")
 
 
+@register
 class Switch(Block):
     """y = u1 where the criterion on u2 holds, else u3 (Simulink's Switch; inputs in that order)."""
 
@@ -150,6 +153,7 @@ class Switch(Block):
         return f"{name}\nswitch: {self.criteria.replace('threshold', f'{self.threshold:g}')}"
 
 
+@register
 class Relay(Block):
     """Simulink's Relay: output ``on_value`` once u reaches ``on_point``, ``off_value`` once it
     falls to ``off_point``, unchanged in between (hysteresis when on_point > off_point). It starts
@@ -221,6 +225,7 @@ class Relay(Block):
         return f"{name}\nrelay on {self.on_point:g} / off {self.off_point:g}"
 
 
+@register
 class MinMax(Block):
     """y = the smallest (``function = "min"``) or largest (``"max"``) of the inputs, elementwise;
     one vector input gives its smallest or largest element (Simulink's MinMax). Switches where

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from odelab.systems.diagram.blocks import ZC_KEY, Block, BlockError, Key, _column, _real
+from odelab.systems.diagram.base import ZC_KEY, Block, BlockError, Key, _column, _real, register
 
 __all__ = ["LookupTable"]
 
@@ -56,6 +56,7 @@ def _axis(block, key, values) -> np.ndarray:
     return bp
 
 
+@register
 class LookupTable(Block):
     """Simulink's 1-D / 2-D Lookup Table (see the module)."""
 
