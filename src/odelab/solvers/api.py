@@ -143,7 +143,8 @@ def solve(fun, tspan, y0, method: str = "ode45", **options) -> Solution:
         ``rtol``, ``atol``, ``max_step``, ``initial_step``, ``refine``, ``norm_control``,
         ``max_steps`` (adaptive methods), ``h`` (fixed-step methods), ``args`` (all methods);
         ``events``, ``nonnegative``, ``mass``, ``mstate_dependence``, ``output_fcn``,
-        ``output_sel`` (ode23/ode45/ode78/ode89/ode113; ``events`` also ode15s/ode23s/ode23t/ode23tb);
+        ``output_sel`` (ode23/ode45/ode78/ode89/ode113; ``events`` also ode15s/ode23s/ode23t/ode23tb,
+        ``nonnegative`` also ode15s/ode23t/ode23tb without a mass matrix, as MATLAB's);
         MATLAB's names too. See :func:`ode45`.
 
     Returns
@@ -322,14 +323,7 @@ def _solve_adaptive(fun, tspan, y0, f0, m: Method, opts: SolverOptions, setup: d
         extra_fevals += 1
     nonnegative = opts.nonnegative
     if nonnegative is not None:
-        if np.iscomplexobj(y0):
-            raise InputError("`nonnegative` applies to real states; y0 is complex.", key="nonnegative")
-        if np.any(y0[nonnegative] < 0):
-            bad = int(nonnegative[np.argmax(y0[nonnegative] < 0)])
-            raise InputError(f"`nonnegative` asks state {bad} to stay >= 0 but y0[{bad}] = {y0[bad]:g} "
-                             "(MATLAB: 'NonNegative' violated at t0).", key="nonnegative")
-        fun = _nonnegative_rhs(fun, nonnegative)
-        f0 = fun(t0, y0.copy())
+        fun, f0 = _nonnegative_start(fun, t0, y0, nonnegative)
         extra_fevals += 1
     events = v0 = None
     if opts.events is not None:
@@ -393,6 +387,19 @@ def _non_fsal(tab) -> tuple:
     return (inc["b"], None if tab.extra_c is None else (inc["extra_A"], tab.extra_c), tab.dense_basis)
 
 
+def _nonnegative_start(fun, t0: float, y0: np.ndarray, nonnegative: np.ndarray):
+    """Check y0 against ``NonNegative`` and wrap ``fun`` (MATLAB's ``odenonnegative``); returns the
+    wrapped function and f0 evaluated again with it (one more evaluation, as MATLAB counts)."""
+    if np.iscomplexobj(y0):
+        raise InputError("`nonnegative` applies to real states; y0 is complex.", key="nonnegative")
+    if np.any(y0[nonnegative] < 0):
+        bad = int(nonnegative[np.argmax(y0[nonnegative] < 0)])
+        raise InputError(f"`nonnegative` asks state {bad} to stay >= 0 but y0[{bad}] = {y0[bad]:g} "
+                         "(MATLAB: 'NonNegative' violated at t0).", key="nonnegative")
+    fun = _nonnegative_rhs(fun, nonnegative)
+    return fun, fun(t0, y0.copy())
+
+
 def _nonnegative_rhs(fun, idx: np.ndarray):
     """MATLAB's ``odenonnegative``: at or below zero, a non-negative component may not decrease."""
     def rhs(t, y):
@@ -434,8 +441,12 @@ def _solve_implicit(fun, tspan, y0, f0, m: Method, opts: SolverOptions) -> Solut
         from odelab.solvers.events import as_event_function
 
         events = as_event_function(opts.events, opts.args, float(tspan[0]), y0)
+    extra_fevals = 0
+    if opts.nonnegative is not None:  # (a mass matrix with it is refused by implicit.resolve_extras, as MATLAB)
+        fun, f0 = _nonnegative_start(fun, float(tspan[0]), y0, opts.nonnegative)
+        extra_fevals = 1
     (t, y, nsteps, nfailed, status, t_stop, h_stop, exc), work = solve_implicit(fun, tspan, y0, f0, m, opts, events)
-    stats = Stats(nsteps=nsteps, nfailed=nfailed, nfevals=work.nfevals + 1, npds=work.npds,
+    stats = Stats(nsteps=nsteps, nfailed=nfailed, nfevals=work.nfevals + 1 + extra_fevals, npds=work.npds,
                   ndecomps=work.ndecomps, nsolves=work.nsolves)
     te, ye, ie = work.found
     message = _status_message(status, m, t_stop, h_stop, y, y0, opts, exc, tspan, te, ie)

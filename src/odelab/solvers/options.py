@@ -147,6 +147,9 @@ def _not_for_method(canonical: str, name: str, method: Method) -> str:
         return (f"`{name}` describes a mass that depends on t or the states, but {method.name} takes a constant mass "
                 f"matrix only; a mass M(t, y) is solved by {', '.join(takes)} (remove `{name}` for a constant "
                 "mass).")
+    if canonical == "nonnegative" and method.name == "ode23s":
+        return (f"`{name}` is not available for ode23s, as in MATLAB (its NonNegative documentation excludes "
+                "ode23s); keep the solution non-negative with ode15s, ode23t or ode23tb.")
     if method.kind == "fixed":
         return (
             f"`{name}` does not apply to {method.name}, a fixed-step method: it takes only the "

@@ -94,6 +94,7 @@ class Method:
         if self.kind == "implicit":
             common = ("rtol", "atol", "max_step", "initial_step", "refine", "max_steps", "events", "jacobian",
                       "jpattern", "vectorized", "mass", "args")
+            common += () if self.name == "ode23s" else ("nonnegative",)  # MATLAB's ode23s has no NonNegative
             return common + (("max_order", "bdf") if self.name == "ode15s" else ())
         return ("rtol", "atol", "max_step", "initial_step", "max_steps", "args")
 

@@ -64,6 +64,10 @@ def resolve_extras(method, opts, n: int) -> dict:
         pattern = _square("jpattern", opts["jpattern"], n, "the sparsity pattern of df/dy (nonzero where f_i "
                           "depends on y_j)")
         out["jpattern"] = pattern
+    if opts.get("mass") is not None and opts.get("nonnegative") is not None:
+        raise InputError(f"`nonnegative` with a `mass` matrix: {method.name} keeps a solution non-negative only "
+                         "for y' = f(t, y), as MATLAB's (its NonNegative is not available with a Mass); remove "
+                         "one of them (for M y' = f with M nonsingular, write y' = M^-1 f).", key="nonnegative")
     if opts.get("mass") is not None:
         mass = opts["mass"]
         if callable(mass):
@@ -97,6 +101,7 @@ def solve_implicit(fun, tspan, y0, f0, m, opts, events=None):
         mass = mass.toarray()
     work = Work(fun, n, jacobian=extra["jacobian"], jpattern=jpattern, vectorized=extra["vectorized"], mass=mass)
     atol = np.broadcast_to(np.asarray(opts.atol, dtype=float), (n,))
+    nonnegative = opts.nonnegative  # the right-hand side is already wrapped (odelab.solvers.api)
     name = m.name
     if name == "ode15s":
         from odelab.solvers.implicit.ode15s import integrate_ode15s
@@ -104,7 +109,7 @@ def solve_implicit(fun, tspan, y0, f0, m, opts, events=None):
         dae = mass is not None and np.linalg.matrix_rank(mass.toarray() if hasattr(mass, "toarray") else mass) < n
         result = integrate_ode15s(work, tspan, y0, f0, opts.rtol, atol, opts.max_step, opts.initial_step,
                                   opts.refine, opts.max_steps, max_order=extra["max_order"], bdf=extra["bdf"], dae=dae,
-                                  events=events)
+                                  events=events, nonnegative=nonnegative)
     elif name == "ode23s":
         from odelab.solvers.implicit.ode23s import integrate_ode23s
 
@@ -114,12 +119,12 @@ def solve_implicit(fun, tspan, y0, f0, m, opts, events=None):
         from odelab.solvers.implicit.ode23t import integrate_ode23t
 
         result = integrate_ode23t(work, tspan, y0, f0, opts.rtol, atol, opts.max_step, opts.initial_step,
-                                  opts.refine, opts.max_steps, events)
+                                  opts.refine, opts.max_steps, events, nonnegative)
     elif name == "ode23tb":
         from odelab.solvers.implicit.ode23tb import integrate_ode23tb
 
         result = integrate_ode23tb(work, tspan, y0, f0, opts.rtol, atol, opts.max_step, opts.initial_step,
-                                   opts.refine, opts.max_steps, events)
+                                   opts.refine, opts.max_steps, events, nonnegative)
     else:  # pragma: no cover - the registry lists only the solvers above as implicit
         raise ValueError(name)
     return result, work

@@ -27,7 +27,7 @@ import numpy as np
 
 from odelab.solvers.status import Status
 from odelab.solvers.controller import clamp_step, first_step, given_step, grow, shrink, shrink_after_newton
-from odelab.solvers.implicit.common import SQRT_EPS, Output, Work
+from odelab.solvers.implicit.common import SQRT_EPS, NonNegative, Output, Work
 
 __all__ = ["integrate_ode15s", "KAPPA"]
 
@@ -54,11 +54,12 @@ def change_differences(D: np.ndarray, order: int, factor: float) -> None:
 
 
 def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, max_steps, max_order=5, bdf=False,
-                     dae=False, events=None):
+                     dae=False, events=None, nonnegative=None):
     """Integrate with ode15s; returns the engine's tuple ``(t, y, nsteps, nfailed, status, t_stop, h_stop, exc)``.
 
     ``events``: ``(ev, v0)`` (MATLAB's Events), located on the step's backward-difference
-    interpolant; the events found are left in ``work.found``."""
+    interpolant; the events found are left in ``work.found``. ``nonnegative``: a
+    :class:`~odelab.solvers.implicit.common.NonNegative` (MATLAB's NonNegative), or None."""
     kappa = np.zeros(6) if bdf else KAPPA
     alpha = (1.0 - kappa) * GAMMA
     erconst = kappa * GAMMA + 1.0 / np.arange(1, 7)
@@ -66,7 +67,8 @@ def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
     t0, tf = float(tspan[0]), float(tspan[-1])
     tdir = 1.0 if tf > t0 else -1.0
     threshold = atol / rtol
-    out = Output(tspan, y0, refine, events)
+    nn = None if nonnegative is None else NonNegative(nonnegative, threshold)
+    out = Output(tspan, y0, refine, events, nn)
     nsteps = nfailed = 0
     status, exception = Status.SUCCESS, None
     t, y = t0, y0.copy()
@@ -190,6 +192,8 @@ def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                         continue
                     scale = np.maximum(np.maximum(np.abs(y), np.abs(ynew)), threshold)
                     err = erconst[k] * float(np.max(np.abs(d) / scale))
+                    if nn is not None:
+                        err = nn.error(err, ynew, rtol)
                     if err > rtol:
                         nfailed += 1
                         nfails += 1
@@ -222,10 +226,16 @@ def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
 
                 # Accept: update the differences to the new point.
                 nsteps += 1
+                if nn is not None:  # the projected y_n+1 (negative listed components set to 0) is the history's
+                    clipped = nn.clip(ynew)
+                    if clipped is not ynew:
+                        ynew, d = clipped, clipped - ypred
                 D[k + 2] = d - D[k + 1]
                 D[k + 1] = d
                 for i in range(k, -1, -1):
                     D[i] += D[i + 1]
+                if nn is not None:
+                    D[0] = nn.clip(D[0])  # (the differences summed again may leave -1 ulp)
                 Jcurrent = False
                 kk, hh, tt = k, h, tnew
 

@@ -52,8 +52,8 @@ import numpy as np
 
 from odelab.solvers.status import Status
 from odelab.solvers.controller import clamp_step, first_step, given_step, shrink, shrink_after_newton
-from odelab.solvers.implicit.common import (EPS, SQRT_EPS, Newton, Output, QuadraticSteps, Work, consistent_slope,
-                                           quadratic_through)
+from odelab.solvers.implicit.common import (EPS, SQRT_EPS, Newton, NonNegative, Output, QuadraticSteps, Work,
+                                           consistent_slope, quadratic_through)
 
 __all__ = ["integrate_ode23t", "predict", "local_error", "rings", "interpolant", "solve_z", "hermite_midpoint"]
 
@@ -163,7 +163,8 @@ def solve_z(work: Work, lu, tnew: float, ynew: np.ndarray, znew: np.ndarray, gam
     return y, z, False
 
 
-def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, max_steps, events=None):
+def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, max_steps, events=None,
+                     nonnegative=None):
     """Integrate with ode23t; returns ``(t, y, nsteps, nfailed, status, t_stop, h_stop, exc)``.
 
     ``events``: ``(ev, v0)`` (MATLAB's Events), located on the step's quadratic interpolant (a
@@ -172,7 +173,8 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
     t0, tf = float(tspan[0]), float(tspan[-1])
     tdir = 1.0 if tf > t0 else -1.0
     threshold = atol / rtol
-    out = Output(tspan, y0, refine, events)
+    nn = None if nonnegative is None else NonNegative(nonnegative, threshold)
+    out = Output(tspan, y0, refine, events, nn)
     steps = QuadraticSteps()
     nsteps = nfailed = 0
     status, exception = Status.SUCCESS, None
@@ -279,6 +281,8 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                         est = np.abs(local_error(history, tnew, ynew)) / wt
                         err = float(np.max(est)) if n else 0.0
                         ringing = err > 0.1 * rtol and rings(history, ynew, int(np.argmax(est)))
+                    if nn is not None:
+                        err = nn.error(err, ynew, rtol)
                     if err > rtol:
                         nfailed += 1
                         if absh <= hmin:
@@ -301,6 +305,8 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
                     break
 
                 nsteps += 1
+                if nn is not None:
+                    ynew = nn.clip(ynew)
                 ymid = hermite_midpoint(y, z, ynew, znew) if start else None
                 if out.step(t, tnew, ynew, steps.add(t, h, y, *interpolant(history, tnew, ynew, ymid))):
                     t, y = out.t[-1], out.y[-1]
@@ -345,5 +351,5 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
             status, exception = Status.FUN_RAISED, exc
     t_out, y_out = out.arrays()
     work.found = out.found()
-    work.dense = steps.dense(y)
+    work.dense = steps.dense(y, nn)
     return t_out, y_out, nsteps, nfailed, status, t, absh, exception

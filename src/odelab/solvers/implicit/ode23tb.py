@@ -38,7 +38,7 @@ import numpy as np
 
 from odelab.solvers.status import Status
 from odelab.solvers.controller import clamp_step, grow, shrink, shrink_after_newton
-from odelab.solvers.implicit.common import (Newton, Output, QuadraticSteps, Work, initial_step, newton,
+from odelab.solvers.implicit.common import (Newton, NonNegative, Output, QuadraticSteps, Work, initial_step, newton,
                                            quadratic_through)
 
 __all__ = ["integrate_ode23tb", "trbdf2_attempt", "GAMMA", "D", "W", "B", "BHAT"]
@@ -83,7 +83,8 @@ def trbdf2_attempt(work: Work, lu, t: float, y: np.ndarray, z: np.ndarray, zslop
     return ynew, yg, znew, est, True
 
 
-def integrate_ode23tb(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, max_steps, events=None):
+def integrate_ode23tb(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, max_steps, events=None,
+                      nonnegative=None):
     """Integrate with ode23tb; returns ``(t, y, nsteps, nfailed, status, t_stop, h_stop, exc)``.
 
     ``events``: ``(ev, v0)`` (MATLAB's Events), located on the step's quadratic interpolant (a
@@ -92,7 +93,8 @@ def integrate_ode23tb(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine,
     t0, tf = float(tspan[0]), float(tspan[-1])
     tdir = 1.0 if tf > t0 else -1.0
     threshold = atol / rtol
-    out = Output(tspan, y0, refine, events)
+    nn = None if nonnegative is None else NonNegative(nonnegative, threshold)
+    out = Output(tspan, y0, refine, events, nn)
     steps = QuadraticSteps()  # the quadratic through y_n, y_g, y_n+1: Refine, tspan output and deval
     nsteps = nfailed = 0
     status, exception = Status.SUCCESS, None
@@ -138,6 +140,8 @@ def integrate_ode23tb(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine,
                         continue
                     scale = np.maximum(np.maximum(np.abs(y), np.abs(ynew)), threshold)
                     err = float(np.max(np.abs(est) / scale))
+                    if nn is not None:
+                        err = nn.error(err, ynew, rtol)
                     if err > rtol:
                         nfailed += 1
                         if absh <= hmin:
@@ -154,6 +158,8 @@ def integrate_ode23tb(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine,
                     break
 
                 nsteps += 1
+                if nn is not None:
+                    ynew = nn.clip(ynew)
                 if out.step(t, tnew, ynew, steps.add(t, h, y, *quadratic_through(GAMMA, y, yg, ynew))):
                     t, y = out.t[-1], out.y[-1]
                     steps.cut(t)
@@ -174,5 +180,5 @@ def integrate_ode23tb(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine,
             status, exception = Status.FUN_RAISED, exc
     t_out, y_out = out.arrays()
     work.found = out.found()
-    work.dense = steps.dense(y)
+    work.dense = steps.dense(y, nn)
     return t_out, y_out, nsteps, nfailed, status, t, absh, exception
