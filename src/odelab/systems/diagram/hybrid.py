@@ -68,290 +68,365 @@ def simulate_hybrid(diagram, tspan, x0=None, *, method: str = "ode45", zero_cros
     run there. A failure (a solver failure, a chattering switch) returns what was computed with
     ``status == "failed"``.
     """
-    from odelab.solvers.api import solve
-    from odelab.solvers.events import locate_events  # noqa: F401 - the locator the solver runs
+    run = _HybridRun(diagram, tspan, x0, method, zero_crossing, events, options)
+    try:
+        run.integrate()
+    except _Stop:
+        pass
+    finally:
+        run.sw.release()
+        diagram.slope_window = (-math.inf, math.inf)
+    return run.response()
+
+
+def _checked_tspan(tspan) -> np.ndarray:
+    """``[t0, tf]`` or output times (a time listed twice asks for the rows before and after a jump)."""
     from odelab.solvers.options import as_tspan
-    from odelab.systems.diagram.schedule import hits as sample_hits
-    from odelab.systems.diagram.zerocross import MAX_CONSECUTIVE, Switching
 
     tspan = np.asarray(tspan, dtype=float)
-    if tspan.size > 2:  # output times; a time listed twice asks for the rows before and after a jump
+    if tspan.size > 2:
         as_tspan(np.unique(tspan) if tspan[-1] > tspan[0] else np.unique(tspan)[::-1])
         step = np.sign(tspan[-1] - tspan[0]) * np.diff(tspan)
         if np.any(step < 0):
             as_tspan(tspan)  # its message: entries must increase
-    else:
-        tspan = as_tspan(tspan)
-    t0, tf = float(tspan[0]), float(tspan[-1])
-    forward = tf >= t0
-    blocks = diagram.wiring.blocks
-    signals = list(diagram.signals)
-    x = np.array(diagram.x0 if x0 is None else x0, dtype=float).reshape(-1)
-    notes: list[str] = []
+        return tspan
+    return as_tspan(tspan)
 
-    locate = zero_crossing and _locates(method)
-    sw = Switching(diagram, enabled=locate)
-    if zero_crossing and not locate and any(blocks[n].zero_crossing for n in sw.blocks):
-        notes.append(f"{method} locates no events: zero crossings are stepped over (use ode45, ode23, ode15s...)")
-    if sw.stepped and not _locates(method):
-        from odelab.exceptions import InputError
 
-        raise InputError(f"the relay `{sw.stepped[0]}` switches at the end of a step, which {method} does not "
-                         "report; use ode45, ode23, ode113 or a stiff solver.", key="solver.method")
+def _inputs_at(signals, lo: float, hi: float):
+    """u(t) with the sources read at t clamped to [lo, hi] (a piece reads its sources inside it)."""
+    if not signals:
+        empty = np.zeros(0)
+        return lambda t: empty
 
-    rates = {n: b.sample for n, b in blocks.items() if b.DISCRETE}
-    hit_times, hit_who = sample_hits(rates, t0, tf)
-    cuts = np.unique(np.concatenate([np.empty(0), *(s.breakpoints(t0, tf) for s in signals)]))
-    inside = lambda c: (c > min(t0, tf)) & (c < max(t0, tf))  # noqa: E731
-    cuts = cuts[inside(cuts)]
-    hit_map = {float(t): w for t, w in zip(hit_times, hit_who)}
-    edges = sorted(set(cuts.tolist()) | {t for t in hit_map if min(t0, tf) < t < max(t0, tf)},
-                   reverse=not forward)
-    edges = [t0, *edges, tf]
-    if len(edges) > 2 and not any(k.lower().replace("_", "") == "maxstep" and v is not None
-                                  for k, v in options.items()):
-        from odelab.solvers.registry import get_method
+    def u(t):
+        tu = min(max(t, lo), hi)
+        return np.array([s(tu) for s in signals])
 
-        if get_method(method).kind in ("adaptive", "implicit", "multistep"):
-            options = {**options, "max_step": 0.1 * abs(tf - t0)}
+    return u
 
-    dense = tspan.size == 2
-    user = tspan
-    user_te: list[float] = []
-    user_ye: list[np.ndarray] = []
-    user_ie: list[int] = []
-    finished = False  # a terminal user event ended the run
-    rows_t: list[np.ndarray] = []
-    rows_x: list[np.ndarray] = []
-    nsteps = nfevals = 0
-    nfailed = 0
-    status, message, method_name = "success", "", method
-    warns: list[str] = []
 
-    def inputs_at(lo, hi):
-        if not signals:
-            empty = np.zeros(0)
-            return lambda t: empty
+class _HybridRun:
+    """One run of :func:`simulate_hybrid`: the pieces between the sources' breakpoints and the
+    sample hits, the stretches between located switches inside each piece, and the rows, counts
+    and events they produce."""
 
-        def u(t):
-            tu = min(max(t, lo), hi)
-            return np.array([s(tu) for s in signals])
+    def __init__(self, diagram, tspan, x0, method, zero_crossing, events, options):
+        from odelab.systems.diagram.schedule import hits as sample_hits
+        from odelab.systems.diagram.zerocross import Switching
 
-        return u
+        tspan = _checked_tspan(tspan)
+        self.diagram, self.method, self.events = diagram, method, events
+        self.t0, self.tf = t0, tf = float(tspan[0]), float(tspan[-1])
+        self.forward = forward = tf >= t0
+        self.blocks = blocks = diagram.wiring.blocks
+        self.signals = list(diagram.signals)
+        self.x = np.array(diagram.x0 if x0 is None else x0, dtype=float).reshape(-1)
+        self.notes: list[str] = []
 
-    def add(t, xs):
-        rows_t.append(np.atleast_1d(np.asarray(t, dtype=float)))
-        rows_x.append(np.asarray(xs, dtype=float).reshape(-1, x.size))
+        locate = zero_crossing and _locates(method)
+        self.sw = sw = Switching(diagram, enabled=locate)
+        if zero_crossing and not locate and any(blocks[n].zero_crossing for n in sw.blocks):
+            self.notes.append(f"{method} locates no events: zero crossings are stepped over (use ode45, ode23, "
+                              "ode15s...)")
+        if sw.stepped and not _locates(method):
+            from odelab.exceptions import InputError
 
-    consecutive = 0
-    sqrt_eps = math.sqrt(np.finfo(float).eps)
+            raise InputError(f"the relay `{sw.stepped[0]}` switches at the end of a step, which {method} does not "
+                             "report; use ode45, ode23, ode113 or a stiff solver.", key="solver.method")
 
-    def look(t, end):
+        self.rates = {n: b.sample for n, b in blocks.items() if b.DISCRETE}
+        self.hit_times, hit_who = sample_hits(self.rates, t0, tf)
+        cuts = np.unique(np.concatenate([np.empty(0), *(s.breakpoints(t0, tf) for s in self.signals)]))
+        self.cuts = cuts[(cuts > min(t0, tf)) & (cuts < max(t0, tf))]
+        self.hit_map = {float(t): w for t, w in zip(self.hit_times, hit_who)}
+        edges = sorted(set(self.cuts.tolist()) | {t for t in self.hit_map if min(t0, tf) < t < max(t0, tf)},
+                       reverse=not forward)
+        self.edges = [t0, *edges, tf]
+        if len(self.edges) > 2 and not any(k.lower().replace("_", "") == "maxstep" and v is not None
+                                           for k, v in options.items()):
+            if _locates(method):
+                options = {**options, "max_step": 0.1 * abs(tf - t0)}
+        self.options = options
+
+        self.dense = tspan.size == 2
+        self.user = tspan
+        self.user_te: list[float] = []
+        self.user_ye: list[np.ndarray] = []
+        self.user_ie: list[int] = []
+        self.finished = False  # a terminal user event ended the run
+        self.rows_t: list[np.ndarray] = []
+        self.rows_x: list[np.ndarray] = []
+        self.nsteps = self.nfevals = 0
+        self.nfailed = 0
+        self.status, self.message, self.method_name = "success", "", method
+        self.warns: list[str] = []
+        self.consecutive = 0
+        self.sol = None
+
+    # --- small helpers ------------------------------------------------------------------------
+
+    def add(self, t, xs) -> None:
+        self.rows_t.append(np.atleast_1d(np.asarray(t, dtype=float)))
+        self.rows_x.append(np.asarray(xs, dtype=float).reshape(-1, self.x.size))
+
+    def fail(self, message: str):
+        self.status, self.message = "failed", message
+        raise _Stop
+
+    def look(self, t, end):
         """How far ahead a switching function's departure from a zero at ``t`` is read: a
         relative sqrt(eps) of the span, inside the piece that ends at ``end``."""
-        dt = sqrt_eps * max(abs(tf - t0), abs(t))
+        dt = _SQRT_EPS * max(abs(self.tf - self.t0), abs(t))
         if end != t:
             dt = min(dt, 0.5 * abs(end - t))
-        return dt if forward else -dt
+        return dt if self.forward else -dt
 
-    def settle(t, xs, u, end):
+    def ahead(self, t, u, end):
+        """The ``after`` rule of Switching.choose: the modes the functions move into from t."""
+        return lambda xx: self.sw.ahead(t, xx, u, self.look(t, end))
+
+    def settle(self, t, xs, u, end):
         """The modes at a piece's start once every switching function exactly zero there has
         left in the direction it goes (the solver ignores a zero at its initial point, as
         MATLAB does: the driver takes those crossings itself, counted like located ones)."""
-        nonlocal consecutive, status, message
+        sw = self.sw
         if not sw.located:
             return xs
-        dt = look(t, end)
+        from odelab.systems.diagram.zerocross import MAX_CONSECUTIVE
+
+        dt = self.look(t, end)
         while True:
             hit, after = sw.departing(t, xs, u, dt)
             if not hit:
                 return xs
             sw.record(t, hit)
-            consecutive += 1
-            if consecutive >= MAX_CONSECUTIVE:
-                status, message = "failed", _chatter_message(consecutive, hit[0], t)
-                raise _Stop
+            self.consecutive += 1
+            if self.consecutive >= MAX_CONSECUTIVE:
+                self.fail(_chatter_message(self.consecutive, hit[0], t))
             xs = sw.choose(t, xs, u(t), after=after)
 
-    try:
-        # the hit at t0 (discrete outputs from their initial states and the inputs at t0)
-        u_first = inputs_at(-math.inf if len(edges) == 2 else -math.inf, math.inf)
-        if t0 in hit_map:
-            x = _discrete_hit(diagram, t0, x, u_first(t0), hit_map[t0])
-        if sw:  # a function zero at t0 takes the sign it moves into (Simulink's initialisation)
-            x = sw.choose(t0, x, u_first(t0), after=lambda xx: sw.ahead(t0, xx, u_first, look(t0, edges[1])))
-        for i in range(len(edges) - 1):
-            a, b = edges[i], edges[i + 1]
-            last = i == len(edges) - 2
-            lo, hi = min(a, b), max(a, b)
-            u_lo = lo if ((lo == a and i > 0) or (lo == b and not last)) else -math.inf
-            u_hi = float(np.nextafter(hi, -math.inf)) if ((hi == a and i > 0) or (hi == b and not last)) else math.inf
-            u = inputs_at(u_lo, u_hi)
-            diagram.slope_window = (u_lo, u_hi)
-            if i > 0 and sw:
-                x = sw.choose(a, x, u(a), after=lambda xx, _a=a, _b=b, _u=u: sw.ahead(_a, xx, _u, look(_a, _b)))
-            if sw:
-                x = settle(a, x, u, b)
-            start = a
-            if dense:
-                grid_user = np.empty(0)
-            else:
-                grid_user = np.unique(user[(user > lo) & (user < hi)])
-                if not forward:
-                    grid_user = grid_user[::-1]
-            if i == 0 or not dense:
-                add(a, x) if (dense or np.any(user == a)) else None
-            else:
-                add(a, x)  # the row after the jump (the one before ended the previous piece)
-            while True:
-                before = sw.raw(start, x, u(start), sw.located) if sw.located else None
-                ev = _combined(sw.event_function(u) if sw.located else None, len(sw.owners) if sw.located else 0,
-                               events)
-                n_zc = len(sw.owners) if sw.located else 0
-                stop_fcn = None
-                if sw.stepped:
-                    changed = sw.stepped_check(u)
-                    changed(start, x)
+    # --- the run ------------------------------------------------------------------------------
 
-                    def stop_fcn(tt, yy, flag, _c=changed):
-                        if flag == "" and np.size(tt):
-                            return _c(float(np.atleast_1d(tt)[-1]), np.asarray(yy).reshape(-1, x.size)[-1])
-                        return False
-
-                rest = grid_user[(grid_user > start) if forward else (grid_user < start)]
-                grid = np.concatenate([[start], rest, [b]])
-
-                def rhs(t, xx, _u=u):
-                    return diagram._dynamics(t, xx, _u(t))
-
-                opts = dict(options)
-                if ev is not None:
-                    opts["events"] = ev
-                if stop_fcn is not None:
-                    opts["output_fcn"] = stop_fcn
-                sol = solve(rhs, grid, x, method=method, **opts)
-                nsteps += sol.stats.nsteps
-                nfevals += sol.stats.nfevals
-                nfailed = None if nfailed is None or sol.stats.nfailed is None else nfailed + sol.stats.nfailed
-                method_name = sol.method or method
-                warns.extend(w for w in sol.warnings if w not in warns)
-                t_end = float(sol.t[-1])
-                te = np.asarray(sol.te, dtype=float)
-                keep = (sol.t > start) if forward else (sol.t < start)
-                if sol.status != "success":
-                    if dense or True:
-                        add(sol.t[keep], sol.y[keep])
-                    status, message = "failed", sol.message
-                    raise _Stop
-                ie_all = np.asarray(sol.ie, dtype=int)
-                user_terminal = [bool(np.asarray(events(float(tj), yj)[1]).reshape(-1)[j - n_zc])
-                                 if j >= n_zc else True for tj, yj, j in zip(te, sol.ye, ie_all)] if te.size else []
-                first = next((k for k in range(te.size) if ie_all[k] < n_zc or user_terminal[k]), None)
-                for k in range(te.size):  # the user's events up to the end of this stretch
-                    if ie_all[k] >= n_zc and (first is None or te[k] <= te[first]):
-                        user_te.append(float(te[k]))
-                        user_ye.append(np.asarray(sol.ye[k], dtype=float))
-                        user_ie.append(int(ie_all[k] - n_zc))
-                if first is not None and ie_all[first] >= n_zc:  # a terminal user event ends the run
-                    t_stop = float(te[first])
-                    inner = keep & ((sol.t < t_stop) if forward else (sol.t > t_stop))
-                    add(sol.t[inner], sol.y[inner])
-                    add(t_stop, sol.ye[first])
-                    x = np.asarray(sol.ye[first], dtype=float)
-                    message = sol.message
-                    finished = True
-                    break
-                te = te[[k for k in range(te.size) if ie_all[k] < n_zc]]
-                if te.size:  # the first located switch ends the piece (terminal or not)
-                    zc_rows = [k for k in range(ie_all.size) if ie_all[k] < n_zc]
-                    t_sw = float(te[0])
-                    y_sw = np.asarray(sol.ye[zc_rows[0]], dtype=float)
-                    inner = keep & ((sol.t < t_sw) if forward else (sol.t > t_sw))
-                    add(sol.t[inner], sol.y[inner])
-                    add(t_sw, y_sw)
-                    fired = [sw.owners[ie_all[k]] for k in zc_rows if float(sol.te[k]) == t_sw]
-                    sw.record(t_sw, fired)
-                    tol = 128 * max(math.ulp(t_sw), math.ulp(start))
-                    consecutive = consecutive + 1 if abs(t_sw - start) <= 10 * tol else 0
-                    if consecutive >= MAX_CONSECUTIVE:
-                        status, message = "failed", _chatter_message(consecutive, fired[0], t_sw)
-                        raise _Stop
-                    x = sw.choose(t_sw, sw.sync(t_sw, y_sw, u(t_sw), fired), u(t_sw), before)
-                    x = settle(t_sw, x, u, b)
-                    add(t_sw, x) if dense or (t_sw == b and np.any(user == b)) else None
-                    start = t_sw
-                    if t_sw == b:
-                        break
-                    continue
-                if t_end != b:  # a stepped relay stopped the solver at a step's end
-                    add(sol.t[keep], sol.y[keep])
-                    y_end = np.asarray(sol.y[-1], dtype=float)
-                    x_before = y_end.copy()
-                    x = sw.choose(t_end, sw.sync(t_end, y_end, u(t_end)), u(t_end),
-                                  after=lambda xx: sw.ahead(t_end, xx, u, look(t_end, b)))
-                    x = settle(t_end, x, u, b)
-                    sw.record(t_end, [n for n in sw.stepped if not np.array_equal(
-                        x[diagram.slices[n]], x_before[diagram.slices[n]])])
-                    if dense:
-                        add(t_end, x)
-                    start = t_end
-                    continue
-                at_b = keep & (sol.t == b)
-                body = keep & ~at_b
-                add(sol.t[body], sol.y[body])
-                x = np.asarray(sol.y[-1], dtype=float)
-                x = sw.sync(b, x, u(b)) if sw else x
-                if dense or np.any(user == b):
-                    add(b, x)  # the row before the jump at b (or the last row)
+    def integrate(self) -> None:
+        """Every piece in turn; the hit at t0 first (discrete outputs from their initial states
+        and the inputs at t0), and a function zero at t0 takes the sign it moves into
+        (Simulink's initialisation)."""
+        t0, sw = self.t0, self.sw
+        u_first = _inputs_at(self.signals, -math.inf, math.inf)
+        if t0 in self.hit_map:
+            self.x = _discrete_hit(self.diagram, t0, self.x, u_first(t0), self.hit_map[t0])
+        if sw:
+            self.x = sw.choose(t0, self.x, u_first(t0), after=self.ahead(t0, u_first, self.edges[1]))
+        for i in range(len(self.edges) - 1):
+            if self.piece(i):
                 break
-            if finished:
-                break
-            if b in hit_map and not last:
-                x = _discrete_hit(diagram, b, x, inputs_at(b, math.inf if forward else b)(b), hit_map[b])
-            elif b in hit_map and last:
-                x_after = _discrete_hit(diagram, b, x, u(b), hit_map[b])
-                if dense or np.any(user == b):
-                    add(b, x_after)
-                x = x_after
-            consecutive = 0
-        message = message or sol.message
-    except _Stop:
-        pass
-    finally:
-        sw.release()
-        diagram.slope_window = (-math.inf, math.inf)
+        self.message = self.message or self.sol.message
 
-    t = np.concatenate(rows_t) if rows_t else np.array([t0])
-    X = np.concatenate(rows_x).reshape(t.size, x.size) if rows_x else x.reshape(1, -1)
-    if not dense:
-        t, X = _at_user_times(t, X, user, status == "success")
-    counts = {n: len(v) for n, v in sw.times.items()}
-    if counts:
-        notes.append("zero crossings located: " + ", ".join(f"{n} ({blocks[n].TYPE}) {c}" for n, c in counts.items()))
-    if hit_times.size:
-        rates_txt = ", ".join(f"{n} every {blocks[n].sample}" for n in rates)
-        notes.append(f"sample hits: {hit_times.size} ({rates_txt})")
-    if status == "success" and not finished:
-        message = (message.split(" Integrated in")[0] + " " + "; ".join(notes) + ".").strip() if notes else message
-    U = np.zeros((t.size, len(signals)))
-    for j, s in enumerate(signals):
-        U[:, j] = s(t)
-    # a breakpoint listed twice: the row before the jump reads the sources before it (their left
-    # limits), so an input, and an output that feeds it through, is drawn as the step it is
-    twice = np.flatnonzero((t[:-1] == t[1:]) & np.isin(t[:-1], cuts)) if t.size > 1 and cuts.size else []
-    for i in twice:
-        before = float(np.nextafter(t[i], -math.inf if forward else math.inf))
-        U[i] = [s(before) for s in signals]
-    Y = diagram.output_many(t, X, U) if diagram.outputs else np.zeros((t.size, 0))
-    for arr in (t, X, U, Y):
-        arr.setflags(write=False)
-    return HybridResponse(t=t, x=X, u=U, y=np.asarray(Y), states=diagram.states, inputs=diagram.inputs,
-                          outputs=diagram.outputs, stats=Stats(nsteps, nfailed, nfevals), status=status,
-                          message=message, method=method_name, breakpoints=tuple(float(c) for c in cuts),
-                          warnings=tuple(warns), crossings={n: tuple(v) for n, v in sw.times.items()},
-                          hits=tuple(float(h) for h in hit_times), notes=tuple(notes),
-                          te=np.array(user_te), ye=np.array(user_ye).reshape(len(user_te), x.size),
-                          ie=np.array(user_ie, dtype=int))
+    def piece(self, i: int) -> bool:
+        """The piece from edges[i] to edges[i + 1]; True when a terminal user event ended the run."""
+        edges, sw, forward, dense, user = self.edges, self.sw, self.forward, self.dense, self.user
+        a, b = edges[i], edges[i + 1]
+        last = i == len(edges) - 2
+        lo, hi = min(a, b), max(a, b)
+        u_lo = lo if ((lo == a and i > 0) or (lo == b and not last)) else -math.inf
+        u_hi = float(np.nextafter(hi, -math.inf)) if ((hi == a and i > 0) or (hi == b and not last)) else math.inf
+        u = _inputs_at(self.signals, u_lo, u_hi)
+        self.diagram.slope_window = (u_lo, u_hi)
+        if i > 0 and sw:
+            self.x = sw.choose(a, self.x, u(a), after=self.ahead(a, u, b))
+        if sw:
+            self.x = self.settle(a, self.x, u, b)
+        if dense:
+            grid_user = np.empty(0)
+        else:
+            grid_user = np.unique(user[(user > lo) & (user < hi)])
+            if not forward:
+                grid_user = grid_user[::-1]
+        if dense or np.any(user == a):
+            self.add(a, self.x)  # in a run with the solver's points, the row after the jump at a
+        start = a
+        while start is not None:
+            start = self.stretch(start, b, u, grid_user)
+        if self.finished:
+            return True
+        hits = self.hit_map.get(b)
+        if hits is not None and not last:
+            self.x = _discrete_hit(self.diagram, b, self.x, _inputs_at(self.signals, b, math.inf if forward else b)(b),
+                                   hits)
+        elif hits is not None:
+            x_after = _discrete_hit(self.diagram, b, self.x, u(b), hits)
+            if dense or np.any(user == b):
+                self.add(b, x_after)
+            self.x = x_after
+        self.consecutive = 0
+        return False
+
+    def stretch(self, start, b, u, grid_user):
+        """Solve from ``start`` towards the piece's end ``b`` with the modes held; the time the
+        next stretch starts from (a located switch, a stepped relay), or None when the piece is done."""
+        from odelab.solvers.api import solve
+
+        sw, x, forward = self.sw, self.x, self.forward
+        before = sw.raw(start, x, u(start), sw.located) if sw.located else None
+        zc = sw.event_function(u) if sw.located else None  # (it sets sw.owners)
+        n_zc = len(sw.owners) if sw.located else 0
+        ev = _combined(zc, n_zc, self.events)
+        opts = dict(self.options)
+        if ev is not None:
+            opts["events"] = ev
+        if sw.stepped:
+            opts["output_fcn"] = _stop_when_changed(sw.stepped_check(u), start, x)
+        rest = grid_user[(grid_user > start) if forward else (grid_user < start)]
+        grid = np.concatenate([[start], rest, [b]])
+
+        def rhs(t, xx, _u=u):
+            return self.diagram._dynamics(t, xx, _u(t))
+
+        self.sol = sol = solve(rhs, grid, x, method=self.method, **opts)
+        self.nsteps += sol.stats.nsteps
+        self.nfevals += sol.stats.nfevals
+        self.nfailed = None if self.nfailed is None or sol.stats.nfailed is None else self.nfailed + sol.stats.nfailed
+        self.method_name = sol.method or self.method
+        self.warns.extend(w for w in sol.warnings if w not in self.warns)
+        keep = (sol.t > start) if forward else (sol.t < start)
+        if sol.status != "success":
+            self.add(sol.t[keep], sol.y[keep])
+            self.fail(sol.message)
+        te = np.asarray(sol.te, dtype=float)
+        ie_all = np.asarray(sol.ie, dtype=int)
+        if self.user_events(sol, te, ie_all, n_zc, keep):
+            return None
+        zc_rows = [k for k in range(ie_all.size) if ie_all[k] < n_zc]
+        if zc_rows:  # the first located switch ends the stretch (terminal or not)
+            return self.switched(sol, zc_rows, ie_all, keep, start, b, u, before)
+        t_end = float(sol.t[-1])
+        if t_end != b:  # a stepped relay stopped the solver at a step's end
+            return self.relay_stopped(sol, keep, t_end, b, u)
+        at_b = keep & (sol.t == b)
+        self.add(sol.t[keep & ~at_b], sol.y[keep & ~at_b])
+        self.x = np.asarray(sol.y[-1], dtype=float)
+        self.x = sw.sync(b, self.x, u(b)) if sw else self.x
+        if self.dense or np.any(self.user == b):
+            self.add(b, self.x)  # the row before the jump at b (or the last row)
+        return None
+
+    def user_events(self, sol, te, ie_all, n_zc, keep) -> bool:
+        """Record the user's events up to the end of this stretch; True when a terminal one
+        ended the run (its rows added, the state there kept)."""
+        events = self.events
+        user_terminal = [bool(np.asarray(events(float(tj), yj)[1]).reshape(-1)[j - n_zc])
+                         if j >= n_zc else True for tj, yj, j in zip(te, sol.ye, ie_all)] if te.size else []
+        first = next((k for k in range(te.size) if ie_all[k] < n_zc or user_terminal[k]), None)
+        for k in range(te.size):
+            if ie_all[k] >= n_zc and (first is None or te[k] <= te[first]):
+                self.user_te.append(float(te[k]))
+                self.user_ye.append(np.asarray(sol.ye[k], dtype=float))
+                self.user_ie.append(int(ie_all[k] - n_zc))
+        if first is None or ie_all[first] < n_zc:
+            return False
+        t_stop = float(te[first])
+        inner = keep & ((sol.t < t_stop) if self.forward else (sol.t > t_stop))
+        self.add(sol.t[inner], sol.y[inner])
+        self.add(t_stop, sol.ye[first])
+        self.x = np.asarray(sol.ye[first], dtype=float)
+        self.message = sol.message
+        self.finished = True
+        return True
+
+    def switched(self, sol, zc_rows, ie_all, keep, start, b, u, before):
+        """A located switch at the first zero-crossing event: the rows up to it, the modes chosen
+        afresh there; the time the next stretch starts from (None if it is the piece's end)."""
+        from odelab.systems.diagram.zerocross import MAX_CONSECUTIVE
+
+        sw = self.sw
+        t_sw = float(sol.te[zc_rows[0]])
+        y_sw = np.asarray(sol.ye[zc_rows[0]], dtype=float)
+        inner = keep & ((sol.t < t_sw) if self.forward else (sol.t > t_sw))
+        self.add(sol.t[inner], sol.y[inner])
+        self.add(t_sw, y_sw)
+        fired = [sw.owners[ie_all[k]] for k in zc_rows if float(sol.te[k]) == t_sw]
+        sw.record(t_sw, fired)
+        tol = 128 * max(math.ulp(t_sw), math.ulp(start))
+        self.consecutive = self.consecutive + 1 if abs(t_sw - start) <= 10 * tol else 0
+        if self.consecutive >= MAX_CONSECUTIVE:
+            self.fail(_chatter_message(self.consecutive, fired[0], t_sw))
+        x = sw.choose(t_sw, sw.sync(t_sw, y_sw, u(t_sw), fired), u(t_sw), before)
+        self.x = self.settle(t_sw, x, u, b)
+        if self.dense or (t_sw == b and np.any(self.user == b)):
+            self.add(t_sw, self.x)
+        return None if t_sw == b else t_sw
+
+    def relay_stopped(self, sol, keep, t_end, b, u):
+        """A stepped relay's output_fcn stopped the solver at a step's end: switch it there."""
+        sw, diagram = self.sw, self.diagram
+        self.add(sol.t[keep], sol.y[keep])
+        y_end = np.asarray(sol.y[-1], dtype=float)
+        x_before = y_end.copy()
+        x = sw.choose(t_end, sw.sync(t_end, y_end, u(t_end)), u(t_end), after=self.ahead(t_end, u, b))
+        self.x = self.settle(t_end, x, u, b)
+        sw.record(t_end, [n for n in sw.stepped if not np.array_equal(
+            self.x[diagram.slices[n]], x_before[diagram.slices[n]])])
+        if self.dense:
+            self.add(t_end, self.x)
+        return t_end
+
+    # --- the result ---------------------------------------------------------------------------
+
+    def response(self) -> HybridResponse:
+        diagram, blocks, signals, sw, x = self.diagram, self.blocks, self.signals, self.sw, self.x
+        t = np.concatenate(self.rows_t) if self.rows_t else np.array([self.t0])
+        X = np.concatenate(self.rows_x).reshape(t.size, x.size) if self.rows_x else x.reshape(1, -1)
+        if not self.dense:
+            t, X = _at_user_times(t, X, self.user, self.status == "success")
+        notes, message = self.notes, self.message
+        counts = {n: len(v) for n, v in sw.times.items()}
+        if counts:
+            notes.append("zero crossings located: " + ", ".join(f"{n} ({blocks[n].TYPE}) {c}"
+                                                                 for n, c in counts.items()))
+        if self.hit_times.size:
+            rates_txt = ", ".join(f"{n} every {blocks[n].sample}" for n in self.rates)
+            notes.append(f"sample hits: {self.hit_times.size} ({rates_txt})")
+        if self.status == "success" and not self.finished and notes:
+            message = (message.split(" Integrated in")[0] + " " + "; ".join(notes) + ".").strip()
+        U = np.zeros((t.size, len(signals)))
+        for j, s in enumerate(signals):
+            U[:, j] = s(t)
+        # a breakpoint listed twice: the row before the jump reads the sources before it (their left
+        # limits), so an input, and an output that feeds it through, is drawn as the step it is
+        cuts = self.cuts
+        twice = np.flatnonzero((t[:-1] == t[1:]) & np.isin(t[:-1], cuts)) if t.size > 1 and cuts.size else []
+        for i in twice:
+            before = float(np.nextafter(t[i], -math.inf if self.forward else math.inf))
+            U[i] = [s(before) for s in signals]
+        Y = diagram.output_many(t, X, U) if diagram.outputs else np.zeros((t.size, 0))
+        for arr in (t, X, U, Y):
+            arr.setflags(write=False)
+        n_user = len(self.user_te)
+        return HybridResponse(t=t, x=X, u=U, y=np.asarray(Y), states=diagram.states, inputs=diagram.inputs,
+                              outputs=diagram.outputs, stats=Stats(self.nsteps, self.nfailed, self.nfevals),
+                              status=self.status, message=message, method=self.method_name,
+                              breakpoints=tuple(float(c) for c in cuts), warnings=tuple(self.warns),
+                              crossings={n: tuple(v) for n, v in sw.times.items()},
+                              hits=tuple(float(h) for h in self.hit_times), notes=tuple(notes),
+                              te=np.array(self.user_te), ye=np.array(self.user_ye).reshape(n_user, x.size),
+                              ie=np.array(self.user_ie, dtype=int))
+
+
+_SQRT_EPS = math.sqrt(np.finfo(float).eps)
+
+
+def _stop_when_changed(changed, start, x):
+    """An OutputFcn that stops the solver at the end of the first step after which a stepped
+    relay's mode changed (``changed`` is Switching.stepped_check's, primed at ``start``)."""
+    changed(start, x)
+
+    def stop_fcn(tt, yy, flag):
+        if flag == "" and np.size(tt):
+            return changed(float(np.atleast_1d(tt)[-1]), np.asarray(yy).reshape(-1, x.size)[-1])
+        return False
+
+    return stop_fcn
 
 
 def _combined(zc, n_zc, events):
