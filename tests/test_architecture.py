@@ -33,7 +33,6 @@ LONG_FUNCTIONS = {
     "odelab.solvers.numjac.numjac": "core26: solvers/",
     "odelab.solvers.dde23.dde23": "delays: the dde23 driver (onto core26's shared controller)",
     "odelab.systems.network.derive.derive": "network: the symbolic derivation",
-    "odelab.systems.simulate.simulate": "systems: one driver per response kind",
 }
 
 

@@ -153,9 +153,7 @@ def simulate(
     longer ``tspan`` each piece integrates over its end points and the user's times inside
     it, and only the user's times are returned.
     """
-    from odelab.solvers.api import solve
     from odelab.solvers.options import as_tspan
-    from odelab.solvers.registry import get_method
 
     dynamics = getattr(system, "dynamics", None)
     output = getattr(system, "output", None)
@@ -166,86 +164,32 @@ def simulate(
             key="system",
         )
     states = tuple(system.states)
-    inputs = tuple(system.inputs)
-    outputs = tuple(system.outputs)
     tspan = as_tspan(tspan)
     x0 = as_initial_state(x0, len(states), states)
-    signals = as_signals(u, inputs)
-    kind = get_method(method).kind
+    signals = as_signals(u, tuple(system.inputs))
     if piece_solver is None:
         piece_solver = python_piece_solver(system, signals, method)
 
     t0, tf = float(tspan[0]), float(tspan[-1])
-    backward = tf < t0
     cuts = np.unique(np.concatenate([np.empty(0), *(s.breakpoints(t0, tf) for s in signals)]))
-    if backward:
+    if tf < t0:
         cuts = cuts[::-1]
     edges = [t0, *cuts.tolist(), tf]
-    if cuts.size and kind in ("adaptive", "implicit", "multistep") and not any(
-        _is_max_step(key) and value is not None for key, value in options.items()
-    ):
-        options = {**options, "max_step": 0.1 * abs(tf - t0)}
-
-    dense = tspan.size == 2  # the solver's natural output points
-    user_times = tspan
-    ts: list[np.ndarray] = []
-    xs: list[np.ndarray] = []
-    nsteps, nfailed, nfevals = 0, 0, 0
-    linalg = None  # npds, ndecomps, nsolves summed for the stiff solvers
-    status, message, method_name = "success", "", method
-    notes: list[str] = []
-    state = x0
-    npieces = len(edges) - 1
-    for i in range(npieces):
-        a, b = edges[i], edges[i + 1]
-        last = i == npieces - 1
-        lo, hi = min(a, b), max(a, b)
-        # read the inputs on this piece's side of a breakpoint (not at the user's ends)
-        lo_is_cut = (lo == a and i > 0) or (lo == b and not last)
-        hi_is_cut = (hi == a and i > 0) or (hi == b and not last)
-        u_lo = lo if lo_is_cut else -math.inf
-        u_hi = float(np.nextafter(hi, -math.inf)) if hi_is_cut else math.inf
-        if npieces == 1:
-            grid = tspan
-        elif dense:
-            grid = np.array([a, b])
-        else:
-            inside = user_times[(user_times > lo) & (user_times < hi)]
-            grid = np.concatenate([[a], inside, [b]])  # user_times run in the direction of a -> b
-        sol: Solution = piece_solver(grid, state, u_lo, u_hi, options)
-
-        keep = np.ones(sol.t.size, dtype=bool)
-        if not dense:
-            keep &= np.isin(sol.t, user_times)
-        if not last and sol.t.size and sol.t[-1] == b:
-            keep[-1] = False  # the breakpoint's row comes from the next piece's start
-        ts.append(sol.t[keep])
-        xs.append(sol.y[keep])
-        nsteps += sol.stats.nsteps
-        nfevals += sol.stats.nfevals
-        nfailed = None if nfailed is None or sol.stats.nfailed is None else nfailed + sol.stats.nfailed
-        if sol.stats.npds is not None:
-            counts = (sol.stats.npds, sol.stats.ndecomps, sol.stats.nsolves)
-            linalg = counts if linalg is None else tuple(a + b for a, b in zip(linalg, counts))
-        method_name = sol.method or method
-        notes.extend(w for w in sol.warnings if w not in notes)
-        if sol.status != "success":
-            status, message = "failed", sol.message
-            break
-        state = sol.y[-1]
-        message = sol.message
-
-    if status == "success" and npieces > 1:
+    options = whole_span_max_step(options, method, t0, tf, cut=bool(cuts.size))
+    run = _Pieces(method)
+    run.integrate(piece_solver, edges, tspan, x0, options)
+    message = run.message
+    if run.status == "success" and len(edges) > 2:
         where = ", ".join(f"{c:g}" for c in cuts[:5]) + (f", ... ({cuts.size} in all)" if cuts.size > 5 else "")
-        message = f"{message} Integrated in {npieces} pieces, restarted at the input breakpoints t = {where}."
+        message = f"{message} Integrated in {len(edges) - 1} pieces, restarted at the input breakpoints t = {where}."
 
-    t = np.concatenate(ts)
-    x = np.concatenate(xs).reshape(t.size, len(states))
+    t = np.concatenate(run.ts)
+    x = np.concatenate(run.xs).reshape(t.size, len(states))
     U = np.zeros((t.size, len(signals)))
     for j, signal in enumerate(signals):
         U[:, j] = signal(t)
     Y = np.array([np.asarray(output(ti, xi, ui), dtype=float).reshape(-1) for ti, xi, ui in zip(t, x, U)])
-    Y = Y.reshape(t.size, len(outputs))
+    Y = Y.reshape(t.size, len(system.outputs))
     for arr in (t, x, U, Y):
         arr.setflags(write=False)
     return Response(
@@ -254,15 +198,93 @@ def simulate(
         u=U,
         y=Y,
         states=states,
-        inputs=inputs,
-        outputs=outputs,
-        stats=Stats(nsteps, nfailed, nfevals, *(linalg or ())),
-        status=status,
+        inputs=tuple(system.inputs),
+        outputs=tuple(system.outputs),
+        stats=Stats(run.nsteps, run.nfailed, run.nfevals, *(run.linalg or ())),
+        status=run.status,
         message=message,
-        method=method_name,
+        method=run.method_name,
         breakpoints=tuple(float(c) for c in cuts),
-        warnings=tuple(notes),
+        warnings=tuple(run.notes),
     )
+
+
+def piece_window(edges: Sequence[float], i: int) -> tuple[float, float]:
+    """Where piece ``i`` (``edges[i]`` to ``edges[i + 1]``) reads its inputs: clipped to its own
+    side of each breakpoint (a source's value just before a jump, its new value just after),
+    unbounded at the user's ends of the span. Shared by :func:`simulate` and the hybrid driver."""
+    a, b = edges[i], edges[i + 1]
+    last = i == len(edges) - 2
+    lo, hi = min(a, b), max(a, b)
+    lo_is_cut = (lo == a and i > 0) or (lo == b and not last)
+    hi_is_cut = (hi == a and i > 0) or (hi == b and not last)
+    return (lo if lo_is_cut else -math.inf), (float(np.nextafter(hi, -math.inf)) if hi_is_cut else math.inf)
+
+
+def whole_span_max_step(options: dict, method: str, t0: float, tf: float, *, cut: bool) -> dict:
+    """``options`` with MATLAB's default MaxStep for the *whole* span, 0.1 |tf - t0|, when the
+    span is cut into pieces and the user set none (each piece would otherwise get a tenth of
+    itself); only for the methods that choose their own steps."""
+    from odelab.solvers.registry import get_method
+
+    if not cut or any(_is_max_step(key) and value is not None for key, value in options.items()):
+        return options
+    if get_method(method).kind not in ("adaptive", "implicit", "multistep"):
+        return options
+    return {**options, "max_step": 0.1 * abs(tf - t0)}
+
+
+class _Pieces:
+    """The pieces of one :func:`simulate` run, solved in turn: their rows and summed counts."""
+
+    def __init__(self, method: str):
+        self.ts: list[np.ndarray] = []
+        self.xs: list[np.ndarray] = []
+        self.nsteps, self.nfailed, self.nfevals = 0, 0, 0
+        self.linalg = None  # npds, ndecomps, nsolves summed for the stiff solvers
+        self.status, self.message, self.method, self.method_name = "success", "", method, method
+        self.notes: list[str] = []
+
+    def integrate(self, piece_solver, edges, tspan, state, options) -> None:
+        """Each piece from the last one's final state; a failed piece ends the run. With a
+        two-element tspan the solver's own points, else the user's times inside each piece."""
+        dense = tspan.size == 2
+        npieces = len(edges) - 1
+        for i in range(npieces):
+            a, b = edges[i], edges[i + 1]
+            lo, hi = min(a, b), max(a, b)
+            if npieces == 1:
+                grid = tspan
+            elif dense:
+                grid = np.array([a, b])
+            else:
+                inside = tspan[(tspan > lo) & (tspan < hi)]
+                grid = np.concatenate([[a], inside, [b]])  # the user's times run in the direction of a -> b
+            sol: Solution = piece_solver(grid, state, *piece_window(edges, i), options)
+            keep = np.ones(sol.t.size, dtype=bool)
+            if not dense:
+                keep &= np.isin(sol.t, tspan)
+            if i < npieces - 1 and sol.t.size and sol.t[-1] == b:
+                keep[-1] = False  # the breakpoint's row comes from the next piece's start
+            self.add(sol, keep)
+            if sol.status != "success":
+                self.status, self.message = "failed", sol.message
+                return
+            state = sol.y[-1]
+            self.message = sol.message
+
+    def add(self, sol: Solution, keep: np.ndarray) -> None:
+        self.ts.append(sol.t[keep])
+        self.xs.append(sol.y[keep])
+        stats = sol.stats
+        self.nsteps += stats.nsteps
+        self.nfevals += stats.nfevals
+        self.nfailed = None if self.nfailed is None or stats.nfailed is None else self.nfailed + stats.nfailed
+        if stats.npds is not None:
+            counts = (stats.npds, stats.ndecomps, stats.nsolves)
+            self.linalg = counts if self.linalg is None else tuple(p + q for p, q in zip(self.linalg, counts))
+        self.method_name = sol.method or self.method
+        self.notes.extend(w for w in sol.warnings if w not in self.notes)
 
 
 def python_piece_solver(system: Any, signals: Sequence[Signal], method: str) -> Callable[..., Solution]:

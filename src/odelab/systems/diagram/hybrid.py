@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from odelab.solution import Stats
-from odelab.systems.simulate import Response
+from odelab.systems.simulate import Response, piece_window, whole_span_max_step
 
 __all__ = ["HybridResponse", "simulate_hybrid", "needs_hybrid"]
 
@@ -143,11 +143,7 @@ class _HybridRun:
         edges = sorted(set(self.cuts.tolist()) | {t for t in self.hit_map if min(t0, tf) < t < max(t0, tf)},
                        reverse=not forward)
         self.edges = [t0, *edges, tf]
-        if len(self.edges) > 2 and not any(k.lower().replace("_", "") == "maxstep" and v is not None
-                                           for k, v in options.items()):
-            if _locates(method):
-                options = {**options, "max_step": 0.1 * abs(tf - t0)}
-        self.options = options
+        self.options = whole_span_max_step(options, method, t0, tf, cut=len(self.edges) > 2)
 
         self.dense = tspan.size == 2
         self.user = tspan
@@ -229,8 +225,7 @@ class _HybridRun:
         a, b = edges[i], edges[i + 1]
         last = i == len(edges) - 2
         lo, hi = min(a, b), max(a, b)
-        u_lo = lo if ((lo == a and i > 0) or (lo == b and not last)) else -math.inf
-        u_hi = float(np.nextafter(hi, -math.inf)) if ((hi == a and i > 0) or (hi == b and not last)) else math.inf
+        u_lo, u_hi = piece_window(edges, i)
         u = _inputs_at(self.signals, u_lo, u_hi)
         self.diagram.slope_window = (u_lo, u_hi)
         if i > 0 and sw:

@@ -19,7 +19,7 @@ source drives its current into a; a voltage source's ``i`` leaves it at a).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 from odelab.exceptions import InputError
