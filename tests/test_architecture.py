@@ -32,7 +32,6 @@ LONG_FUNCTIONS = {
     "odelab.solvers.implicit.ode23t.integrate_ode23t": "core26: one attempt loop for the implicit solvers",
     "odelab.solvers.numjac.numjac": "core26: solvers/",
     "odelab.solvers.dde23.dde23": "delays: the dde23 driver (onto core26's shared controller)",
-    "odelab.systems.network.derive.derive": "network: the symbolic derivation",
 }
 
 

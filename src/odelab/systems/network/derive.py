@@ -123,352 +123,409 @@ class _Parser:
 
 def derive(elements: dict[str, Element], outputs: dict[str, str] | None, parameters) -> Derivation:
     """Derive the state equations of a network (``parameters``: the names of the parameters)."""
-    sp = require_sympy()
-    parameters = tuple(parameters)
-    graph = build_graph(elements)
-    t = sp.Symbol("t")
-    symbols: dict[str, object] = {p: sp.Symbol(p) for p in parameters}
-    symbols["t"] = t
-    reader = _Parser(sp, parameters, symbols)
+    d = _Deriver(elements, tuple(parameters))
+    d.read()
+    d.relations()
+    d.across_states()
+    d.known_displacements()
+    d.through_states()
+    d.law_equations()
+    d.solve()
+    return d.result(outputs)
 
-    # -- coefficients, source values and laws, read by odelab's parser ----------------------
-    coef: dict[str, dict[str, object]] = {}
-    law_var: dict[str, object] = {}
-    law_expr: dict[str, object] = {}
-    value: dict[str, object] = {}
-    for name, el in elements.items():
-        coef[name] = {}
-        for key, v in el.values.items():
-            if key == "value":
-                value[name] = reader.parse(v, element=name, key=key, allowed={"t": t}, what="", inputs=True)
-            else:
-                coef[name][key] = reader.parse(
-                    v, element=name, key=key, allowed={},
-                    what=f"a {el.TYPE}'s `{key}` is a number or an expression of [parameters]")
-        if el.law is not None:
-            var = sp.Symbol(f"{name}.{el.LAW_OF}")
-            law_var[name] = var
-            allowed = {el.LAW_OF: var, "t": t}
-            law_expr[name] = reader.parse(
-                el.law, element=name, key=el.LAW,
-                allowed=allowed, law_of=el.LAW_OF,
-                what=(f"the {el.LAW} of a {el.TYPE} is a law of its {_variable_word(el)} `{el.LAW_OF}` "
-                      "(and of [parameters])"))
-    inputs = tuple(reader.inputs)
 
-    generic = _generic_values(parameters)
+class _Deriver:
+    """One derivation, in the module's three steps; each method is one paragraph of the hand
+    derivation (the laws read, the relations reduced, the states chosen, the laws solved)."""
 
-    def numeric(expr):
+    def __init__(self, elements: dict[str, Element], parameters: tuple[str, ...]):
+        sp = self.sp = require_sympy()
+        self.elements, self.parameters = elements, parameters
+        self.graph = build_graph(elements)
+        self.t = sp.Symbol("t")
+        self.symbols: dict[str, object] = {p: sp.Symbol(p) for p in parameters}
+        self.symbols["t"] = self.t
+        self.reader = _Parser(sp, parameters, self.symbols)
+        self.generic = _generic_values(parameters)
+        self.states: list[str] = []
+        self.state_sym: dict[str, object] = {}
+        self.notes: list[str] = []
+        self.deriv: dict[str, object] = {}  # state -> symbol of its derivative (an unknown) or an expression
+        self.el_state: dict[str, object] = {}
+        self.input_rate: dict[str, object] = {}  # derivative symbols of inputs, d(u)/dt
+
+    # -- small rules ------------------------------------------------------------------------
+
+    def numeric(self, expr):
         """A generic rational value of an expression of the parameters (for rank tests)."""
-        val = expr.subs({symbols[p]: sp.Rational(v.numerator, v.denominator) for p, v in generic.items()})
+        sp = self.sp
+        val = expr.subs({self.symbols[p]: sp.Rational(v.numerator, v.denominator) for p, v in self.generic.items()})
         return sp.nsimplify(val) if not val.is_Rational else val
 
-    # -- unknowns: node across variables, port through variables ----------------------------
-    across = {}
-    for domain, node in graph.nodes:
-        across[node] = sp.Symbol(f"{DOMAINS[domain].across}({node})")
+    def across_of(self, a, b):
+        return (self.across[a] if a != GROUND else 0) - (self.across[b] if b != GROUND else 0)
 
-    def across_of(a, b):
-        return (across[a] if a != GROUND else 0) - (across[b] if b != GROUND else 0)
+    def u(self, name, side=1):
+        el = self.elements[name]
+        return self.across_of(*(el.nodes if side == 1 else el.nodes2))
 
-    flow = {}
-    for p in graph.ports:
-        flow[(p.element, p.side)] = sp.Symbol(f"flow[{p.element}:{p.side}]")
-    marker = {}  # a symbol per source: which sources fix a reduced variable
-    for name, el in elements.items():
-        if el.ROLE in ("across-source", "through-source"):
-            marker[name] = sp.Symbol(f"source[{name}]")
+    def ratio(self, name):
+        el, c = self.elements[name], self.coef[name]
+        return 1 / c["r"] if el.TYPE == "rack-pinion" else c.get("n", c.get("K"))
 
-    def u(name, side=1):
-        el = elements[name]
-        a, b = el.nodes if side == 1 else el.nodes2
-        return across_of(a, b)
-
-    def ratio(name):
-        el = elements[name]
-        return 1 / coef[name]["r"] if el.TYPE == "rack-pinion" else coef[name].get("n", coef[name].get("K"))
-
-    # -- across relations: sources and couplings -------------------------------------------
-    across_rel = []  # (element, expression == 0, with source markers)
-    for name, el in elements.items():
-        if el.ROLE == "across-source":
-            across_rel.append((name, u(name) - marker[name]))
-        elif el.ROLE == "transformer":
-            across_rel.append((name, u(name, 2) - u(name) / ratio(name)))
-        elif el.ROLE == "gyrator":
-            across_rel.append((name, u(name) - coef[name]["K"] * u(name, 2)))
-    node_vars = list(across.values())
-    solved_across = _solve_relations(sp, across_rel, node_vars, numeric, "across", elements)
-
-    # -- through relations: node laws, sources, couplings ------------------------------------
-    through_rel = []
-    node_law = {}
-    for domain, node in graph.nodes:
-        total = 0
-        for p in graph.ports:
-            if p.a == node:
-                total += flow[(p.element, p.side)]
-            if p.b == node:
-                total -= flow[(p.element, p.side)]
-        node_law[node] = total
-        through_rel.append((f"node {node}", total))
-    for name, el in elements.items():
-        if el.ROLE == "through-source":
-            through_rel.append((name, flow[(name, 1)] + marker[name]))
-        elif el.ROLE == "transformer":
-            through_rel.append((name, flow[(name, 2)] + ratio(name) * flow[(name, 1)]))
-        elif el.ROLE == "gyrator":
-            through_rel.append((name, flow[(name, 2)] + coef[name]["K"] * flow[(name, 1)]))
-    flow_vars = list(flow.values())
-    solved_through = _solve_relations(sp, through_rel, flow_vars, numeric, "through", elements)
-
-    # -- states ------------------------------------------------------------------------------
-    states: list[str] = []
-    state_sym: dict[str, object] = {}
-    notes: list[str] = []
-    deriv: dict[str, object] = {}  # state -> symbol of its derivative (an unknown) or an expression
-
-    def new_state(label):
-        s = sp.Symbol(label)
-        states.append(label)
-        state_sym[label] = s
-        symbols[label] = s
+    def new_state(self, label):
+        s = self.sp.Symbol(label)
+        self.states.append(label)
+        self.state_sym[label] = s
+        self.symbols[label] = s
         return s
 
-    # across stores (masses, inertias, capacitances): independent across variables
-    chosen_across: list[tuple[str, object, object]] = []  # (element, reduced form, state symbol)
-    dep_across: dict[str, tuple[dict, object]] = {}  # element -> ({element: coefficient}, source part)
-    el_state: dict[str, object] = {}
-    for name, el in elements.items():
-        if el.ROLE != "across-store":
-            continue
-        form = solved_across(u(name))
-        combo = _combination(sp, form, [(c[0], c[1]) for c in chosen_across], node_vars, numeric)
-        d = DOMAINS[el.DOMAIN]
-        if combo is None:
-            if d.integral:
-                xs = new_state(f"{name}.{d.integral}")
-            s = new_state(f"{name}.{d.across}")
-            chosen_across.append((name, form, s))
-            el_state[name] = s
-            if d.integral:
-                deriv[f"{name}.{d.integral}"] = s
-                el_state[name + ":integral"] = xs
-            deriv[f"{name}.{d.across}"] = sp.Symbol(f"d({name}.{d.across})/dt")
-            what = {"mass": "a mass: its displacement and velocity", "inertia": "an inertia: its angle and speed"}
-            notes.append(f"{', '.join(states[-2:] if d.integral else states[-1:])}: {what.get(el.TYPE, 'a ' + el.TYPE + ': its ' + d.across_word)}")
-        else:
-            coeffs, rest = combo
-            dep_across[name] = (coeffs, rest)
-            notes.append(_reduction_note(sp, name, el, coeffs, rest, marker, elements, d.across))
-
-    # known displacements of mechanical nodes: combinations of the masses' and inertias' states
-    mech_states = [(n, f, s) for n, f, s in chosen_across if DOMAINS[elements[n].DOMAIN].integral]
-    known_disp: dict[str, object] = {}
-    for domain, node in graph.nodes:
-        if not DOMAINS[domain].integral:
-            continue
-        form = solved_across(across[node])
-        combo = _combination(sp, form, [(n, f) for n, f, _ in mech_states], node_vars, numeric)
-        if combo is not None and combo[1] == 0:
-            known_disp[node] = sum((c * el_state[n + ":integral"] for n, c in combo[0].items()), sp.Integer(0))
-
-    def disp_of(a, b):
-        if (a != GROUND and a not in known_disp) or (b != GROUND and b not in known_disp):
+    def disp_of(self, a, b):
+        known = self.known_disp
+        if (a != GROUND and a not in known) or (b != GROUND and b not in known):
             return None
-        return (known_disp.get(a, 0) if a != GROUND else 0) - (known_disp.get(b, 0) if b != GROUND else 0)
+        return (known.get(a, 0) if a != GROUND else 0) - (known.get(b, 0) if b != GROUND else 0)
 
-    # through stores (springs where the masses leave them free, inductors, inertances)
-    disp_rows: list[tuple[object, object]] = []  # (displacement form over node X's, its value)
-    xsym = {node: sp.Symbol(f"X({node})") for node in known_disp}
-    for node, val in known_disp.items():
-        disp_rows.append((xsym[node], val))
-    chosen_through: list[tuple[str, object, object]] = []
-    dep_through: dict[str, tuple[dict, object]] = {}
-    stretch: dict[str, object] = {}  # spring -> its stretch (state, or an expression of states)
-    for name, el in elements.items():
-        if el.ROLE != "through-store":
-            continue
-        d = DOMAINS[el.DOMAIN]
-        if d.integral:
-            fixed = disp_of(*el.nodes)
-            if fixed is not None:
-                stretch[name] = sp.expand(fixed)
-                notes.append(f"{name}.{d.integral} = {to_text(stretch[name])}: the masses fix the "
-                             f"{_variable_word(el)} of {name}, no state")
-                continue
-        form = solved_through(flow[(name, 1)])
-        combo = _combination(sp, form, [(c[0], c[1]) for c in chosen_through], flow_vars, numeric)
-        if combo is None:
-            var = d.integral if d.integral else d.through
-            s = new_state(f"{name}.{var}")
-            chosen_through.append((name, form, s))
-            el_state[name] = s
-            deriv[f"{name}.{var}"] = sp.Symbol(f"d({name}.{var})/dt")
-            if d.integral:
-                stretch[name] = s
-                notes.append(f"{name}.{var}: a {el.TYPE} whose {_variable_word(el)} the masses do not fix")
-            else:
-                notes.append(f"{name}.{var}: {'an' if el.TYPE[0] in 'aeiou' else 'a'} {el.TYPE}: its {d.through_word}")
-        else:
-            coeffs, rest = combo
-            if not coeffs:
-                sources = [n for n in marker if rest.has(marker[n])]
-                raise NetworkError(
-                    f"the {d.through_word} of {name!r} ({el.TYPE}) is fixed by the source"
-                    f"{'s' if len(sources) > 1 else ''} {', '.join(repr(s) for s in sources)}: they are in series "
-                    f"with nothing else to carry it, so its {el.TYPE} law would need the derivative of the "
-                    f"source's value and the network has no state there. Put a {_parallel_hint(el)} in parallel "
-                    f"with {name!r}, or remove {name!r}.", key=f"elements.{name}")
-            if d.integral and name in law_expr:
-                raise NetworkError(
-                    f"the force of {name!r} is fixed by {', '.join(repr(c) for c in coeffs)} (they are in series "
-                    f"with nothing else at their common node), and a nonlinear {el.TYPE} law cannot be reduced: "
-                    f"put a mass or a damper at the node between them.", key=f"elements.{name}")
-            dep_through[name] = (coeffs, rest)
-            notes.append(_reduction_note(sp, name, el, coeffs, rest, marker, elements, d.through))
-
-    # -- the laws as equations in the unknowns ------------------------------------------------
-    eqs = []
-    unknowns = list(node_vars) + list(flow_vars)
-    G: dict[str, object] = {}  # opaque values of nonlinear dissipator laws
-    W: dict[str, object] = {}  # their arguments, unknowns
-    input_rate = {}  # derivative symbols of inputs, d(u)/dt
-
-    def rate(expr):
+    def rate(self, expr):
         """d/dt of an expression of inputs, t and source markers."""
-        out = sp.diff(expr, t)
-        for u_name in inputs:
-            dsym = input_rate.setdefault(u_name, sp.Symbol(f"d({u_name})/dt"))
-            out += sp.diff(expr, symbols[u_name]) * dsym
-        for n, m in marker.items():
+        sp = self.sp
+        out = sp.diff(expr, self.t)
+        for u_name in self.inputs:
+            dsym = self.input_rate.setdefault(u_name, sp.Symbol(f"d({u_name})/dt"))
+            out += sp.diff(expr, self.symbols[u_name]) * dsym
+        for n, m in self.marker.items():
             if expr.has(m):
                 out += sp.diff(expr, m) * sp.Symbol(f"d(source[{n}])/dt")
         return out
 
-    def through_rate(name):
+    def through_rate(self, name):
         """d/dt of the through variable of a chosen through store."""
-        s = el_state[name]
-        dsym = deriv[s.name]
-        if name in law_expr:
-            return sp.diff(law_expr[name].subs(law_var[name], s), s) * dsym
-        if DOMAINS[elements[name].DOMAIN].integral:
-            return coef[name]["k"] * dsym
+        s = self.el_state[name]
+        dsym = self.deriv[s.name]
+        if name in self.law_expr:
+            return self.sp.diff(self.law_expr[name].subs(self.law_var[name], s), s) * dsym
+        if DOMAINS[self.elements[name].DOMAIN].integral:
+            return self.coef[name]["k"] * dsym
         return dsym
 
-    for name, el in elements.items():
-        F = flow[(name, 1)]
-        c = coef[name]
-        if el.ROLE == "across-store":
-            C = c[_first(el.PARAMETERS)]
-            if name in el_state:
-                s = el_state[name]
-                D = deriv[s.name]
-                unknowns.append(D)
-                eqs.append(u(name) - s)
-                eqs.append(F - C * D)
-            else:
-                coeffs, rest = dep_across[name]
-                eqs.append(F - C * (sum((k * deriv[el_state[n].name] for n, k in coeffs.items()), sp.Integer(0))
-                                    + rate(rest)))
-        elif el.ROLE == "through-store":
+    def final(self, expr):
+        expr = expr.subs(self.solution).subs(self.rates).subs(self.source_values)
+        return _tidy(self.sp, expr)
+
+    # -- 1. the laws, read by odelab's parser --------------------------------------------------
+
+    def read(self) -> None:
+        """Coefficients, source values and laws; then the unknowns: node across variables, port
+        through variables, and a marker symbol per source (which sources fix a reduced variable)."""
+        sp, t, reader = self.sp, self.t, self.reader
+        self.coef: dict[str, dict[str, object]] = {}
+        self.law_var: dict[str, object] = {}
+        self.law_expr: dict[str, object] = {}
+        self.value: dict[str, object] = {}
+        for name, el in self.elements.items():
+            self.coef[name] = {}
+            for key, v in el.values.items():
+                if key == "value":
+                    self.value[name] = reader.parse(v, element=name, key=key, allowed={"t": t}, what="", inputs=True)
+                else:
+                    self.coef[name][key] = reader.parse(
+                        v, element=name, key=key, allowed={},
+                        what=f"a {el.TYPE}'s `{key}` is a number or an expression of [parameters]")
+            if el.law is not None:
+                var = sp.Symbol(f"{name}.{el.LAW_OF}")
+                self.law_var[name] = var
+                self.law_expr[name] = reader.parse(
+                    el.law, element=name, key=el.LAW, allowed={el.LAW_OF: var, "t": t}, law_of=el.LAW_OF,
+                    what=(f"the {el.LAW} of a {el.TYPE} is a law of its {_variable_word(el)} `{el.LAW_OF}` "
+                          "(and of [parameters])"))
+        self.inputs = tuple(reader.inputs)
+        self.across = {node: sp.Symbol(f"{DOMAINS[domain].across}({node})") for domain, node in self.graph.nodes}
+        self.flow = {(p.element, p.side): sp.Symbol(f"flow[{p.element}:{p.side}]") for p in self.graph.ports}
+        self.marker = {name: sp.Symbol(f"source[{name}]") for name, el in self.elements.items()
+                       if el.ROLE in ("across-source", "through-source")}
+
+    def relations(self) -> None:
+        """The across relations (sources, couplings) and the through relations (node laws,
+        sources, couplings), each solved for as many of its variables as it fixes."""
+        sp, u, marker, coef, flow = self.sp, self.u, self.marker, self.coef, self.flow
+        across_rel = []  # (element, expression == 0, with source markers)
+        for name, el in self.elements.items():
+            if el.ROLE == "across-source":
+                across_rel.append((name, u(name) - marker[name]))
+            elif el.ROLE == "transformer":
+                across_rel.append((name, u(name, 2) - u(name) / self.ratio(name)))
+            elif el.ROLE == "gyrator":
+                across_rel.append((name, u(name) - coef[name]["K"] * u(name, 2)))
+        self.node_vars = list(self.across.values())
+        self.solved_across = _solve_relations(sp, across_rel, self.node_vars, self.numeric, "across", self.elements)
+        through_rel = []
+        self.node_law = {}
+        for domain, node in self.graph.nodes:
+            total = 0
+            for p in self.graph.ports:
+                if p.a == node:
+                    total += flow[(p.element, p.side)]
+                if p.b == node:
+                    total -= flow[(p.element, p.side)]
+            self.node_law[node] = total
+            through_rel.append((f"node {node}", total))
+        for name, el in self.elements.items():
+            if el.ROLE == "through-source":
+                through_rel.append((name, flow[(name, 1)] + marker[name]))
+            elif el.ROLE == "transformer":
+                through_rel.append((name, flow[(name, 2)] + self.ratio(name) * flow[(name, 1)]))
+            elif el.ROLE == "gyrator":
+                through_rel.append((name, flow[(name, 2)] + coef[name]["K"] * flow[(name, 1)]))
+        self.flow_vars = list(flow.values())
+        self.solved_through = _solve_relations(sp, through_rel, self.flow_vars, self.numeric, "through",
+                                               self.elements)
+
+    # -- 2. the states ---------------------------------------------------------------------------
+
+    def across_states(self) -> None:
+        """Across stores (masses, inertias, capacitances): a state per independent across variable."""
+        sp, states, notes = self.sp, self.states, self.notes
+        self.chosen_across: list[tuple[str, object, object]] = []  # (element, reduced form, state symbol)
+        self.dep_across: dict[str, tuple[dict, object]] = {}  # element -> ({element: coefficient}, source part)
+        for name, el in self.elements.items():
+            if el.ROLE != "across-store":
+                continue
+            form = self.solved_across(self.u(name))
+            combo = _combination(sp, form, [(c[0], c[1]) for c in self.chosen_across], self.node_vars, self.numeric)
             d = DOMAINS[el.DOMAIN]
-            if d.integral and name in stretch and name not in el_state:  # fixed by the masses
-                x = stretch[name]
-                eqs.append(F - (law_expr[name].subs(law_var[name], x) if name in law_expr else c["k"] * x))
-            elif name in el_state:
-                s = el_state[name]
-                D = deriv[s.name]
-                unknowns.append(D)
-                if d.integral:
-                    eqs.append(F - (law_expr[name].subs(law_var[name], s) if name in law_expr else c["k"] * s))
-                    eqs.append(D - u(name))
-                else:
-                    eqs.append(F - s)
-                    eqs.append(c[_first(el.PARAMETERS)] * D - u(name))
-            else:
-                coeffs, rest = dep_through[name]
-                dF = sum((k * through_rate(n) for n, k in coeffs.items()), sp.Integer(0)) + rate(rest)
-                if d.integral:
-                    eqs.append(u(name) - dF / c["k"])
-                    stretch[name] = (sum((k * _through_value(sp, n, el_state, law_expr, law_var, coef, elements)
-                                          for n, k in coeffs.items()), sp.Integer(0)) + rest) / c["k"]
-                else:
-                    eqs.append(u(name) - c[_first(el.PARAMETERS)] * dF)
-        elif el.ROLE == "dissipator":
-            if name in law_expr:
-                g = sp.Symbol(f"law[{name}]")
-                w = sp.Symbol(f"arg[{name}]")
-                G[name], W[name] = g, w
-                unknowns.append(w)
-                eqs.append(w - u(name))
-                eqs.append(F - g)
-            else:
-                k = _first(el.PARAMETERS)
-                eqs.append(F - (c[k] * u(name) if el.TYPE in ("damper", "rotational-damper") else u(name) / c[k]))
-        elif el.ROLE == "across-source":
-            eqs.append(u(name) - marker[name])
-        elif el.ROLE == "through-source":
-            eqs.append(F + marker[name])
-        elif el.ROLE == "transformer":
-            eqs.append(u(name, 2) - u(name) / ratio(name))
-            eqs.append(flow[(name, 2)] + ratio(name) * F)
-        elif el.ROLE == "gyrator":
-            eqs.append(u(name) - c["K"] * u(name, 2))
-            eqs.append(flow[(name, 2)] + c["K"] * F)
-    eqs.extend(node_law.values())
+            if combo is not None:
+                coeffs, rest = combo
+                self.dep_across[name] = (coeffs, rest)
+                notes.append(_reduction_note(sp, name, el, coeffs, rest, self.marker, self.elements, d.across))
+                continue
+            if d.integral:
+                xs = self.new_state(f"{name}.{d.integral}")
+            s = self.new_state(f"{name}.{d.across}")
+            self.chosen_across.append((name, form, s))
+            self.el_state[name] = s
+            if d.integral:
+                self.deriv[f"{name}.{d.integral}"] = s
+                self.el_state[name + ":integral"] = xs
+            self.deriv[f"{name}.{d.across}"] = sp.Symbol(f"d({name}.{d.across})/dt")
+            what = {"mass": "a mass: its displacement and velocity", "inertia": "an inertia: its angle and speed"}
+            notes.append(f"{', '.join(states[-2:] if d.integral else states[-1:])}: "
+                         f"{what.get(el.TYPE, 'a ' + el.TYPE + ': its ' + d.across_word)}")
 
-    solution = _solve_laws(sp, eqs, unknowns, numeric, graph, elements)
+    def known_displacements(self) -> None:
+        """Known displacements of mechanical nodes: combinations of the masses' and inertias' states."""
+        sp = self.sp
+        mech_states = [(n, f, s) for n, f, s in self.chosen_across if DOMAINS[self.elements[n].DOMAIN].integral]
+        self.known_disp: dict[str, object] = {}
+        for domain, node in self.graph.nodes:
+            if not DOMAINS[domain].integral:
+                continue
+            form = self.solved_across(self.across[node])
+            combo = _combination(sp, form, [(n, f) for n, f, _ in mech_states], self.node_vars, self.numeric)
+            if combo is not None and combo[1] == 0:
+                self.known_disp[node] = sum((c * self.el_state[n + ":integral"] for n, c in combo[0].items()),
+                                            sp.Integer(0))
 
-    # nonlinear laws: each argument must come out as an expression of the states and inputs
-    pending = dict(G)
-    subs_g = {}
-    while pending:
-        ready = [n for n in pending if not any(solution[W[n]].has(g) for g in pending.values())]
-        if not ready:
-            names = ", ".join(repr(n) for n in pending)
+    def through_states(self) -> None:
+        """Through stores (springs where the masses leave them free, inductors, inertances)."""
+        sp, notes = self.sp, self.notes
+        self.chosen_through: list[tuple[str, object, object]] = []
+        self.dep_through: dict[str, tuple[dict, object]] = {}
+        self.stretch: dict[str, object] = {}  # spring -> its stretch (state, or an expression of states)
+        for name, el in self.elements.items():
+            if el.ROLE != "through-store":
+                continue
+            d = DOMAINS[el.DOMAIN]
+            if d.integral:
+                fixed = self.disp_of(*el.nodes)
+                if fixed is not None:
+                    self.stretch[name] = sp.expand(fixed)
+                    notes.append(f"{name}.{d.integral} = {to_text(self.stretch[name])}: the masses fix the "
+                                 f"{_variable_word(el)} of {name}, no state")
+                    continue
+            form = self.solved_through(self.flow[(name, 1)])
+            combo = _combination(sp, form, [(c[0], c[1]) for c in self.chosen_through], self.flow_vars, self.numeric)
+            if combo is None:
+                var = d.integral if d.integral else d.through
+                s = self.new_state(f"{name}.{var}")
+                self.chosen_through.append((name, form, s))
+                self.el_state[name] = s
+                self.deriv[f"{name}.{var}"] = sp.Symbol(f"d({name}.{var})/dt")
+                if d.integral:
+                    self.stretch[name] = s
+                    notes.append(f"{name}.{var}: a {el.TYPE} whose {_variable_word(el)} the masses do not fix")
+                else:
+                    notes.append(f"{name}.{var}: {'an' if el.TYPE[0] in 'aeiou' else 'a'} {el.TYPE}: "
+                                 f"its {d.through_word}")
+                continue
+            coeffs, rest = combo
+            self._check_reducible(name, el, d, coeffs, rest)
+            self.dep_through[name] = (coeffs, rest)
+            notes.append(_reduction_note(sp, name, el, coeffs, rest, self.marker, self.elements, d.through))
+
+    def _check_reducible(self, name, el, d, coeffs, rest) -> None:
+        """A through store fixed by sources alone, or a nonlinear spring fixed by others, has no
+        state equation: say why and what to change."""
+        if not coeffs:
+            sources = [n for n in self.marker if rest.has(self.marker[n])]
             raise NetworkError(
-                f"the nonlinear law of {names} sits in an algebraic loop: its {_variable_word(elements[next(iter(pending))])} "
-                "depends on its own through variable, so the state equations would need the law inverted. Put an "
-                "energy store (a mass, a capacitor, a fluid capacitance) at the node between them, or write the "
-                "law as linear.", key="elements")
-        for n in ready:
-            arg = sp.expand(solution[W[n]].subs(subs_g))
-            subs_g[G[n]] = law_expr[n].subs(law_var[n], arg)
-            del pending[n]
-    for key in list(solution):
-        solution[key] = solution[key].subs(subs_g)
+                f"the {d.through_word} of {name!r} ({el.TYPE}) is fixed by the source"
+                f"{'s' if len(sources) > 1 else ''} {', '.join(repr(s) for s in sources)}: they are in series "
+                f"with nothing else to carry it, so its {el.TYPE} law would need the derivative of the "
+                f"source's value and the network has no state there. Put a {_parallel_hint(el)} in parallel "
+                f"with {name!r}, or remove {name!r}.", key=f"elements.{name}")
+        if d.integral and name in self.law_expr:
+            raise NetworkError(
+                f"the force of {name!r} is fixed by {', '.join(repr(c) for c in coeffs)} (they are in series "
+                f"with nothing else at their common node), and a nonlinear {el.TYPE} law cannot be reduced: "
+                f"put a mass or a damper at the node between them.", key=f"elements.{name}")
 
-    # -- the results ----------------------------------------------------------------------------
-    source_values = {m: value[n] for n, m in marker.items()}
-    rates = {sp.Symbol(f"d(source[{n}])/dt"): rate(value[n]) for n in marker}
+    # -- 3. the laws as equations in the unknowns, solved ----------------------------------------
 
-    def final(expr):
-        expr = expr.subs(solution).subs(rates).subs(source_values)
-        return _tidy(sp, expr)
+    def law_equations(self) -> None:
+        """Every element's law (and each node's) as an equation == 0 in the unknowns; nonlinear
+        dissipator laws are held as opaque values G with arguments W."""
+        self.eqs: list = []
+        self.unknowns = list(self.node_vars) + list(self.flow_vars)
+        self.G: dict[str, object] = {}  # opaque values of nonlinear dissipator laws
+        self.W: dict[str, object] = {}  # their arguments, unknowns
+        for name, el in self.elements.items():
+            F = self.flow[(name, 1)]
+            if el.ROLE == "across-store":
+                self._across_store(name, el, F)
+            elif el.ROLE == "through-store":
+                self._through_store(name, el, F)
+            elif el.ROLE == "dissipator":
+                self._dissipator(name, el, F)
+            else:
+                self.eqs.extend(self._source_or_coupling(name, el, F))
+        self.eqs.extend(self.node_law.values())
 
-    equations = {}
-    for s in states:
-        equations[s] = final(deriv[s])
+    def _across_store(self, name, el, F) -> None:
+        C = self.coef[name][_first(el.PARAMETERS)]
+        if name in self.el_state:
+            s = self.el_state[name]
+            D = self.deriv[s.name]
+            self.unknowns.append(D)
+            self.eqs.append(self.u(name) - s)
+            self.eqs.append(F - C * D)
+            return
+        coeffs, rest = self.dep_across[name]
+        self.eqs.append(F - C * (sum((k * self.deriv[self.el_state[n].name] for n, k in coeffs.items()),
+                                     self.sp.Integer(0)) + self.rate(rest)))
 
-    variables = _element_variables(sp, elements, across, flow, u, solution, stretch, known_disp, el_state,
-                                   law_var, final, disp_of, G, W)
-    for v in variables:
-        symbols.setdefault(v, sp.Symbol(v))
+    def _through_store(self, name, el, F) -> None:
+        sp, c, u, eqs = self.sp, self.coef[name], self.u, self.eqs
+        law = self.law_expr.get(name)
+        d = DOMAINS[el.DOMAIN]
+        if d.integral and name in self.stretch and name not in self.el_state:  # fixed by the masses
+            x = self.stretch[name]
+            eqs.append(F - (law.subs(self.law_var[name], x) if law is not None else c["k"] * x))
+        elif name in self.el_state:
+            s = self.el_state[name]
+            D = self.deriv[s.name]
+            self.unknowns.append(D)
+            if d.integral:
+                eqs.append(F - (law.subs(self.law_var[name], s) if law is not None else c["k"] * s))
+                eqs.append(D - u(name))
+            else:
+                eqs.append(F - s)
+                eqs.append(c[_first(el.PARAMETERS)] * D - u(name))
+        else:
+            coeffs, rest = self.dep_through[name]
+            dF = sum((k * self.through_rate(n) for n, k in coeffs.items()), sp.Integer(0)) + self.rate(rest)
+            if d.integral:
+                eqs.append(u(name) - dF / c["k"])
+                self.stretch[name] = (sum((k * _through_value(sp, n, self.el_state, self.law_expr, self.law_var,
+                                                              self.coef, self.elements)
+                                           for n, k in coeffs.items()), sp.Integer(0)) + rest) / c["k"]
+            else:
+                eqs.append(u(name) - c[_first(el.PARAMETERS)] * dF)
 
-    needs_rate = [r for r in input_rate.values()]
-    for s, e in equations.items():
-        bad = [r for r in needs_rate if e.has(r)]
-        if bad:  # pragma: no cover - the reductions above keep input rates out of the state equations
-            raise NetworkError(f"d({s})/dt needs {bad[0]}, the derivative of an input.", key="elements")
+    def _dissipator(self, name, el, F) -> None:
+        if name in self.law_expr:
+            g = self.sp.Symbol(f"law[{name}]")
+            w = self.sp.Symbol(f"arg[{name}]")
+            self.G[name], self.W[name] = g, w
+            self.unknowns.append(w)
+            self.eqs.append(w - self.u(name))
+            self.eqs.append(F - g)
+            return
+        c, k = self.coef[name], _first(el.PARAMETERS)
+        self.eqs.append(F - (c[k] * self.u(name) if el.TYPE in ("damper", "rotational-damper")
+                             else self.u(name) / c[k]))
 
-    outs = {}
-    for y, text in (outputs or {}).items():
+    def _source_or_coupling(self, name, el, F) -> list:
+        u, flow = self.u, self.flow
+        if el.ROLE == "across-source":
+            return [u(name) - self.marker[name]]
+        if el.ROLE == "through-source":
+            return [F + self.marker[name]]
+        if el.ROLE == "transformer":
+            return [u(name, 2) - u(name) / self.ratio(name), flow[(name, 2)] + self.ratio(name) * F]
+        if el.ROLE == "gyrator":
+            K = self.coef[name]["K"]
+            return [u(name) - K * u(name, 2), flow[(name, 2)] + K * F]
+        return []
+
+    def solve(self) -> None:
+        """Solve the laws; then each nonlinear law's argument must come out as an expression of
+        the states and inputs (else it sits in an algebraic loop)."""
+        sp, G, W = self.sp, self.G, self.W
+        solution = _solve_laws(sp, self.eqs, self.unknowns, self.numeric, self.graph, self.elements)
+        pending = dict(G)
+        subs_g = {}
+        while pending:
+            ready = [n for n in pending if not any(solution[W[n]].has(g) for g in pending.values())]
+            if not ready:
+                names = ", ".join(repr(n) for n in pending)
+                raise NetworkError(
+                    f"the nonlinear law of {names} sits in an algebraic loop: its "
+                    f"{_variable_word(self.elements[next(iter(pending))])} depends on its own through variable, so "
+                    "the state equations would need the law inverted. Put an energy store (a mass, a capacitor, a "
+                    "fluid capacitance) at the node between them, or write the law as linear.", key="elements")
+            for n in ready:
+                arg = sp.expand(solution[W[n]].subs(subs_g))
+                subs_g[G[n]] = self.law_expr[n].subs(self.law_var[n], arg)
+                del pending[n]
+        for key in list(solution):
+            solution[key] = solution[key].subs(subs_g)
+        self.solution = solution
+        self.source_values = {m: self.value[n] for n, m in self.marker.items()}
+        self.rates = {sp.Symbol(f"d(source[{n}])/dt"): self.rate(self.value[n]) for n in self.marker}
+
+    # -- the results -------------------------------------------------------------------------------
+
+    def result(self, outputs: dict[str, str] | None) -> Derivation:
+        sp, symbols = self.sp, self.symbols
+        equations = {s: self.final(self.deriv[s]) for s in self.states}
+        variables = _element_variables(sp, self.elements, self.across, self.flow, self.u, self.solution,
+                                       self.stretch, self.known_disp, self.el_state, self.law_var, self.final,
+                                       self.disp_of, self.G, self.W)
+        for v in variables:
+            symbols.setdefault(v, sp.Symbol(v))
+        needs_rate = list(self.input_rate.values())
+        for s, e in equations.items():
+            bad = [r for r in needs_rate if e.has(r)]
+            if bad:  # pragma: no cover - the reductions above keep input rates out of the state equations
+                raise NetworkError(f"d({s})/dt needs {bad[0]}, the derivative of an input.", key="elements")
+        outs = {y: self._output(y, text, variables, needs_rate) for y, text in (outputs or {}).items()}
+        laws = _law_lines(self.elements, self.coef, self.law_expr, self.law_var, self.value, self.stretch,
+                          self.el_state, sp)
+        inter = _interconnection_lines(self.graph, self.elements, sp)
+        linear, matrices = _linear_form(sp, equations, outs, self.states, self.inputs, symbols, self.t)
+        return Derivation(states=tuple(self.states), inputs=self.inputs, outputs=tuple(outs),
+                          parameters=self.parameters, laws=laws, interconnection=inter, state_notes=self.notes,
+                          equations=equations, output_expressions=outs, variables=variables, linear=linear,
+                          matrices=matrices, symbols=symbols, elements=self.elements)
+
+    def _output(self, y, text, variables, needs_rate):
+        """An output's expression of element variables, inputs and parameters, in the states."""
+        sp, symbols = self.sp, self.symbols
         key = f"system.outputs.{y}"
         allowed = {v: sp.Symbol(v) for v in variables}
-        allowed.update({p: symbols[p] for p in parameters})
-        allowed.update({u_: symbols[u_] for u_ in inputs})
-        allowed["t"] = t
+        allowed.update({p: symbols[p] for p in self.parameters})
+        allowed.update({u_: symbols[u_] for u_ in self.inputs})
+        allowed["t"] = self.t
         parsed = parse_expression(text, key=key)
         try:
             compile_expression(parsed, names=list(allowed), key=key)
@@ -482,14 +539,7 @@ def derive(elements: dict[str, Element], outputs: dict[str, str] | None, paramet
             raise NetworkError(f"`{key}` = {text!r} needs {bad[0].name}, the derivative of an input (a store fixed "
                                "by a source carries that source's rate of change); odelab's inputs have no "
                                "derivative: choose another output.", key=key)
-        outs[y] = _tidy(sp, expr)
-
-    laws = _law_lines(elements, coef, law_expr, law_var, value, stretch, el_state, sp)
-    inter = _interconnection_lines(graph, elements, sp)
-    linear, matrices = _linear_form(sp, equations, outs, states, inputs, symbols, t)
-    return Derivation(states=tuple(states), inputs=inputs, outputs=tuple(outs), parameters=parameters, laws=laws,
-                      interconnection=inter, state_notes=notes, equations=equations, output_expressions=outs,
-                      variables=variables, linear=linear, matrices=matrices, symbols=symbols, elements=elements)
+        return _tidy(sp, expr)
 
 
 def _first(params) -> str:
