@@ -46,7 +46,7 @@ def driver(module):
     def run():
         out = module.integrate_adaptive(rigid, tspan, y0, rigid(0.0, y0), tab.A, tab.c, tab.error_weights, tab.dense,
                                         m.power, m.shrink_min, RTOL, threshold, 120.0, float("nan"), 4, False, 0)
-        return out[2]
+        return out.nsteps if hasattr(out, "nsteps") else out[2]
 
     return run
 

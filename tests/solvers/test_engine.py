@@ -9,6 +9,7 @@ import odelab
 from odelab.solvers import engine
 from odelab.solvers.dense import refine_weights
 from odelab.solvers.ordered import backwards
+from odelab.solvers.output import grow_rows
 from odelab.solvers.registry import get_method
 
 
@@ -89,10 +90,10 @@ def test_the_error_norm_is_the_same_above_the_small_system_size():
 def test_grow_keeps_the_rows_it_has():
     a = np.empty((4, 2, 3))
     a.ravel()[:] = np.arange(24.0)
-    engine._grow(a, 9)
+    grow_rows(a, 9)
     assert a.shape == (9, 2, 3)
     np.testing.assert_array_equal(a[:4].ravel(), np.arange(24.0))
-    engine._grow(a, 2)
+    grow_rows(a, 2)
     np.testing.assert_array_equal(a.ravel(), np.arange(12.0))
 
 
@@ -113,6 +114,6 @@ def test_a_long_run_stores_about_its_own_bytes():
         _, peak = tracemalloc.get_traced_memory()
     finally:
         tracemalloc.stop()
-    nsteps = out[2]
-    assert nsteps > 1400 and out[0].size == nsteps + 1
+    nsteps = out.nsteps
+    assert nsteps > 1400 and out.t.size == nsteps + 1
     assert peak / nsteps < 1.3 * 200

@@ -43,6 +43,7 @@ import numpy as np
 from odelab.solvers.controller import clamp_step, first_step, given_step
 from odelab.solvers.dense import clip_nonnegative, query_times
 from odelab.solvers.ordered import combine
+from odelab.solvers.output import DriverResult, NonNegative, StepOutput
 from odelab.solvers.status import Status
 
 __all__ = ["MAX_ORDER", "integrate_ode113", "AdamsDenseOutput", "ntrp113"]
@@ -196,73 +197,225 @@ class AdamsDenseOutput:
         )
 
 
+class _Adams:
+    """Shampine & Gordon's method state, 1-based as in the book: the modified divided differences
+    ``phi[1..k+2]`` (rows of an array), the spacings ``psi``, the coefficients ``alpha, beta,
+    sigma``, the integration coefficients ``g`` and their work vectors ``v, w`` (Python lists),
+    the order ``k`` and the bookkeeping of which coefficients are still valid (``ns``)."""
+
+    __slots__ = ("phi", "psi", "alpha", "beta", "sig", "v", "w", "g", "k", "klast", "hlast", "ns", "phase1",
+                 "g_order", "g_arr")
+
+    def __init__(self, f0: np.ndarray, dtype):
+        self.phi = np.zeros((_NCOL, f0.size), dtype=dtype)
+        self.phi[1] = f0
+        self.psi = [0.0] * 14
+        self.alpha = [0.0] * 14
+        self.beta = [0.0] * 14
+        self.sig = [0.0] * 15
+        self.sig[1] = 1.0
+        self.v = [0.0] * 15
+        self.w = [0.0] * 15
+        self.g = [0.0] * 15
+        self.g[1], self.g[2] = 1.0, 0.5
+        self.k = 1
+        self.g_order = 0  # the order g_arr = g[1..k] was copied for (0: none)
+        self.g_arr = None
+        self.klast = 0
+        self.hlast = 0.0
+        self.ns = 0
+        self.phase1 = True
+
+    def coefficients(self, h: float) -> None:
+        """The coefficients of a step of size ``h`` (book, Sec. 5): only those changed since the
+        step size changed."""
+        k, psi, alpha, beta, sig, v, w, g = self.k, self.psi, self.alpha, self.beta, self.sig, self.v, self.w, self.g
+        if h != self.hlast:
+            self.ns = 0
+        if self.ns <= self.klast:
+            self.ns += 1
+        ns = self.ns
+        if k < ns:
+            return
+        self.g_order = 0  # g changes: the array copy is stale
+        beta[ns] = 1.0
+        alpha[ns] = 1.0 / ns
+        temp1 = h * ns
+        sig[ns + 1] = 1.0
+        for i in range(ns + 1, k + 1):
+            temp2 = psi[i - 1]
+            psi[i - 1] = temp1
+            temp1 = temp2 + h
+            beta[i] = beta[i - 1] * psi[i - 1] / temp2
+            alpha[i] = h / temp1
+            sig[i + 1] = i * alpha[i] * sig[i]
+        psi[k] = temp1
+        if ns == 1:  # constant-step values of the integration coefficients
+            for iq in range(1, k + 1):
+                v[iq] = 1.0 / (iq * (iq + 1))
+                w[iq] = v[iq]
+        else:
+            if k > self.klast:  # the order went up: the new diagonal entry of v
+                v[k] = 1.0 / (k * (k + 1))
+                for j in range(1, ns - 1):
+                    v[k - j] -= alpha[j + 1] * v[k - j + 1]
+            a = alpha[ns]
+            for iq in range(1, k + 2 - ns):
+                v[iq] -= a * v[iq + 1]
+                w[iq] = v[iq]
+            g[ns + 1] = w[1]
+        for i in range(ns + 2, k + 2):
+            a = alpha[i - 1]
+            for iq in range(1, k + 3 - i):
+                w[iq] -= a * w[iq + 1]
+            g[i] = w[1]
+
+    def predict(self, y: np.ndarray, h: float) -> np.ndarray:
+        """phi -> phi*, and the prediction ``p = y + h sum g_i phi*_i``; phi becomes the
+        differences at ``t + h``."""
+        k, ns, phi = self.k, self.ns, self.phi
+        if k > ns:
+            phi[ns + 1:k + 1] *= np.array(self.beta[ns + 1:k + 1])[:, None]
+        phi[k + 2] = phi[k + 1]
+        phi[k + 1] = 0.0
+        if self.g_order != k:
+            self.g_arr = np.array(self.g[1:k + 1])
+            self.g_order = k
+        p = y + h * (self.g_arr @ phi[1:k + 1])
+        phi[1:k + 1] = np.cumsum(phi[k:0:-1], axis=0)[::-1]
+        return p
+
+    def errors(self, yp: np.ndarray, p: np.ndarray, h: float, absh: float, invwt, norm_control: bool):
+        """The local errors at orders k, k-1, k-2 as if the step had been constant, the order they
+        suggest and the corrected solution: ``(err, erk, erkm1, knew, ynew)``."""
+        k, phi, g, sig = self.k, self.phi, self.g, self.sig
+        phikp1 = yp - phi[1]
+        if norm_control:
+            temp3 = _wnorm(phikp1, invwt, True)
+            nkm1 = _wnorm(phi[k] + phikp1, invwt, True) if k >= 2 else 0.0
+            nkm2 = _wnorm(phi[k - 1] + phikp1, invwt, True) if k >= 3 else 0.0
+        else:  # the three weighted max norms in two array operations
+            temp3 = float(np.abs(phikp1 * invwt).max())
+            nkm2 = nkm1 = 0.0
+            if k >= 2:
+                lower = np.abs((phi[max(k - 1, 1):k + 1] + phikp1) * invwt).max(axis=1)
+                nkm1 = float(lower[-1])
+                if k >= 3:
+                    nkm2 = float(lower[0])
+        err = absh * (g[k] - g[k + 1]) * temp3
+        erk = absh * sig[k + 1] * GSTAR[k] * temp3
+        erkm1 = absh * sig[k] * GSTAR[k - 1] * nkm1 if k >= 2 else 0.0
+        erkm2 = absh * sig[k - 1] * GSTAR[k - 2] * nkm2 if k >= 3 else 0.0
+        knew = k
+        if k == 2 and erkm1 <= 0.5 * erk:
+            knew = 1
+        if k > 2 and max(erkm1, erkm2) <= erk:
+            knew = k - 1
+        return err, erk, erkm1, knew, p + (h * g[k + 1]) * phikp1
+
+    def restore(self, h: float) -> None:
+        """A rejected step: restore phi and psi (book, block 3)."""
+        k, phi, psi = self.k, self.phi, self.psi
+        self.phase1 = False
+        phi[1:k + 1] = (phi[1:k + 1] - phi[2:k + 2]) / np.array(self.beta[1:k + 1])[:, None]
+        for i in range(2, k + 1):
+            psi[i - 1] = psi[i] - h
+
+    def correct(self, yp: np.ndarray, h: float) -> None:
+        """An accepted step: the differences after the corrected evaluation ``yp``."""
+        k, phi = self.k, self.phi
+        self.klast = k
+        self.hlast = h
+        phi[k + 1] = yp - phi[1]
+        phi[k + 2] = phi[k + 1] - phi[k + 2]
+        phi[1:k + 1] += phi[k + 1]
+
+    def next_order(self, knew: int, erk: float, erkm1: float, absh: float, invwt, norm_control: bool) -> float:
+        """The order for the next step (book, block 4); returns the error estimate at it."""
+        k = self.k
+        if knew == k - 1 or k == MAX_ORDER:
+            self.phase1 = False
+        if self.phase1:
+            self.k = k + 1
+            return 0.0
+        if knew == k - 1:
+            self.k = k - 1
+            return erkm1
+        if k + 1 <= self.ns:
+            erkp1 = absh * GSTAR[k + 1] * _wnorm(self.phi[k + 2], invwt, norm_control)
+            if k == 1:
+                if erkp1 < 0.5 * erk:
+                    self.k = k + 1
+                    return erkp1
+            elif erkm1 <= min(erk, erkp1):
+                self.k = k - 1
+                return erkm1
+            elif erkp1 < erk and k < MAX_ORDER:
+                self.k = k + 1
+                return erkp1
+        return erk
+
+    def next_step(self, absh: float, erk: float, rtol: float) -> float:
+        """The step size for the next step: doubled in phase 1 or when the error at the new order
+        is 2^-(k+1) of half the tolerance, shrunk when it exceeds half the tolerance."""
+        k = self.k
+        if self.phase1 or 0.5 * rtol >= erk * 2.0 ** (k + 1):
+            return 2.0 * absh
+        if 0.5 * rtol < erk:
+            return absh * max(0.5, min(0.9, (0.5 * rtol / erk) ** (1.0 / (k + 1))))
+        return absh
+
+
+def _shrink_after_failure(absh: float, hmin: float, failed: int, knew: int, erk: float, rtol: float):
+    """ode113's step after its ``failed``-th consecutive rejection: halved, on the third failure
+    at order 1, from the fourth by ``sqrt(0.5 rtol/erk)`` when smaller; ``(absh, k)``."""
+    reduce = 0.5
+    if failed == 3:
+        knew = 1
+    elif failed > 3:
+        reduce = min(0.5, math.sqrt(0.5 * rtol / erk))
+        knew = 1
+    return max(reduce * absh, hmin), knew
+
+
+def _dense_output(store, nonnegative, y_final) -> AdamsDenseOutput | None:
+    """The piecewise interpolant from the step records (t_ref, y_ref, order, phi, psi), returning
+    ``y_final`` (the output's last row) at its end."""
+    if not store.count:
+        return None
+    t_ref, y_ref, order, phi, psi = store.fields
+    order = order.astype(np.intp)
+    offsets = np.concatenate([[0], np.cumsum(order)[:-1]]).astype(np.intp)
+    flat = np.concatenate([phi[i, :order[i]] for i in range(order.size)])
+    return AdamsDenseOutput(t=store.t[:-1].copy(), t_end=store.t[1:].copy(), t_ref=t_ref, y_ref=y_ref,
+                            order=order, offsets=offsets, phi=flat, psi=psi, y_final=y_final.copy(),
+                            nonnegative=nonnegative)
+
+
 def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, norm_control, max_steps,
-                     events=None, v0=None, nonnegative=None, output_fcn=None):
+                     events=None, v0=None, nonnegative=None, output_fcn=None) -> DriverResult:
     """Integrate with Shampine & Gordon's Adams PECE method as MATLAB's ``ode113`` drives it.
 
-    Arguments and result are those of :func:`odelab.solvers.engine.integrate_adaptive` without
-    the tableau; the last entry of the result is an :class:`AdamsDenseOutput` (or None).
-    Statistics count as MATLAB's: each attempt evaluates ``f`` once (at the prediction), each
-    accepted step once more (at the correction); the caller adds the evaluation at ``t0``.
+    Arguments are those of :func:`odelab.solvers.engine.integrate_adaptive` without the
+    tableau; the result's ``steps`` is an :class:`AdamsDenseOutput` (or None). Statistics count
+    as MATLAB's: each attempt evaluates ``f`` once (at the prediction), each accepted step once
+    more (at the correction); the caller adds the evaluation at ``t0``.
     """
     n = y0.size
-    t0 = float(tspan[0])
-    tfinal = float(tspan[-1])
-    ntspan = tspan.size
+    t0, tfinal = float(tspan[0]), float(tspan[-1])
     tdir = 1.0 if tfinal > t0 else -1.0
-    have_nonneg = nonnegative is not None
-    if have_nonneg:
-        threshold_nn = threshold if norm_control else threshold[nonnegative]
-    sqrt = math.sqrt
-
-    t = t0
-    y = y0.copy()
+    nn = None if nonnegative is None else NonNegative(nonnegative, threshold, norm_control)
+    t, y = t0, y0.copy()
     if htry != htry:  # NaN: MATLAB's ode113 first step, Shampine & Gordon's h = 0.25 sqrt(tol / ||y'||)
-        rh = _wnorm(f0, _inv_weight(y, threshold, norm_control), norm_control) / (0.25 * sqrt(rtol))
+        rh = _wnorm(f0, _inv_weight(y, threshold, norm_control), norm_control) / (0.25 * math.sqrt(rtol))
         absh = first_step(rh, abs(float(tspan[1]) - t0), hmax, t0)
     else:
         absh = given_step(htry, t0, hmax)
-
-    # Method state, 1-based as in the book: phi[i] is the i-th modified divided difference.
-    phi = np.zeros((_NCOL, n), dtype=y0.dtype)
-    phi[1] = f0
-    psi = [0.0] * 14
-    alpha = [0.0] * 14
-    beta = [0.0] * 14
-    sig = [0.0] * 15
-    sig[1] = 1.0
-    v = [0.0] * 15
-    w = [0.0] * 15
-    g = [0.0] * 15
-    g[1], g[2] = 1.0, 0.5
-    k = 1
-    g_order = 0  # the order g_arr = g[1..k] was copied for (0: none)
-    g_arr = None
-    klast = 0
-    hlast = 0.0
-    ns = 0
-    phase1 = True
-
-    t_out = [t0]
-    y_out = [y0.copy()]
-    refine_output = ntspan == 2
-    fractions = np.arange(1, refine) / refine if refine_output and refine > 1 else None
-    nxt = 1
-    te: list[float] = []
-    ye: list[np.ndarray] = []
-    ie: list[int] = []
-    v_left = v0
-    if events is not None:
-        from odelab.solvers.events import locate_events
-    # Dense output: each step's start, end, anchor and polynomial (differences stored ragged).
-    d_t: list[float] = []
-    d_end: list[float] = []
-    d_ref: list[float] = []
-    d_y: list[np.ndarray] = []
-    d_order: list[int] = []
-    d_phi: list[np.ndarray] = []
-    d_psi: list[list[float]] = []
-
+    state = _Adams(f0, y0.dtype)
+    # each step's record: its polynomial's anchor (t, y), its order k+1, differences and spacings
+    fields = [((), float), ((n,), y0.dtype), ((), np.intp), ((MAX_ORDER + 1, n), y0.dtype), ((MAX_ORDER,), float)]
+    out = StepOutput(tspan, y0, refine, fields, events, v0, output_fcn)
+    add, psi_row = out.store.add, np.ones(MAX_ORDER)
     nsteps = nfailed = nfevals = 0
     status = success = Status.SUCCESS  # a local: the enum's attribute lookup costs more than a step's test
     exception = None
@@ -274,113 +427,26 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
             invwt = _inv_weight(y, threshold, norm_control)
             failed = 0
             while True:
-                # --- coefficients (book, Sec. 5): only those changed since the step size changed ---
-                if h != hlast:
-                    ns = 0
-                if ns <= klast:
-                    ns += 1
-                if k >= ns:
-                    g_order = 0  # g changes: the array copy below is stale
-                    beta[ns] = 1.0
-                    alpha[ns] = 1.0 / ns
-                    temp1 = h * ns
-                    sig[ns + 1] = 1.0
-                    for i in range(ns + 1, k + 1):
-                        temp2 = psi[i - 1]
-                        psi[i - 1] = temp1
-                        temp1 = temp2 + h
-                        beta[i] = beta[i - 1] * psi[i - 1] / temp2
-                        alpha[i] = h / temp1
-                        sig[i + 1] = i * alpha[i] * sig[i]
-                    psi[k] = temp1
-                    if ns == 1:  # constant-step values of the integration coefficients
-                        for iq in range(1, k + 1):
-                            v[iq] = 1.0 / (iq * (iq + 1))
-                            w[iq] = v[iq]
-                    else:
-                        if k > klast:  # the order went up: the new diagonal entry of v
-                            v[k] = 1.0 / (k * (k + 1))
-                            for j in range(1, ns - 1):
-                                v[k - j] -= alpha[j + 1] * v[k - j + 1]
-                        a = alpha[ns]
-                        for iq in range(1, k + 2 - ns):
-                            v[iq] -= a * v[iq + 1]
-                            w[iq] = v[iq]
-                        g[ns + 1] = w[1]
-                    for i in range(ns + 2, k + 2):
-                        a = alpha[i - 1]
-                        for iq in range(1, k + 3 - i):
-                            w[iq] -= a * w[iq + 1]
-                        g[i] = w[1]
-
-                # --- predict: phi -> phi*, p = y + h sum g_i phi*_i, the differences at t + h ---
-                if k > ns:
-                    phi[ns + 1:k + 1] *= np.array(beta[ns + 1:k + 1])[:, None]
-                phi[k + 2] = phi[k + 1]
-                phi[k + 1] = 0.0
-                if g_order != k:
-                    g_arr = np.array(g[1:k + 1])
-                    g_order = k
-                p = y + h * (g_arr @ phi[1:k + 1])
-                phi[1:k + 1] = np.cumsum(phi[k:0:-1], axis=0)[::-1]
-                tlast = t
+                state.coefficients(h)
+                p = state.predict(y, h)
                 tnew = tfinal if done else t + h
                 yp = fun(tnew, p)
                 nfevals += 1
-
-                # --- errors at orders k, k-1, k-2 as if the step had been constant ---
-                phikp1 = yp - phi[1]
-                if norm_control:
-                    temp3 = _wnorm(phikp1, invwt, True)
-                    nkm1 = _wnorm(phi[k] + phikp1, invwt, True) if k >= 2 else 0.0
-                    nkm2 = _wnorm(phi[k - 1] + phikp1, invwt, True) if k >= 3 else 0.0
-                else:  # the three weighted max norms in two array operations
-                    temp3 = float(np.abs(phikp1 * invwt).max())
-                    nkm2 = nkm1 = 0.0
-                    if k >= 2:
-                        lower = np.abs((phi[max(k - 1, 1):k + 1] + phikp1) * invwt).max(axis=1)
-                        nkm1 = float(lower[-1])
-                        if k >= 3:
-                            nkm2 = float(lower[0])
-                err = absh * (g[k] - g[k + 1]) * temp3
-                erk = absh * sig[k + 1] * GSTAR[k] * temp3
-                erkm1 = absh * sig[k] * GSTAR[k - 1] * nkm1 if k >= 2 else 0.0
-                erkm2 = absh * sig[k - 1] * GSTAR[k - 2] * nkm2 if k >= 3 else 0.0
-                knew = k
-                if k == 2 and erkm1 <= 0.5 * erk:
-                    knew = 1
-                if k > 2 and max(erkm1, erkm2) <= erk:
-                    knew = k - 1
-                ynew = p + (h * g[k + 1]) * phikp1
-                if have_nonneg and err <= rtol and (ynew[nonnegative] < 0).any():
-                    # Shampine, Thompson, Kierzenka & Byrne (2005): a negative value of a
-                    # non-negative component counts as error.
-                    if norm_control:
-                        err_nn = float(np.linalg.norm(np.maximum(0.0, -ynew[nonnegative]))) * invwt
-                    else:
-                        err_nn = float((np.maximum(0.0, -ynew[nonnegative]) / threshold_nn).max())
+                err, erk, erkm1, knew, ynew = state.errors(yp, p, h, absh, invwt, norm_control)
+                if nn is not None and err <= rtol and nn.negative(ynew):
+                    # a negative value of a non-negative component counts as error
+                    err_nn = (float(np.linalg.norm(nn.excess(ynew))) * invwt if norm_control else nn.error(ynew))
                     if err_nn > rtol:
                         err = err_nn
-
                 if err > rtol:  # failed: restore t, phi and psi, then halve (book, block 3)
                     nfailed += 1
                     if absh <= hmin:
                         status = Status.STEP_UNDERFLOW
                         break
-                    phase1 = False
-                    phi[1:k + 1] = (phi[1:k + 1] - phi[2:k + 2]) / np.array(beta[1:k + 1])[:, None]
-                    for i in range(2, k + 1):
-                        psi[i - 1] = psi[i] - h
+                    state.restore(h)
                     failed += 1
-                    reduce = 0.5
-                    if failed == 3:
-                        knew = 1
-                    elif failed > 3:
-                        reduce = min(0.5, sqrt(0.5 * rtol / erk))
-                        knew = 1
-                    absh = max(reduce * absh, hmin)
+                    absh, state.k = _shrink_after_failure(absh, hmin, failed, knew, erk, rtol)
                     h = tdir * absh
-                    k = knew
                     done = False
                 elif err <= rtol:
                     break
@@ -390,110 +456,36 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
             if status != success:
                 break
             nsteps += 1
-            klast = k
-            hlast = h
-
-            # --- correct (order k+1, local extrapolation) and evaluate; update the differences ---
-            ylast = y
-            y = ynew
-            if have_nonneg and (y[nonnegative] < 0).any():
-                y[nonnegative] = np.maximum(y[nonnegative], 0.0)
+            # correct (order k+1, local extrapolation) and evaluate; update the differences
+            tlast, ylast, y = t, y, ynew
+            if nn is not None:
+                nn.clip(y)
             yp = fun(tnew, y)
             nfevals += 1
-            phi[k + 1] = yp - phi[1]
-            phi[k + 2] = phi[k + 1] - phi[k + 2]
-            phi[1:k + 1] += phi[k + 1]
-
-            # --- the order for the next step (book, block 4) ---
-            if knew == k - 1 or k == MAX_ORDER:
-                phase1 = False
-            if phase1:
-                k += 1
-                erk = 0.0
-            elif knew == k - 1:
-                k -= 1
-                erk = erkm1
-            elif k + 1 <= ns:
-                erkp1 = absh * GSTAR[k + 1] * _wnorm(phi[k + 2], invwt, norm_control)
-                if k == 1:
-                    if erkp1 < 0.5 * erk:
-                        k += 1
-                        erk = erkp1
-                elif erkm1 <= min(erk, erkp1):
-                    k -= 1
-                    erk = erkm1
-                elif erkp1 < erk and k < MAX_ORDER:
-                    k += 1
-                    erk = erkp1
-
-            # --- this step's interpolant: phi_1 .. phi_{klast+1} and psi_1 .. psi_klast after it ---
-            ki = klast + 1
-            step_phi = phi[1:ki + 1].copy()
-            step_psi = np.array(psi[1:ki])
-            t_end, y_end = tnew, y
-            stop = False
+            ki = state.k + 1  # this step's interpolant: phi_1 .. phi_{k+1} and psi_1 .. psi_k after it
+            state.correct(yp, h)
+            erk = state.next_order(knew, erk, erkm1, absh, invwt, norm_control)
+            step_phi = state.phi[1:ki + 1].copy()
+            step_psi = np.array(state.psi[1:ki])
+            t_end, y_end, stop = tnew, y, False
             if events is not None:
-                def interpolate(tq):
-                    return ntrp113(np.array([tq]), tnew, y, step_phi, step_psi, ki, nonnegative)[0][0]
-
-                found_t, found_y, found_i, v_left, stop = locate_events(
-                    interpolate, events, v_left, tlast, ylast, tnew, y, t0)
-                if found_t:
-                    te.extend(found_t)
-                    ye.extend(found_y)
-                    ie.extend(found_i)
-                    if stop:
-                        t_end, y_end = found_t[-1], found_y[-1]
-                        done = True
-                        status = Status.TERMINAL_EVENT
-            d_t.append(tlast)
-            d_end.append(t_end)
-            d_ref.append(tnew)
-            d_y.append(y)
-            d_order.append(ki)
-            d_phi.append(step_phi)
-            d_psi.append(step_psi)
-
-            n_before = len(t_out)
-            k_before = len(y_out)
-            if refine_output:
-                if fractions is not None:
-                    tref = tlast + (t_end - tlast) * fractions
-                    t_out.extend(tref.tolist())
-                    y_out.append(ntrp113(tref, tnew, y, step_phi, step_psi, ki, nonnegative)[0])
-                t_out.append(t_end)
-                y_out.append(y_end[None, :])
-            else:
-                wanted = []
-                while nxt < ntspan:
-                    tn = float(tspan[nxt])
-                    if tdir * (t_end - tn) < 0:
-                        break
-                    wanted.append(tn)
-                    nxt += 1
-                if wanted:
-                    values = ntrp113(np.array(wanted), tnew, y, step_phi, step_psi, ki, nonnegative)[0]
-                    for j, tn in enumerate(wanted):
-                        if tn == t_end:
-                            values[j] = y_end
-                    t_out.extend(wanted)
-                    y_out.append(values)
-                if stop and (not wanted or wanted[-1] != t_end):  # MATLAB outputs the terminal event's point
-                    t_out.append(t_end)
-                    y_out.append(y_end[None, :])
-            if output_fcn is not None and len(t_out) > n_before:
-                if output_fcn(np.array(t_out[n_before:]), np.vstack(y_out[k_before:])):
-                    status = Status.OUTPUT_STOP
-                    t = t_end
-                    break
-
-            # --- the step size for the next step ---
-            if phase1:
-                absh = 2.0 * absh
-            elif 0.5 * rtol >= erk * 2.0 ** (k + 1):
-                absh = 2.0 * absh
-            elif 0.5 * rtol < erk:
-                absh = absh * max(0.5, min(0.9, (0.5 * rtol / erk) ** (1.0 / (k + 1))))
+                cut = out.locate(lambda tq: ntrp113(np.array([tq]), tnew, y, step_phi, step_psi, ki, nonnegative)[0][0],
+                                 tlast, ylast, tnew, y)
+                if cut is not None:
+                    (t_end, y_end), done, stop = cut, True, True
+                    status = Status.TERMINAL_EVENT
+            psi_row[:] = 1.0  # unused entries 1
+            psi_row[:ki - 1] = step_psi
+            add(t_end, y_end, tnew, y, ki, np.pad(step_phi, ((0, MAX_ORDER + 1 - ki), (0, 0))), psi_row)
+            if out.per_step and out.emit(
+                    tlast, t_end, y_end, stop,
+                    lambda times, rows: rows.__setitem__(Ellipsis, ntrp113(np.array(times), tnew, y, step_phi,
+                                                                           step_psi, ki, nonnegative)[0]),
+                    lambda times: ntrp113(times, tnew, y, step_phi, step_psi, ki, nonnegative)[0]):
+                status = Status.OUTPUT_STOP
+                t = t_end
+                break
+            absh = state.next_step(absh, erk, rtol)
             t = t_end
             if done:
                 break
@@ -503,17 +495,6 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
     except Exception as exc:  # the user's right-hand side (or events function) failed
         status = Status.FUN_RAISED
         exception = exc
-
-    t_arr = np.array(t_out)
-    y_arr = np.vstack([row.reshape(-1, n) for row in y_out])
-    dense = None
-    if d_t:
-        order = np.array(d_order, dtype=np.intp)
-        psi_arr = np.ones((len(d_psi), MAX_ORDER))
-        for i, row in enumerate(d_psi):
-            psi_arr[i, :len(row)] = row
-        dense = AdamsDenseOutput(
-            t=np.array(d_t), t_end=np.array(d_end), t_ref=np.array(d_ref), y_ref=np.array(d_y),
-            order=order, offsets=np.concatenate([[0], np.cumsum(order)[:-1]]).astype(np.intp),
-            phi=np.concatenate(d_phi), psi=psi_arr, y_final=y_arr[-1].copy(), nonnegative=nonnegative)
-    return (t_arr, y_arr, nsteps, nfailed, nfevals, status, t, abs(h), exception, (te, ye, ie), dense)
+    t_arr, y_arr = out.finish()
+    return DriverResult(t_arr, y_arr, nsteps, nfailed, nfevals, status, t, abs(h), exception, out.found,
+                        _dense_output(out.store, nonnegative, y_arr[-1]))

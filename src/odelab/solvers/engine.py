@@ -22,11 +22,40 @@ step multiplies ``h`` into the tableau first, ``hA = h*A``, then sums the stages
 
 The adaptive driver's step is a few small numpy calls around the right-hand side, so the loop
 avoids every call it can without changing a bit of the result: the tableau's rows and the
-stage matrix are bound to fixed views once, the error norm's maximum is taken over a Python
-list for small systems (a numpy reduction costs more than the division before it), each
-accepted step's end and stages go into arrays that grow in place, and the interior ``Refine``
-points are interpolated after the loop for all steps at once (a stacked product that gives the
-per-step product's bits), unless an output function needs them step by step.
+stage matrix are bound to fixed views once (:class:`_Stages`, whose attempt is a closure over
+them), the error norm's maximum is taken over a Python list for small systems (a numpy
+reduction costs more than the division before it), each accepted step's end and stages go into
+arrays that grow in place (:class:`odelab.solvers.output.StepStore`), and the interior
+``Refine`` points are interpolated after the loop for all steps at once (a stacked product that
+gives the per-step product's bits), unless an output function needs them step by step. What
+is done with each accepted step (output, events, OutputFcn, the step records) is the shared
+collector's, :class:`odelab.solvers.output.StepOutput`; ``NonNegative`` is
+:class:`odelab.solvers.output.NonNegative`.
+
+``integrate_adaptive``'s arguments:
+
+* ``fun(t, y)`` the derivative (anything assignable to a row of length n); ``tspan`` MATLAB's
+  output specification (2 entries ``[t0, tf]`` give ``refine`` points per step, more give output
+  exactly at those times); ``y0, f0`` the initial state and ``fun(t0, y0)`` (counted by the
+  caller; a complex ``y0`` integrates in complex arithmetic, the error measured on ``|y|``).
+* ``A, c, E, dense`` the tableau's arrays. Without ``b`` the last stage must be FSAL (``A[-1]``
+  are the solution weights). With ``b`` (the solution weights of a non-FSAL pair), ``A, c, E``
+  cover the s stages of the step and ``dense`` has one row per stage of the extended step: the
+  s stages, ``f(t + h, y_new)``, then the stages of ``extra = (A_extra, c_extra)`` (stage
+  ``s+1+j`` is ``f(t + c_extra[j] h, y + h A_extra[j] . K)``); all in increment form
+  (:attr:`~odelab.solvers.tableau.ButcherTableau.increment_form`). ``dense_basis`` says what
+  the columns of ``dense`` multiply: ``"monomial"`` (s, s^2, ...) or ``"chebyshev"``.
+* ``power`` the controller exponent ``1/(q+1)`` (q the embedded order); ``shrink_min`` the
+  smallest factor of the first reduction after a failure (0.5 ode23, 0.1 ode45); ``rtol`` and
+  ``threshold = atol/rtol`` (per component, or a scalar with ``norm_control``: the Euclidean
+  norm of the error relative to that of the solution); ``hmax`` the largest step; ``htry`` the
+  initial step, or NaN to choose it from ``f0`` as MATLAB does; ``max_steps`` a limit on
+  successful steps (0: none).
+* ``events, v0``: ``events(t, y) -> (value, isterminal, direction)`` and its value at t0, or
+  None (zeros located on each step's extension, MATLAB's ``odezero``); ``nonnegative`` indices
+  kept non-negative (``fun`` must already zero their negative slopes at zero), or None;
+  ``output_fcn(t_new, y_new) -> bool`` called with each step's new output rows, True stops
+  (MATLAB's ``OutputFcn`` with flag ``''``), or None.
 """
 
 from __future__ import annotations
@@ -36,7 +65,8 @@ import math
 import numpy as np
 
 from odelab.solvers.controller import clamp_step, first_step, given_step, grow, shrink
-from odelab.solvers.ordered import backwards, combine, norm
+from odelab.solvers.ordered import backwards, norm
+from odelab.solvers.output import DriverResult, NonNegative, StepOutput
 from odelab.solvers.status import Status
 
 __all__ = ["integrate_adaptive", "integrate_fixed"]
@@ -45,34 +75,8 @@ __all__ = ["integrate_adaptive", "integrate_fixed"]
 #: Systems up to this size take the error norm's maximum over a Python list (cheaper than a
 #: numpy reduction for a few components; the same bits).
 _SMALL = 16
-#: Steps the step arrays hold at first; they grow by a quarter (at least this many) when full.
-_FIRST_CAPACITY = 64
 #: Steps per block when the Refine rows are interpolated after the loop (bounds the temporaries).
 _BLOCK = 16384
-
-
-def _grow(arr: np.ndarray, rows: int) -> None:
-    """Resize ``arr`` to ``rows`` rows in place.
-
-    A realloc: the first rows keep their values, and the operating system remaps a long run's
-    arrays instead of copying them (so growing one never holds two copies). The engine never
-    takes views of these arrays before their last resize.
-    """
-    arr.resize((rows,) + arr.shape[1:], refcheck=False)
-
-
-def _complete(fun, t: float, h: float, K: np.ndarray, A_extra: np.ndarray, hA_extra: np.ndarray,
-              extra_rows) -> int:
-    """Evaluate a non-FSAL step's interpolation stages into K (stage ``s+1+j`` is
-    ``f(t + c_j h, y + h A_extra[j] . K)``, held as its increment over ``K_0``), for a step that
-    is interpolated; returns their number. ``hA_extra`` is ``[1, h*A_extra]`` by rows and each
-    of ``extra_rows`` pairs a row of it read backwards with the stages and ``y`` above it (the
-    stage's sum in :mod:`odelab.solvers.ordered`'s order, one non-BLAS product)."""
-    np.multiply(A_extra, h, hA_extra[:, 1:])
-    for K_row, cj, stage_dot, rows in extra_rows:
-        K_row[...] = fun(t + cj * h, stage_dot(rows)[0])
-        K_row -= K[0]  # increment form
-    return len(extra_rows)
 
 
 def _refine_rows(weights_T: np.ndarray, h, K: np.ndarray, y: np.ndarray, nonnegative) -> np.ndarray:
@@ -117,225 +121,226 @@ def _refine_output(t_ends, y_ends, step_K, fractions, weights_T, nonnegative):
     return t_arr, y_arr
 
 
+class _Stages:
+    """One embedded pair's step on preallocated arrays: the stages, the solution, the error norm,
+    and the step's continuous extension (events, output, a non-FSAL pair's extra stages).
 
-def integrate_adaptive(
-    fun,
-    tspan: np.ndarray,
-    y0: np.ndarray,
-    f0: np.ndarray,
-    A: np.ndarray,
-    c: np.ndarray,
-    E: np.ndarray,
-    dense: np.ndarray,
-    power: float,
-    shrink_min: float,
-    rtol: float,
-    threshold: np.ndarray,
-    hmax: float,
-    htry: float,
-    refine: int,
-    norm_control: bool,
-    max_steps: int,
-    events=None,
-    v0=None,
-    nonnegative=None,
-    output_fcn=None,
-    b=None,
-    extra=None,
-    dense_basis="monomial",
-):
-    """Integrate with an embedded Runge-Kutta pair and MATLAB's controller.
-
-    Parameters
-    ----------
-    fun
-        ``fun(t, y)`` returning the derivative (anything assignable to a row of length n).
-    tspan
-        Output specification, MATLAB semantics: 2 entries ``[t0, tf]`` give ``refine`` points
-        per step; more entries give output exactly at those times.
-    y0, f0
-        Initial state and ``fun(t0, y0)`` (counted by the caller). A complex ``y0`` integrates
-        in complex arithmetic, the error measured on ``|y|``, as MATLAB does.
-    A, c, E, dense
-        Tableau arrays. Without ``b`` the last stage must be FSAL (``A[-1]`` are the solution
-        weights). With ``b``, ``A``, ``c`` and ``E`` cover the s stages of the step and
-        ``dense`` has one row per stage of the extended step: the s stages,
-        ``f(t + h, y_new)``, then the stages of ``extra``; all of them (with ``b``, ``extra``)
-        in increment form (:attr:`~odelab.solvers.tableau.ButcherTableau.increment_form`): they
-        act on ``K_0`` and the increments ``K_j - K_0``, which is what ``K`` then holds.
-    power
-        Controller exponent ``1/(q+1)`` with q the embedded order (1/3 ode23, 1/5 ode45).
-    shrink_min
-        Smallest factor of the first step-size reduction after a failure (0.5 ode23, 0.1 ode45).
-    rtol, threshold
-        Relative tolerance and ``atol/rtol`` (per component, or a scalar with norm_control).
-    hmax
-        Largest step.
-    htry
-        Initial step, or NaN to choose it from ``f0`` as MATLAB does.
-    refine
-        Output points per step for a two-element ``tspan``.
-    norm_control
-        Control the Euclidean norm of the error relative to the norm of the solution.
-    max_steps
-        Stop after this many successful steps (0: no limit).
-    events, v0
-        ``events(t, y) -> (value, isterminal, direction)`` arrays and its value at ``t0``, or
-        None: after each accepted step :func:`odelab.solvers.events.locate_events` finds the
-        zeros on the step's continuous extension (MATLAB's ``odezero``).
-    nonnegative
-        Integer indices of components kept non-negative (MATLAB's ``NonNegative``; ``fun``
-        must already zero their negative slopes at zero), or None.
-    output_fcn
-        ``output_fcn(t_new, y_new) -> bool`` called after each step with that step's new output
-        rows; True stops the integration (MATLAB's ``OutputFcn`` with flag ``''``), or None.
-
-    Returns
-    -------
-    tuple
-        ``(t_out, y_out, nsteps, nfailed, nfevals, status, t_stop, h_stop, exception, found, steps)``
-        where ``t_stop`` is the time where integration stopped, ``h_stop`` the last step size
-        tried, ``exception`` the exception ``fun`` (or ``events``) raised (or None),
-        ``found = (te, ye, ie)`` lists of located events and ``steps = (t, h, y, K)`` arrays of
-        every accepted step for dense output. With ``extra``, ``steps`` has a fifth array: which
-        steps have their extra stages computed (the others are completed on demand by
-        :class:`odelab.solvers.dense.StageCompletion`).
-    b
-        Solution weights (s,) of a non-FSAL pair, or None for an FSAL pair.
-    extra
-        ``(A_extra, c_extra)``, the interpolation stages of a non-FSAL pair: stage ``s+1+j`` is
-        ``f(t + c_extra[j] h, y + h A_extra[j] . K)`` over the stages before it; or None.
-    dense_basis
-        What the columns of ``dense`` multiply: ``"monomial"`` (s, s^2, ...) or ``"chebyshev"``
-        (:func:`odelab.solvers.dense.basis_values`).
+    The stages and y share one array W, its rows K_(R-1), ..., K_1, K_0, y (R stages): stage i's
+    terms and y are its rows R-i .. R, and a row of [1, h*A] read backwards holds their
+    coefficients, so that ``coefficients.dot(rows[None])[0]`` is the stage
+    ``y + sum_k hA[i, k] K_k`` in one call, summed in the order of odelab.solvers.ordered
+    (k = i-1 down to 0, then y) by numpy's own loop (see there: a backwards vector and a 3-D
+    operand keep numpy.dot off BLAS): the same bits under every BLAS, and those of the compiled
+    loops. K is W's stage rows in stage order (a view). A non-FSAL pair's K also holds
+    f(t+h, y_new) (row s, the next step's first stage) and the interpolation stages after it,
+    all as increments over K_0; K_main is the step's own s stages.
     """
-    s = c.size
-    fsal = b is None
-    n = y0.size
-    t0 = float(tspan[0])
-    tfinal = float(tspan[-1])
-    ntspan = tspan.size
-    tdir = 1.0 if tfinal > t0 else -1.0
-    last = s - 1
-    nodes = [float(ci) for ci in c]
-    is_complex = np.iscomplexobj(y0)
-    dtype = y0.dtype
-    # Preallocated work arrays and fixed views into them. The stages and y share one array W,
-    # its rows K_(R-1), ..., K_1, K_0, y (R stages): stage i's terms and y are its rows
-    # R-i .. R, and a row of [1, h*A] read backwards holds their coefficients, so that
-    # ``coefficients.dot(rows[None])[0]`` is the stage ``y + sum_k hA[i, k] K_k`` in one call,
-    # summed in the order of odelab.solvers.ordered (k = i-1 down to 0, then y) by numpy's own
-    # loop (see there: a backwards vector and a 3-D operand keep numpy.dot off BLAS): the same
-    # bits under every BLAS, and those of the compiled loops. K is W's stage rows in stage
-    # order (a view).
-    # A non-FSAL pair's K also holds f(t+h, y_new) (row s, the next step's first stage) and
-    # the interpolation stages after it; K_main is the step's own s stages.
-    R = s if fsal else dense.shape[0]
-    W = np.empty((R + 1, n), dtype=dtype)
-    K = W[R - 1::-1]
-    W[R] = y0
-    y_row = W[R]  # the current step's start y: the loop copies an accepted ynew into it
-    K[0] = f0
-    K_main = K[:s]
-    hAx = np.empty((s, s + 1))
-    hAx[:, 0] = 1.0
-    hA = hAx[:, 1:]
-    # (row i of K, c_i, the coefficients, the rows) of each stage the loop computes after the
-    # first (an FSAL pair's last stage is f(tnew, ynew), computed apart); writing into a fixed
-    # row view is cheaper than K[i] = ...
-    middle = [(K[i], nodes[i], hAx[i, i::-1].dot, W[None, R - i:]) for i in range(1, last if fsal else s)]
-    K_first, K_fnew = K[0], K[last if fsal else s]  # the next step's first stage is K_fnew
-    if fsal:
-        last_dot, rows_last = hAx[last, last::-1].dot, W[None, R - last:]
-    else:
-        b = np.asarray(b)
-        hbx = np.empty(s + 1)
-        hbx[0] = 1.0
-        hb = hbx[1:]
-        last_dot, rows_last = hbx[::-1].dot, W[None, R - s:]
-        if extra is not None:
-            A_extra, c_extra = extra
-            hA_extra = np.empty((A_extra.shape[0], A_extra.shape[1] + 1))
-            hA_extra[:, 0] = 1.0
-            extra_rows = [(K[s + 1 + j], float(c_extra[j]), hA_extra[j, s + 1 + j::-1].dot, W[None, R - (s + 1 + j):])
-                          for j in range(len(c_extra))]
-    have_extra = not fsal and extra is not None
-    step_complete: list[bool] = []
-    # [whether this step's interpolation stages are in K, evaluations made by the events'
-    # closure] (a list: the closure updates it)
-    completed = [True, 0]
-    all_nodes = c if fsal else np.concatenate([c, [1.0], extra[1] if have_extra else []])
-    # fE = E . K summed for k = 0, 1, ... (numpy's own loop), into fE_row
-    E_dot, K_main_3d = backwards(E).dot, K_main[None]
-    fE_out = np.empty((1, n), dtype=np.result_type(E, dtype))
-    fE = fE_out[0]
-    absy = np.abs(y0)
-    have_nonneg = nonnegative is not None
-    if have_nonneg:
-        threshold_nn = threshold if norm_control else threshold[nonnegative]
-    # The error norm max_i |fE_i| / max(|y_i|, |ynew_i|, threshold_i): for a small real system
-    # the maximum is taken over a Python list (numpy's reductions cost more than the whole
-    # division); both give the same bits.
-    small_real = not is_complex and n <= _SMALL
-    if not norm_control:
-        ywt = np.maximum(absy, threshold)  # max(|y|, threshold), the part known before the step
 
-    absolute = np.abs
-    maximum = np.maximum
-    t = t0
-    y = y_row
-    normy = float(norm(y0)) if norm_control else 0.0
-    normynew = normy
+    __slots__ = ('A', 'A_extra', 'E_dot', 'K', 'K_first', 'K_fnew', 'K_main_3d', 'all_nodes', 'b', 'basis', 'completed', 'dense', 'evals', 'event_evals', 'extra_rows', 'fE', 'fE_out', 'fsal', 'fun', 'hA', 'hA_extra', 'have_extra', 'hb', 'last_dot', 'middle', 'nonnegative', 'norm_control', 'rows_last', 'rtol', 'small_real', 'step', 'threshold', 'weights_T', 'y_row')
 
-    if htry != htry:  # NaN: MATLAB's initial step from the derivative at t0
-        if norm_control:
-            rh = (float(norm(f0)) / max(normy, float(threshold))) / (0.8 * rtol**power)
+    def __init__(self, fun, A, c, E, dense, b, extra, dense_basis, y0, f0, rtol, threshold, norm_control,
+                 nonnegative, refine):
+        s = c.size
+        self.fun, self.A, self.dense, self.basis, self.nonnegative = fun, A, dense, dense_basis, nonnegative
+        self.fsal = fsal = b is None
+        n = y0.size
+        last = s - 1
+        nodes = [float(ci) for ci in c]
+        R = s if fsal else dense.shape[0]
+        W = np.empty((R + 1, n), dtype=y0.dtype)
+        self.K = K = W[R - 1::-1]
+        W[R] = y0
+        self.y_row = W[R]  # the current step's start y: the driver copies an accepted ynew into it
+        K[0] = f0
+        hAx = np.empty((s, s + 1))
+        hAx[:, 0] = 1.0
+        self.hA = hAx[:, 1:]
+        # (row i of K, c_i, the coefficients, the rows) of each stage computed after the first
+        # (an FSAL pair's last stage is f(tnew, ynew), computed apart); writing into a fixed
+        # row view is cheaper than K[i] = ...
+        self.middle = [(K[i], nodes[i], hAx[i, i::-1].dot, W[None, R - i:]) for i in range(1, last if fsal else s)]
+        self.K_first, self.K_fnew = K[0], K[last if fsal else s]  # the next step's first stage is K_fnew
+        self.evals = last  # evaluations per attempt
+        self.have_extra = not fsal and extra is not None
+        if fsal:
+            self.last_dot, self.rows_last = hAx[last, last::-1].dot, W[None, R - last:]
         else:
-            rh = float((np.abs(f0) / np.maximum(absy, threshold)).max()) / (0.8 * rtol**power)
-        absh = first_step(rh, abs(float(tspan[1]) - t0), hmax, t0)
+            self.b = np.asarray(b)
+            hbx = np.empty(s + 1)
+            hbx[0] = 1.0
+            self.hb = hbx[1:]
+            self.last_dot, self.rows_last = hbx[::-1].dot, W[None, R - s:]
+        if self.have_extra:
+            self.A_extra, c_extra = extra
+            self.hA_extra = np.empty((self.A_extra.shape[0], self.A_extra.shape[1] + 1))
+            self.hA_extra[:, 0] = 1.0
+            self.extra_rows = [(K[s + 1 + j], float(c_extra[j]), self.hA_extra[j, s + 1 + j::-1].dot,
+                                W[None, R - (s + 1 + j):]) for j in range(len(c_extra))]
+        self.all_nodes = c if fsal else np.concatenate([c, [1.0], extra[1] if self.have_extra else []])
+        # fE = E . K summed for k = 0, 1, ... (numpy's own loop)
+        self.E_dot, self.K_main_3d = backwards(E).dot, K[:s][None]
+        self.fE_out = np.empty((1, n), dtype=np.result_type(E, y0.dtype))
+        self.fE = self.fE_out[0]
+        # The error norm max_i |fE_i| / max(|y_i|, |ynew_i|, threshold_i): for a small real
+        # system the maximum is taken over a Python list (numpy's reductions cost more than the
+        # whole division); both give the same bits.
+        self.small_real = not np.iscomplexobj(y0) and n <= _SMALL
+        self.rtol, self.threshold, self.norm_control = rtol, threshold, norm_control
+        self.completed = True  # whether this step's interpolation stages are in K
+        self.event_evals = 0  # evaluations made by completing steps for the events
+        self.step = (0.0, self.y_row, 0.0, 0.0)  # (t, y, h, tnew) of the step the extension describes
+        if refine > 1:
+            # Interior output at s = j/refine: the extension's weights sum_m dense[:, m] s^(m+1)
+            # do not depend on the step, so they are formed once (rows kept backwards).
+            from odelab.solvers.dense import refine_weights
+
+            fractions = np.arange(1, refine) / refine
+            self.weights_T = [backwards(w) for w in refine_weights(fractions, dense, dense_basis)]
+
+    def attempt_function(self):
+        """``attempt(t, h, absh, done, tfinal, weight) -> (tnew, h, ynew, err, scale_new)``: one
+        attempt from ``(t, y_row)`` with step ``h``, a closure over the step's arrays (the
+        driver calls it every attempt: locals, no attribute lookups).
+
+        ``weight`` is ``max(|y|, threshold)`` (or ``||y||`` with norm control); ``scale_new``
+        ``|ynew|`` (or ``||ynew||``) for the next step's weight."""
+        fun, A, hA, middle, K_first, K_fnew = self.fun, self.A, self.hA, self.middle, self.K_first, self.K_fnew
+        last_dot, rows_last, E_dot, K_main_3d, fE_out, fE = (self.last_dot, self.rows_last, self.E_dot,
+                                                            self.K_main_3d, self.fE_out, self.fE)
+        fsal, norm_control, small_real, threshold = self.fsal, self.norm_control, self.small_real, self.threshold
+        b, hb = (None, None) if fsal else (self.b, self.hb)
+        multiply, absolute, maximum, nan = np.multiply, np.abs, np.maximum, math.nan
+
+        def attempt(t, h, absh, done, tfinal, weight):
+            multiply(A, h, hA)
+            if fsal:
+                for K_row, ci, stage_dot, rows in middle:
+                    K_row[...] = fun(t + ci * h, stage_dot(rows)[0])
+                tnew = tfinal if done else t + h  # hit the end point exactly
+                h = tnew - t  # purify h
+                ynew = last_dot(rows_last)[0]
+                K_fnew[...] = fun(tnew, ynew)
+            else:  # every stage inside the step; f(tnew, ynew) once the step is accepted
+                for K_row, ci, stage_dot, rows in middle:
+                    K_row[...] = fun(t + ci * h, stage_dot(rows)[0])
+                    K_row -= K_first  # increment form
+                tnew = tfinal if done else t + h
+                multiply(b, h, hb)  # with the h the stages used, as for hA
+                h = tnew - t
+                ynew = last_dot(rows_last)[0]
+            E_dot(K_main_3d, fE_out)
+            if norm_control:
+                normynew = float(norm(ynew))
+                return tnew, h, ynew, absh * (float(norm(fE)) / max(weight, normynew, float(threshold))), normynew
+            absynew = absolute(ynew)
+            scale = maximum(weight, absynew)
+            if small_real:
+                q = (fE / scale).tolist()
+                err = absh * max(map(abs, q))
+                total = sum(q)
+                if total != total:  # a NaN ratio, which max may skip
+                    err = nan
+            else:
+                err = absh * float((absolute(fE) / scale).max())
+            return tnew, h, ynew, err, absynew
+
+        return attempt
+
+    def complete(self, t, h) -> int:
+        """Evaluate a non-FSAL step's interpolation stages into K (stage ``s+1+j`` is
+        ``f(t + c_j h, y + h A_extra[j] . K)``, held as its increment over ``K_0``), for a step
+        that is interpolated; returns their number."""
+        np.multiply(self.A_extra, h, self.hA_extra[:, 1:])
+        K0, fun = self.K[0], self.fun
+        for K_row, cj, stage_dot, rows in self.extra_rows:
+            K_row[...] = fun(t + cj * h, stage_dot(rows)[0])
+            K_row -= K0  # increment form
+        self.completed = True
+        return len(self.extra_rows)
+
+    def value_at(self, tq):
+        """The step's extension at ``tq`` (events), completing a non-FSAL step first."""
+        from odelab.solvers.dense import step_value
+
+        t, y, h, _ = self.step
+        if not self.completed:
+            self.event_evals += self.complete(t, h)
+        return step_value(tq, t, y, h, self.K, self.dense, self.nonnegative, self.basis)
+
+    def values(self, times, rows) -> None:
+        """The extension at the vector-tspan entries inside the step, into ``rows`` (an entry at
+        the step's end is left to the collector: it is the end itself)."""
+        from odelab.solvers.dense import step_value
+
+        t, y, h, tnew = self.step
+        for j, tn in enumerate(times):
+            if tn != tnew:
+                rows[j] = step_value(tn, t, y, h, self.K, self.dense, self.nonnegative, self.basis)
+
+    def interior(self, times):
+        """The step's interior Refine rows (the weights at s = j/refine are the step's own)."""
+        t, y, h, _ = self.step
+        return _refine_rows(self.weights_T, h, self.K, y, self.nonnegative)
+
+    def cut(self, t, y, h, t_event) -> None:
+        """A terminal event cuts the step at ``t_event``: the stages of [t, te] become the
+        extension's slopes at its nodes, as MATLAB does, so output on the shortened step follows
+        the same curve."""
+        from odelab.solvers.dense import step_slopes
+
+        K = self.K
+        K[1:] = step_slopes(t + (t_event - t) * self.all_nodes[1:], t, y, h, K, self.dense, self.nonnegative,
+                            self.basis)
+        if not self.fsal:
+            K[1:] -= K[0]
+
+    def refine_after(self, store, fractions):
+        """The Refine output of all steps at once, from the step records (then the step starts are
+        read off the output, every refine-th row: the records' copy is dropped)."""
+        t_arr, y_arr = _refine_output(store.t, store.y, store.fields[0], fractions, self.weights_T,
+                                      self.nonnegative)
+        store.y = None
+        return t_arr, y_arr
+
+
+def _initial_step(f0, y0, threshold, rtol, power, norm_control, htry, hmax, tspan) -> float:
+    """MATLAB's first step: from ``InitialStep``, or (NaN) from the derivative at t0."""
+    t0 = float(tspan[0])
+    if htry == htry:
+        return given_step(htry, t0, hmax)
+    if norm_control:
+        rh = (float(norm(f0)) / max(float(norm(y0)), float(threshold))) / (0.8 * rtol**power)
     else:
-        absh = given_step(htry, t0, hmax)
+        rh = float((np.abs(f0) / np.maximum(np.abs(y0), threshold)).max()) / (0.8 * rtol**power)
+    return first_step(rh, abs(float(tspan[1]) - t0), hmax, t0)
 
-    refine_output = ntspan == 2
-    if refine_output and refine > 1:
-        # Interior output at s = j/refine: the extension's weights sum_m dense[:, m] s^(m+1)
-        # do not depend on the step, so they are formed once.
-        from odelab.solvers.dense import refine_weights
 
-        fractions = np.arange(1, refine) / refine
-        # row j: the weight of each stage at s = fractions[j] (sum_m dense[:, m] * basis_m(s)),
-        # kept backwards for the products with the stages
-        weights_T = [backwards(w) for w in refine_weights(fractions, dense, dense_basis)]
-    nxt = 1  # next tspan entry to output (vector tspan)
-    if not refine_output:
-        # MATLAB's output at the given times only: at most one row per entry, plus a terminal
-        # event's point.
-        t_out = [t0]
-        y_out = np.empty((ntspan + 1, n), dtype=dtype)
-        y_out[0] = y0
-        nout = 1
-
-    # Every accepted step's end time, end state and stages, in arrays grown in place (they
-    # serve the output, deval and the events' interpolation; the interior Refine points are
-    # interpolated from them after the loop, all steps at once).
-    capacity = _FIRST_CAPACITY
-    t_ends = np.empty(capacity + 1)
-    y_ends = np.empty((capacity + 1, n), dtype=dtype)
-    step_K = np.empty((capacity, K.shape[0], n), dtype=dtype)
-    t_ends[0] = t0
-    y_ends[0] = y0
-    stored = 0
-    te: list[float] = []
-    ye: list[np.ndarray] = []
-    ie: list[int] = []
-    v_left = v0
-    if events is not None:
-        from odelab.solvers.dense import step_slopes, step_value
-        from odelab.solvers.events import locate_events
-
-    nsteps = 0
-    nfailed = 0
-    nfevals = 0
+def integrate_adaptive(fun, tspan: np.ndarray, y0: np.ndarray, f0: np.ndarray, A: np.ndarray, c: np.ndarray,
+                       E: np.ndarray, dense: np.ndarray, power: float, shrink_min: float, rtol: float,
+                       threshold: np.ndarray, hmax: float, htry: float, refine: int, norm_control: bool,
+                       max_steps: int, events=None, v0=None, nonnegative=None, output_fcn=None, b=None, extra=None,
+                       dense_basis="monomial") -> DriverResult:
+    """Integrate with an embedded Runge-Kutta pair and MATLAB's controller (the parameters are
+    described in the module docstring); returns a :class:`~odelab.solvers.output.DriverResult`
+    whose ``steps`` are ``(t, h, y, K)`` arrays of every accepted step for dense output (and with
+    ``extra`` a fifth: which steps have their extra stages computed, the others are completed on
+    demand by :class:`odelab.solvers.dense.StageCompletion`)."""
+    fsal = b is None
+    t0, tfinal = float(tspan[0]), float(tspan[-1])
+    tdir = 1.0 if tfinal > t0 else -1.0
+    st = _Stages(fun, A, c, E, dense, b, extra, dense_basis, y0, f0, rtol, threshold, norm_control, nonnegative,
+                 refine if tspan.size == 2 else 1)
+    K, K_first, K_fnew, y_row, have_extra, attempt = st.K, st.K_first, st.K_fnew, st.y_row, st.have_extra, st.attempt_function()
+    evals, maximum = st.evals, np.maximum
+    nn = None if nonnegative is None else NonNegative(nonnegative, threshold, norm_control)
+    fields = [(K.shape, y0.dtype)] + ([((), bool)] if have_extra else [])
+    out = StepOutput(tspan, y0, refine, fields, events, v0, output_fcn, refine_after=st.refine_after)
+    per_step, add = out.per_step, out.store.add
+    # max(|y|, threshold), the part of the error weight known before the step (or ||y||)
+    weight = float(norm(y0)) if norm_control else np.maximum(np.abs(y0), threshold)
+    absh = _initial_step(f0, y0, threshold, rtol, power, norm_control, htry, hmax, tspan)
+    t, y = t0, y_row
+    nsteps = nfailed = nfevals = 0
     status = success = Status.SUCCESS  # a local: the enum's attribute lookup costs more than a step's test
     exception = None
     h = tdir * absh
@@ -344,68 +349,24 @@ def integrate_adaptive(
             # hmin <= absh <= hmax, stretched (or shrunk) to land on tfinal if within 10% of it
             hmin, absh, done = clamp_step(t, tfinal, absh, hmax)
             h = tfinal - t if done else tdir * absh
-
             nofailed = True
             while True:
-                np.multiply(A, h, hA)
-                if fsal:
-                    for K_row, ci, stage_dot, rows in middle:
-                        K_row[...] = fun(t + ci * h, stage_dot(rows)[0])
-                    tnew = t + h
-                    if done:
-                        tnew = tfinal  # hit the end point exactly
-                    h = tnew - t  # purify h
-                    ynew = last_dot(rows_last)[0]
-                    K_fnew[...] = fun(tnew, ynew)
-                else:  # every stage inside the step; f(tnew, ynew) once the step is accepted
-                    for K_row, ci, stage_dot, rows in middle:
-                        K_row[...] = fun(t + ci * h, stage_dot(rows)[0])
-                        K_row -= K_first  # increment form
-                    tnew = t + h
-                    if done:
-                        tnew = tfinal
-                    np.multiply(b, h, hb)  # with the h the stages used, as for hA
-                    h = tnew - t
-                    ynew = last_dot(rows_last)[0]
-                nfevals += last
-
-                E_dot(K_main_3d, fE_out)
-                if have_nonneg:
-                    nn_reject = False
-                if norm_control:
-                    normynew = float(norm(ynew))
-                    err = absh * (float(norm(fE)) / max(normy, normynew, float(threshold)))
-                    if have_nonneg and err <= rtol and (ynew[nonnegative] < 0).any():
-                        err_nn = float(norm(np.maximum(0.0, -ynew[nonnegative]))) / max(
-                            normy, normynew, float(threshold))
-                        if err_nn > rtol:
-                            err, nn_reject = err_nn, True
-                else:
-                    absynew = absolute(ynew)
-                    scale = maximum(ywt, absynew)
-                    if small_real:
-                        q = (fE / scale).tolist()
-                        err = absh * max(map(abs, q))
-                        total = sum(q)
-                        if total != total:  # a NaN ratio, which max may skip
-                            err = math.nan
-                    else:
-                        err = absh * float((absolute(fE) / scale).max())
-                    if have_nonneg and err <= rtol and (ynew[nonnegative] < 0).any():
-                        # Shampine, Thompson, Kierzenka & Byrne (2005): a negative value of a
-                        # non-negative component counts as error.
-                        err_nn = float((np.maximum(0.0, -ynew[nonnegative]) / threshold_nn).max())
-                        if err_nn > rtol:
-                            err, nn_reject = err_nn, True
-
+                tnew, h, ynew, err, scale_new = attempt(t, h, absh, done, tfinal, weight)
+                nfevals += evals
+                nn_reject = False
+                if nn is not None and err <= rtol and nn.negative(ynew):
+                    # a negative value of a non-negative component counts as error
+                    err_nn = (float(norm(nn.excess(ynew))) / max(weight, scale_new, float(threshold)) if norm_control
+                              else nn.error(ynew))
+                    if err_nn > rtol:
+                        err, nn_reject = err_nn, True
                 if err > rtol:  # failed attempt
                     nfailed += 1
                     if absh <= hmin:
                         status = Status.STEP_UNDERFLOW
                         break
                     # a negative non-negative component halves the step, as a second failure
-                    absh = shrink(absh, hmin, err, rtol, power, shrink_min, 0.8,
-                                  nofailed and not (have_nonneg and nn_reject))
+                    absh = shrink(absh, hmin, err, rtol, power, shrink_min, 0.8, nofailed and not nn_reject)
                     nofailed = False
                     h = tdir * absh
                     done = False
@@ -421,101 +382,33 @@ def integrate_adaptive(
                 fnew = fun(tnew, ynew)
                 np.subtract(fnew, K_first, K_fnew)
                 nfevals += 1
-                completed[0] = not have_extra
-            nn_reset = False
-            if have_nonneg and (ynew[nonnegative] < 0).any():
-                # Accepted: clip to the constraint; the interpolant keeps the unclipped stages.
-                ynew[nonnegative] = np.maximum(ynew[nonnegative], 0.0)
-                if norm_control:
-                    normynew = float(norm(ynew))
-                else:
-                    absynew = np.abs(ynew)
-                nn_reset = True
-
+                st.completed = not have_extra
+            # Accepted: clip to the constraint; the interpolant keeps the unclipped stages.
+            nn_reset = nn is not None and nn.clip(ynew)
+            if nn_reset:
+                scale_new = float(norm(ynew)) if norm_control else np.abs(ynew)
             stop = False
+            if events is not None or per_step:
+                st.step = (t, y, h, tnew)
             if events is not None:
-                step_t0, step_y0, step_h0 = t, y, h
-
-                def interpolate(tq):
-                    if not completed[0]:
-                        completed[1] += _complete(fun, step_t0, step_h0, K, A_extra, hA_extra, extra_rows)
-                        completed[0] = True
-                    return step_value(tq, step_t0, step_y0, step_h0, K, dense, nonnegative, dense_basis)
-
-                found_t, found_y, found_i, v_left, stop = locate_events(
-                    interpolate, events, v_left, t, y, tnew, ynew, t0)
-                if found_t:
-                    te.extend(found_t)
-                    ye.extend(found_y)
-                    ie.extend(found_i)
-                    if stop:
-                        # A terminal event cuts the step at te: the stages of [t, te] become the
-                        # extension's slopes at its nodes, as MATLAB does, so output on the
-                        # shortened step follows the same curve.
-                        t_event = found_t[-1]
-                        K[1:] = step_slopes(t + (t_event - t) * all_nodes[1:], t, y, h, K, dense, nonnegative,
-                                            dense_basis)
-                        if not fsal:
-                            K[1:] -= K[0]
-                        tnew = t_event
-                        ynew = found_y[-1]
-                        h = tnew - t
-                        done = True
-                        status = Status.TERMINAL_EVENT
-
-            if not completed[0] and (
-                    (refine_output and refine > 1)
-                    or (not refine_output and nxt < ntspan and tdir * (tnew - float(tspan[nxt])) > 0)):
-                # The step is interpolated (Refine, or an output time inside it): its
-                # interpolation stages are needed now.
-                nfevals += _complete(fun, t, h, K, A_extra, hA_extra, extra_rows)
-                completed[0] = True
-            if stored == capacity:
-                capacity += max(capacity >> 2, _FIRST_CAPACITY)
-                _grow(t_ends, capacity + 1)
-                _grow(y_ends, capacity + 1)
-                _grow(step_K, capacity)
-            step_K[stored] = K
+                cut = out.locate(st.value_at, t, y, tnew, ynew)
+                if cut is not None:
+                    st.cut(t, y, h, cut[0])
+                    tnew, ynew = cut
+                    h = tnew - t
+                    st.step = (t, y, h, tnew)
+                    done = stop = True
+                    status = Status.TERMINAL_EVENT
+            if have_extra and not st.completed and out.interpolates(tnew):
+                nfevals += st.complete(t, h)  # the step is interpolated: its extra stages are needed now
             if have_extra:
-                step_complete.append(completed[0])
-            stored += 1
-            t_ends[stored] = tnew
-            y_ends[stored] = ynew
-            if not refine_output:
-                n_before = nout
-                while nxt < ntspan:
-                    tn = float(tspan[nxt])
-                    if tdir * (tnew - tn) < 0:
-                        if stop:  # MATLAB outputs the terminal event's point too
-                            t_out.append(tnew)
-                            y_out[nout] = ynew
-                            nout += 1
-                        break
-                    t_out.append(tn)
-                    if tn == tnew:
-                        y_out[nout] = ynew
-                    else:
-                        from odelab.solvers.dense import step_value
-
-                        y_out[nout] = step_value(tn, t, y, h, K, dense, nonnegative, dense_basis)
-                    nout += 1
-                    nxt += 1
-                if output_fcn is not None and nout > n_before:
-                    if output_fcn(np.array(t_out[n_before:]), y_out[n_before:nout].copy()):
-                        status = Status.OUTPUT_STOP
-                        t = tnew
-                        break
-            elif output_fcn is not None:  # this step's Refine rows, as the output will hold them
-                if refine > 1:
-                    t_new_rows = np.append(t + h * fractions, tnew)
-                    y_new_rows = np.vstack([_refine_rows(weights_T, h, K, y, nonnegative), ynew])
-                else:
-                    t_new_rows, y_new_rows = np.array([tnew]), ynew.reshape(1, n).copy()
-                if output_fcn(t_new_rows, y_new_rows):
-                    status = Status.OUTPUT_STOP
-                    t = tnew
-                    break
-
+                add(tnew, ynew, K, st.completed)
+            else:
+                add(tnew, ynew, K)
+            if per_step and out.emit(t, tnew, ynew, stop, st.values, st.interior):
+                status = Status.OUTPUT_STOP
+                t = tnew
+                break
             if done:
                 t = tnew
                 break
@@ -523,52 +416,31 @@ def integrate_adaptive(
                 status = Status.MAX_STEPS
                 t = tnew
                 break
-
-            # No failures in this step: choose the next step from the error estimate.
-            if nofailed:
+            if nofailed:  # no failures in this step: choose the next step from the error estimate
                 absh = grow(absh, err, rtol, power, 1.25, 5.0)
-
             t = tnew
             y_row[...] = ynew  # y is y_row: the rows of the next step's stages
-            if norm_control:
-                normy = normynew
-            else:
-                ywt = maximum(absynew, threshold)
-            if nn_reset:
-                # The stages interpolated the unclipped solution; move on along the clipped one.
+            weight = scale_new if norm_control else maximum(scale_new, threshold)
+            if nn_reset:  # the stages interpolated the unclipped solution; go on along the clipped one
                 if fsal:
                     K_fnew[...] = fun(tnew, ynew)
                 else:
                     fnew = fun(tnew, ynew)
                 nfevals += 1
-            if fsal:
-                K_first[...] = K_fnew
-            else:
-                K_first[...] = fnew
+            K_first[...] = K_fnew if fsal else fnew
     except Exception as exc:  # the user's right-hand side (or events function) failed
         status = Status.FUN_RAISED
         exception = exc
-    nfevals += completed[1]
-
-    # Trim the step arrays to the steps taken (in place: no copy of a long run's arrays).
-    _grow(t_ends, stored + 1)
-    _grow(y_ends, stored + 1)
-    _grow(step_K, stored)
-    if refine_output:
-        t_arr, y_arr = t_ends, y_ends
-        if refine > 1 and stored:
-            t_arr, y_arr = _refine_output(t_ends, y_ends, step_K, fractions, weights_T, nonnegative)
-            del y_ends  # the step starts are read off the output, every refine-th row
-        step_y = y_arr[::refine][:-1]
-    else:
-        t_arr = np.array(t_out)
-        _grow(y_out, nout)
-        y_arr = y_out
-        step_y = y_ends[:-1]
-    steps = (t_ends[:-1], np.diff(t_ends), step_y, step_K) if stored else None
-    if steps is not None and have_extra:
-        steps += (np.array(step_complete),)
-    return (t_arr, y_arr, nsteps, nfailed, nfevals, status, t, abs(h), exception, (te, ye, ie), steps)
+    nfevals += st.event_evals
+    t_arr, y_arr = out.finish()
+    store = out.store
+    steps = None
+    if store.count:
+        step_y = (y_arr[::refine] if tspan.size == 2 else store.y)[:-1]
+        steps = (store.t[:-1], np.diff(store.t), step_y, store.fields[0])
+        if have_extra:
+            steps += (store.fields[1],)
+    return DriverResult(t_arr, y_arr, nsteps, nfailed, nfevals, status, t, abs(h), exception, out.found, steps)
 
 
 
