@@ -30,7 +30,13 @@ def why_not_compiled(method, compiled, options=None) -> str | None:
     if compiled is None:
         return ("it compiles systems written as expressions (equations, a state-space model, a diagram of linear "
                 "blocks); this system is a Python function or a diagram with nonlinear blocks")
-    if method.kind not in ("adaptive", "fixed"):
+    if method.kind == "implicit":
+        from odelab.solvers.compiled.stiff import why_not_stiff
+
+        reason = why_not_stiff(method.name, compiled, options)
+        if reason:
+            return reason
+    elif method.kind not in ("adaptive", "fixed"):
         return (f"it runs odelab's explicit Runge-Kutta methods (ode23, ode45, fixed-step), and {method.name} is "
                 + ("SciPy's" if method.kind == "scipy" else "not one of them"))
     if method.kind == "adaptive" and not method.tableau.fsal:
@@ -207,6 +213,8 @@ def _choose(problem, tspan, method_name, options, backend, python, compiled, pil
             if limit:  # max_steps (or odelab run's budget) caps the work: stiff.toml's ode45 stops at 20 000
                 steps = min(steps, limit)
             loop = "events" if getattr(problem, "events", None) is not None else "adaptive"
+            if method.kind == "implicit":
+                loop = method.name
             if elapsed * steps / AUTO_STEPS < expected_compile_seconds(problem.compiled, loop):
                 return python(options), "python"
     return compiled(options), "compiled"

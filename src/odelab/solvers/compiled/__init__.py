@@ -47,7 +47,8 @@ MAX_GENERATED_SIZE = 400
 #: Seconds a compile costs, measured on a 2-core machine (bench/bench_compiled.py), idle: the
 #: shared adaptive loop (once per machine), the events loop, one system's rhs, and loading a
 #: cached build (numba's import and the cache index).
-COMPILE_SECONDS = {"adaptive": 2.5, "events": 4.0, "rhs": 0.6, "load": 0.5}
+COMPILE_SECONDS = {"adaptive": 2.5, "events": 4.0, "rhs": 0.6, "load": 0.5, "ode23s": 8.0, "ode15s": 12.0,
+                   "jacobian": 1.0}
 
 
 @dataclass(frozen=True, eq=False)
@@ -193,8 +194,18 @@ class CompiledSystem:
 
         return inputs_source(self.signals, data, 2 + self.values.size)
 
-    def source(self) -> str:
-        """The generated module's text (right-hand side and loops)."""
+    def why_no_jacobian(self) -> str | None:
+        """Why the compiled stiff solvers cannot form this system's exact Jacobian (None if they can)."""
+        if self.kind == "body":
+            return ("its Jacobian is not generated for diagrams (the Python path forms it by finite differences); "
+                    "the Python path runs it")
+        if self.inputs:
+            return "the compiled stiff solvers take systems without inputs (the Python path runs it)"
+        return None
+
+    def source(self, jacobian: bool = False) -> str:
+        """The generated module's text (right-hand side and loops); with ``jacobian``, also
+        ``jac(t, y, p, J)``, the exact Jacobian the compiled stiff solvers use."""
         from odelab.solvers.compiled import cache, codegen
         from odelab.solvers.compiled.inputs import INPUT_PRELUDE
 
@@ -222,28 +233,40 @@ class CompiledSystem:
                     raise InputError(f"`{w.key or w.text}` uses `{unknown[0]}`, which is not a state, a parameter "
                                      "or t.", key=w.key)
             rhs += "\n\n" + codegen.events_source(self.states, self.event_parameters, whens, self.values.size)
-        return cache.module_text(codegen.PRELUDE + (INPUT_PRELUDE if self.inputs else ""), rhs)
+        prelude = codegen.PRELUDE + (INPUT_PRELUDE if self.inputs else "")
+        if jacobian:
+            reason = self.why_no_jacobian()
+            if reason:
+                raise InputError(f"the compiled backend cannot run this system: {reason}.", key="backend")
+            prelude += codegen.CS_PRELUDE
+            if self.kind == "linear":
+                rhs += "\n\n" + codegen.linear_jacobian_source()
+            else:
+                rhs += "\n\n" + codegen.jacobian_source(self.states, self.parameters, self._parsed())
+        return cache.module_text(prelude, rhs)
 
-    def module(self):
-        """The module holding the compiled ``rhs`` (compiled or loaded from the cache on first use)."""
+    def module(self, jacobian: bool = False):
+        """The module holding the compiled ``rhs`` (and ``jac`` with ``jacobian``), compiled or
+        loaded from the cache on first use."""
         from odelab.solvers.compiled import cache
 
-        return cache.load_module(self.source())
+        return cache.load_module(self.source(jacobian))
 
 
 def expected_compile_seconds(system: CompiledSystem, loop: str = "adaptive") -> float:
-    """What running ``system`` on the compiled ``loop`` ("adaptive" or "events") would cost
+    """What running ``system`` on the compiled ``loop`` ("adaptive", "events", "ode23s" or "ode15s") would cost
     before its first step: nothing to compile if both are cached, else their compile times
     (:data:`COMPILE_SECONDS`). ``backend = "auto"`` weighs it against the Python run."""
     from odelab.solvers.compiled import cache
 
+    stiff = loop in ("ode23s", "ode15s")
     try:
         seconds = COMPILE_SECONDS["load"]
-        if not cache.is_built(cache.kernels_text(), "odelab_kernels", "_adaptive_events" if loop == "events"
-                              else "_adaptive"):
+        function = {"events": "_adaptive_events", "ode23s": "_ode23s", "ode15s": "_ode15s"}.get(loop, "_adaptive")
+        if not cache.is_built(cache.kernels_text(), "odelab_kernels", function):
             seconds += COMPILE_SECONDS[loop]
-        if not cache.is_built(system.source()):
-            seconds += COMPILE_SECONDS["rhs"]
+        if not cache.is_built(system.source(jacobian=stiff)):
+            seconds += COMPILE_SECONDS["rhs"] + (COMPILE_SECONDS["jacobian"] if stiff else 0.0)
         return seconds
     except ImportError:  # pragma: no cover - numba missing: why_not_compiled says so first
         return float("inf")
@@ -277,7 +300,7 @@ def unavailable() -> str | None:
 
 def solve_compiled(system: CompiledSystem, tspan, y0, method: str = "ode45", *,
                    input_bounds: tuple[float, float] = (-np.inf, np.inf), **options) -> Solution:
-    """Solve ``system`` with an odelab method (ode23, ode45, fixed-step) on the compiled path.
+    """Solve ``system`` with an odelab method (ode23, ode45, fixed-step, ode23s, ode15s) on the compiled path.
 
     Same arguments, options and result as :func:`odelab.solvers.api.solve` with the
     system's right-hand side; SciPy's methods are not available here. A failed integration
@@ -299,9 +322,11 @@ def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dic
     from odelab.solvers.registry import get_method
 
     m = get_method(method)
+    if m.kind == "implicit":
+        return _solve_stiff(system, m, tspan, y0, options)
     if m.kind not in ("adaptive", "fixed"):
         raise InputError(f"the compiled backend runs odelab's explicit Runge-Kutta methods (ode23, ode45, "
-                         f"fixed-step); {m.name} is {'SciPy' + chr(39) + 's' if m.kind == 'scipy' else 'not one'}: use backend "
+                         f"fixed-step) and the stiff ode23s and ode15s; {m.name} is {'SciPy' + chr(39) + 's' if m.kind == 'scipy' else 'not one'}: use backend "
                          "\"python\".", key="backend")
     if m.kind == "adaptive" and not m.tableau.fsal:
         raise InputError(f"the compiled backend runs FSAL pairs (ode23, ode45) and fixed-step methods; {m.name} is "
@@ -389,6 +414,24 @@ def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dic
                     status=Status(status).label, reason=Status(status), message=message, method=m.name,
                     warnings=opts.warnings, **found)
 
+
+
+def _solve_stiff(system: CompiledSystem, m, tspan, y0, options: dict) -> Solution:
+    """ode23s and ode15s (:mod:`.stiff`), after the checks every compiled run makes."""
+    from odelab.solvers.compiled.stiff import solve_stiff
+    from odelab.solvers.options import as_tspan, as_y0
+
+    reason = unavailable()
+    if reason:
+        raise InputError(f"the compiled backend needs numba: {reason}.", key="backend")
+    tspan_arr = as_tspan(tspan)
+    y0_arr = as_y0(y0)
+    if y0_arr.size != len(system.states):
+        raise InputError(f"`y0` has {y0_arr.size} values but the system has {len(system.states)} states.", key="y0")
+    if np.iscomplexobj(y0_arr):
+        raise InputError("the compiled backend integrates real states; `y0` is complex: use backend \"python\".",
+                         key="y0")
+    return solve_stiff(system, m, tspan_arr, y0_arr, options)
 
 
 def _c(a) -> np.ndarray:

@@ -34,10 +34,10 @@ from odelab import cachedir
 
 __all__ = ["cache_dir", "compiled_folder", "guard_numba_cache", "is_built", "kernels_text", "load_kernels", "load_module", "module_digest"]
 
-#: The shared loops' module, in this order: the step-size rules (compiled by kernels.py), the loops
-#: and the loop with events.
+#: The shared loops' module, in this order: the step-size rules (compiled by kernels.py), the loops,
+#: the loop with events and the stiff solvers' loops.
 _KERNELS = (Path(__file__).parent.parent / "controller.py", Path(__file__).with_name("kernels.py"),
-            Path(__file__).with_name("kernels_events.py"))
+            Path(__file__).with_name("kernels_events.py"), Path(__file__).with_name("kernels_stiff.py"))
 _LOADED: dict[str, ModuleType] = {}
 
 
@@ -90,7 +90,8 @@ def is_built(text: str, prefix: str = "odelab_compiled", function: str | None = 
 
 
 def kernels_text() -> str:
-    """The text of the shared loops' module (``controller.py``, ``kernels.py``, ``kernels_events.py``)."""
+    """The text of the shared loops' module (``controller.py``, ``kernels.py``, ``kernels_events.py``,
+    ``kernels_stiff.py``)."""
     return "\n\n".join(path.read_text(encoding="utf-8") for path in _KERNELS)
 
 

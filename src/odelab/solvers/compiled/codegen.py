@@ -21,7 +21,8 @@ from odelab.expressions.compile import _check_argument_name, _operands
 from odelab.expressions.functions import _BINARY, _COMPARATORS, _UNARY, CONSTANTS, FUNCTIONS
 from odelab.expressions.parse import ParsedExpression, python_name
 
-__all__ = ["PRELUDE", "equations_source", "events_source", "linear_source"]
+__all__ = ["PRELUDE", "CS_PRELUDE", "equations_source", "events_source", "jacobian_source", "linear_jacobian_source",
+           "linear_source"]
 
 _NUMPY = {
     "sin": "sin", "cos": "cos", "tan": "tan", "asin": "arcsin", "acos": "arccos", "atan": "arctan",
@@ -42,6 +43,22 @@ _RHS = _types.void(_types.float64, _V, _V, _V)  # kernels.RHS
 
 _INF = _np.inf
 _NAN = _np.nan
+
+
+def _bind_pow():
+    # C's pow, called by name: numpy's scalar `**` (the Python path's right-hand side) calls it, while
+    # numba's `**` lets LLVM rewrite pow(x, 2.0) as x*x, which can differ from it by a rounding
+    import ctypes
+    import ctypes.util
+
+    import llvmlite.binding as ll
+
+    libm = ctypes.CDLL(ctypes.util.find_library("m") or "libm.so.6")
+    ll.add_symbol("odelab_pow", ctypes.cast(libm.pow, ctypes.c_void_p).value)
+
+
+_bind_pow()
+_pow = _types.ExternalFunction("odelab_pow", _types.float64(_types.float64, _types.float64))
 
 
 @_njit(cache=True, error_model="numpy", inline="always")
@@ -123,7 +140,7 @@ def _node(node: ast.AST, parts: list[str], rename: dict[str, str] | None = None,
         return rename.get(name, python_name(name)) if rename else python_name(name)
     if isinstance(node, ast.BinOp):
         if isinstance(node.op, ast.Pow):  # numba would fold `(-1.0) ** 0.5` to a complex constant
-            return f"_np.power({parts[0]}, {parts[1]})"
+            return f"_pow({parts[0]}, {parts[1]})"
         return f"({parts[0]} {_BINARY[type(node.op)]} {parts[1]})"
     if isinstance(node, ast.UnaryOp):
         return f"({_UNARY[type(node.op)]}{parts[0]})"
@@ -215,3 +232,221 @@ def rhs(t, _y, _p, _out):
              f"        _b = 2 + n * n + i * {ninputs}",
              f"        _out[i] = acc + ({bu})" if ninputs > 1 else f"        _out[i] = acc + {bu}"]
     return "\n".join(lines) + "\n"
+
+
+# --- The exact Jacobian by complex step, in generated code --------------------------------------
+#
+# odelab.systems.jacobian.complex_step_jacobian (the Python path's Jacobian of an expression
+# system) evaluates the equations at y + i h e_j with h = 1e-200 and the expression compiler's
+# complex-step functions (odelab.expressions.functions: elementary functions as
+# f(x) + i f'(x) h, non-smooth ones on the real part, comparisons of real parts). The same rules
+# are written here for numba, so both paths form the same Jacobian to rounding: column j is
+# Im f(y + i h e_j) / h, one complex evaluation of the equations per column. Where numpy divides
+# complex numbers (any operand depending on t or a state is complex there) it uses Smith's
+# algorithm with a reciprocal (numpy's loops), so `_cdiv` does too.
+
+CS_STEP = 1e-200  # odelab.systems.jacobian._H
+
+CS_PRELUDE = '''
+_JAC = _types.void(_types.float64, _V, _V, _types.float64[:, ::1])  # kernels_stiff.JAC
+_LN10 = 2.302585092994046
+
+
+@_njit(cache=True, error_model="numpy", inline="always")
+def _cdiv(a, b):
+    ar, ai, br, bi = a.real, a.imag, b.real, b.imag
+    abr, abi = abs(br), abs(bi)
+    if abr >= abi:
+        if abr == 0.0 and abi == 0.0:
+            return complex(ar / abr, ai / abr)
+        rat = bi / br
+        scl = 1.0 / (br + bi * rat)
+        return complex((ar + ai * rat) * scl, (ai - ar * rat) * scl)
+    rat = br / bi
+    scl = 1.0 / (bi + br * rat)
+    return complex((ar * rat + ai) * scl, (ai * rat - ar) * scl)
+
+
+@_njit(cache=True, error_model="numpy", inline="always")
+def _lin(fx, dfx, h):
+    return complex(fx, 0.0 if h == 0.0 else dfx * h)
+
+
+@_njit(cache=True, error_model="numpy", inline="always")
+def _cpow(z, w):
+    a, b, c, d = z.real, z.imag, w.real, w.imag
+    value = _np.power(a, c)
+    by_base = 0.0 if (b == 0.0 or c == 0.0) else c * _np.power(a, c - 1.0) * b
+    by_exponent = 0.0 if d == 0.0 else value * _np.log(a) * d
+    return complex(value, by_base + by_exponent)
+
+
+@_njit(cache=True, error_model="numpy", inline="always")
+def _cs_atan2(y, x):
+    yr, yi, xr, xi = y.real, y.imag, x.real, x.imag
+    value = _np.arctan2(yr, xr)
+    if yi == 0.0 and xi == 0.0:
+        return complex(value, 0.0)
+    return complex(value, (xr * yi - yr * xi) / (xr * xr + yr * yr))
+
+
+@_njit(cache=True, error_model="numpy", inline="always")
+def _cs_abs(z):
+    return complex(z) if z.real >= 0.0 else complex(-z)
+
+
+@_njit(cache=True, error_model="numpy", inline="always")
+def _cs_min(a, b):
+    return complex(b) if (b.real != b.real or b.real < a.real) else complex(a)
+
+
+@_njit(cache=True, error_model="numpy", inline="always")
+def _cs_max(a, b):
+    return complex(b) if (b.real != b.real or b.real > a.real) else complex(a)
+
+
+@_njit(cache=True, error_model="numpy", inline="always")
+def _cs_where(c, a, b):
+    return complex(a) if c.real != 0.0 else complex(b)
+
+
+@_njit(cache=True, error_model="numpy", inline="always")
+def _cs_mod(a, m):
+    ar, mr, ai, mi = a.real, m.real, a.imag, m.imag
+    value = _mod(ar, mr)
+    k = _np.floor(ar / mr)
+    return complex(value, ai + (0.0 if mi == 0.0 else -k * mi))
+
+
+@_njit(cache=True, error_model="numpy", inline="always")
+def _cs_rem(a, m):
+    ar, mr, ai, mi = a.real, m.real, a.imag, m.imag
+    value = _rem(ar, mr)
+    k = _np.trunc(ar / mr)
+    return complex(value, ai + (0.0 if mi == 0.0 else -k * mi))
+
+
+@_njit(cache=True, error_model="numpy", inline="always")
+def _cs_sawtooth(t, width=1.0):
+    tr, ti, w = t.real, t.imag, width.real
+    value = _sawtooth(tr, w)
+    if ti == 0.0:
+        return complex(value, 0.0)
+    phase = _np.mod(tr, 2.0 * _np.pi)
+    slope = 1.0 / (_np.pi * w) if (phase < 2.0 * _np.pi * w or w >= 1.0) else -1.0 / (_np.pi * (1.0 - w))
+    return complex(value, slope * ti)
+'''
+
+# f(x) + i f'(x) h: the derivative's source in the real part `_x` (expressions.functions' rules)
+_LINEARISED = {
+    "sin": ("_np.sin(_x)", "_np.cos(_x)"), "cos": ("_np.cos(_x)", "(-_np.sin(_x))"),
+    "tan": ("_np.tan(_x)", "(1.0 / (_np.cos(_x) * _np.cos(_x)))"),
+    "asin": ("_np.arcsin(_x)", "(1.0 / _np.sqrt(1.0 - _x * _x))"),
+    "acos": ("_np.arccos(_x)", "(-1.0 / _np.sqrt(1.0 - _x * _x))"),
+    "atan": ("_np.arctan(_x)", "(1.0 / (1.0 + _x * _x))"),
+    "sinh": ("_np.sinh(_x)", "_np.cosh(_x)"), "cosh": ("_np.cosh(_x)", "_np.sinh(_x)"),
+    "tanh": ("_np.tanh(_x)", "(1.0 / (_np.cosh(_x) * _np.cosh(_x)))"),
+    "exp": ("_np.exp(_x)", "_np.exp(_x)"), "log": ("_np.log(_x)", "(1.0 / _x)"),
+    "log10": ("_np.log10(_x)", "(1.0 / (_x * _LN10))"), "sqrt": ("_np.sqrt(_x)", "(0.5 / _np.sqrt(_x))"),
+}
+_ON_REAL_PART = {"sign": "_np.sign", "floor": "_np.floor", "ceil": "_np.ceil", "heaviside": "_heaviside",
+                 "step": "_step", "square": "_square"}
+_CS_HELPERS = {"atan2": "_cs_atan2", "abs": "_cs_abs", "min": "_cs_min", "max": "_cs_max", "where": "_cs_where",
+               "mod": "_cs_mod", "rem": "_cs_rem", "sawtooth": "_cs_sawtooth"}
+assert set(_LINEARISED) | set(_ON_REAL_PART) | set(_CS_HELPERS) == set(FUNCTIONS)
+
+
+def _cs_node(node: ast.AST, parts: list[tuple[str, bool]], perturbed: frozenset[str], free: frozenset[str],
+             lines: list[str]) -> tuple[str, bool]:
+    """One node of the complex-step evaluation: (source, complex?). A value is complex where
+    numpy's would be (it involves t or a state); `lines` receives helper statements."""
+    texts = [p[0] for p in parts]
+    cplx = any(p[1] for p in parts)
+    if isinstance(node, ast.Name) and not (node.id in CONSTANTS and node.id not in free):
+        _check_argument_name(node.id, "an argument")
+        return node.id, node.id in perturbed
+    if isinstance(node, ast.Attribute):
+        name = f"{node.value.id}.{node.attr}"
+        _check_argument_name(name, "an argument")
+        return python_name(name), name in perturbed
+    if isinstance(node, (ast.Constant, ast.Name)):
+        return _node(node, [], None, free), False
+    if isinstance(node, ast.BinOp):
+        if isinstance(node.op, ast.Pow):
+            return f"_cpow({texts[0]}, {texts[1]})", True
+        if isinstance(node.op, ast.Div) and cplx:
+            return f"_cdiv({texts[0]}, {texts[1]})", True
+        return f"({texts[0]} {_BINARY[type(node.op)]} {texts[1]})", cplx
+    if isinstance(node, ast.UnaryOp):
+        return f"({_UNARY[type(node.op)]}{texts[0]})", cplx
+    if isinstance(node, ast.Compare):
+        tests = [f"(({left}).real {_COMPARATORS[type(op)][0]} ({right}).real)"
+                 for left, op, right in zip(texts[:-1], node.ops, texts[1:])]
+        return f"(1.0 if {' and '.join(tests)} else 0.0)", False
+    if isinstance(node, ast.Call):
+        name = node.func.id
+        if name in _LINEARISED:
+            if not cplx:
+                return _node(node, texts, None, free), False
+            k = len(lines)
+            f, df = _LINEARISED[name]
+            lines.append(f"    _z{k} = {texts[0]}")
+            lines.append(f"    _x = _z{k}.real")
+            lines.append(f"    _z{k} = _lin({f}, {df}, _z{k}.imag)")
+            return f"_z{k}", True
+        if name in _ON_REAL_PART:
+            return f"{_ON_REAL_PART[name]}({', '.join(f'({t}).real' for t in texts)})", False
+        helper = _CS_HELPERS[name]
+        if name in ("min", "max"):
+            text = texts[0]
+            for part in texts[1:]:
+                text = f"{helper}({text}, {part})"
+            return text, True
+        return f"{helper}({', '.join(texts)})", True
+    raise AssertionError(f"unvalidated node {type(node).__name__}")  # pragma: no cover
+
+
+def complex_step_source(parsed: ParsedExpression, perturbed: frozenset[str], lines: list[str]) -> str:
+    """``parsed`` evaluated in complex-step arithmetic (post-order, no recursion); statements
+    for linearised functions go to ``lines``, the expression's source is returned."""
+    code: dict[int, tuple[str, bool]] = {}
+    stack: list[tuple[ast.AST, bool]] = [(parsed.tree.body, False)]
+    while stack:
+        node, ready = stack.pop()
+        if not ready:
+            stack.append((node, True))
+            stack.extend((child, False) for child in _operands(node))
+            continue
+        code[id(node)] = _cs_node(node, [code[id(c)] for c in _operands(node)], perturbed, parsed.names, lines)
+    return code[id(parsed.tree.body)][0]
+
+
+def jacobian_source(states: Sequence[str], parameters: Sequence[str], equations: Sequence[ParsedExpression]) -> str:
+    """``jac(t, _y, _p, _J)``: ``_J[i, j] = d equations[i] / d states[j]`` by complex step,
+    column by column (as :func:`odelab.systems.jacobian.complex_step_jacobian`)."""
+    for name in (*states, *parameters):
+        _check_argument_name(name, "an argument")
+    n = len(states)
+    perturbed = frozenset({"t", *states})
+    lines = ["@_njit(_JAC, cache=True, error_model=\"numpy\")", "def jac(t, _y, _p, _J):"]
+    lines += [f"    {name} = _p[{i}]" for i, name in enumerate(parameters)]
+    lines += ["    t = complex(t, 0.0)", f"    for _j in range({n}):"]
+    body = [f"    {python_name(name)} = complex(_y[{i}], {CS_STEP!r} if _j == {i} else 0.0)"
+            for i, name in enumerate(states)]
+    for i, p in enumerate(equations):
+        text = complex_step_source(p, perturbed, body)
+        body.append(f"    _J[{i}, _j] = complex({text}).imag / {CS_STEP!r}")
+    lines += ["    " + line for line in body]
+    return "\n".join(lines) + "\n"
+
+
+def linear_jacobian_source() -> str:
+    """``jac`` of x' = A x: A, row-major at the start of ``_p``."""
+    return '''\
+@_njit(_JAC, cache=True, error_model="numpy")
+def jac(t, _y, _p, _J):
+    n = _y.shape[0]
+    for i in range(n):
+        for j in range(n):
+            _J[i, j] = _p[i * n + j]
+'''

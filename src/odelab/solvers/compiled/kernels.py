@@ -46,6 +46,7 @@ given_step = _njit(inline="always", error_model="numpy")(given_step)  # noqa: F8
 first_step = _njit(inline="always", error_model="numpy")(first_step)  # noqa: F821
 clamp_step = _njit(inline="always", error_model="numpy")(clamp_step)  # noqa: F821
 shrink = _njit(inline="always", error_model="numpy")(shrink)  # noqa: F821
+shrink_after_newton = _njit(inline="always", error_model="numpy")(shrink_after_newton)  # noqa: F821
 grow = _njit(inline="always", error_model="numpy")(grow)  # noqa: F821
 
 
@@ -400,7 +401,10 @@ _adaptive_events = _named(_adaptive, "_adaptive_events")
 
 
 def loop(name):
-    """The compiled loop ``"adaptive"``, ``"fixed"`` or ``"events"`` (adaptive with [events])."""
+    """The compiled loop ``"adaptive"``, ``"fixed"``, ``"events"`` (adaptive with [events]), or a
+    stiff solver's, ``"ode23s"`` or ``"ode15s"`` (kernels_stiff.py)."""
     if name not in _COMPILED:
+        if name in ("ode23s", "ode15s"):
+            _bind_lapack()  # noqa: F821 (kernels_stiff.py's, in the same module)
         _COMPILED[name] = _njit(_SIGNATURES[name], cache=True, error_model="numpy")(globals()[_LOOPS[name]])
     return _COMPILED[name]

@@ -1,0 +1,117 @@
+"""ode23s and ode15s on the compiled backend: the stiff loops of :mod:`.kernels_stiff`.
+
+An expression system's right-hand side and its exact Jacobian (complex step through generated
+code, :func:`odelab.solvers.compiled.codegen.jacobian_source`; a linear system's A) are
+compiled with the system, and MATLAB's stiff step loops run in numba with SciPy's LAPACK for
+the LU factorisations. They take the steps of the Python path (:mod:`odelab.solvers.implicit`)
+given the same exact Jacobian, which is what an experiment's stiff case uses there
+(``[solver] jacobian`` is "complex step on the equations", or A), with the same statistics
+(steps, failures, evaluations, Jacobians, decompositions, solves).
+
+What the compiled loops do not have stays on the Python path, with the reason:
+:func:`why_not_stiff` names it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from odelab.exceptions import InputError
+from odelab.solution import Solution, Stats
+from odelab.solvers.status import Status
+
+__all__ = ["STIFF_METHODS", "why_not_stiff", "solve_stiff"]
+
+#: The stiff solvers the compiled backend runs.
+STIFF_METHODS = ("ode23s",)
+
+#: The stiff solvers' options the compiled loops take (others: the Python path).
+_EXTRAS_TAKEN = ("jacobian", "vectorized", "max_order", "bdf")
+
+
+def why_not_stiff(method_name: str, system, options=None) -> str | None:
+    """Why the compiled backend cannot run the stiff solver ``method_name`` on ``system`` with
+    these options (None if it can)."""
+    if method_name not in STIFF_METHODS:
+        return f"the compiled stiff solvers are {', '.join(STIFF_METHODS)}: {method_name} runs on the Python path"
+    options = options or {}
+    reason = system.why_no_jacobian()
+    if reason:
+        return reason
+    if system.events:
+        return "the compiled stiff loops do not locate [events] (the Python path locates them)"
+    for name in ("mass", "jpattern"):
+        if options.get(name) is not None:
+            return f"`{name}` is not in the compiled stiff loops (the Python path runs it)"
+    return _jacobian_refusal(system, options.get("jacobian"))
+
+
+def _jacobian_refusal(system, jacobian) -> str | None:
+    """None when ``jacobian`` is absent or is the system's own exact Jacobian (what the
+    compiled loop generates), else why it must run on Python."""
+    if jacobian is None:
+        return None
+    if callable(jacobian):
+        if system.kind == "equations" and getattr(jacobian, "source", None) == "complex step on the equations":
+            return None
+        return "`jacobian` is a Python function (the file's analytic `system.jacobian`, or one passed in)"
+    if system.kind == "linear":
+        n = len(system.states)
+        A = np.asarray(jacobian, dtype=float) if not hasattr(jacobian, "toarray") else None
+        if A is not None and A.shape == (n, n) and np.array_equal(A.ravel(), system.values[: n * n]):
+            return None
+    return "`jacobian` is a matrix other than the system's own Jacobian"
+
+
+def solve_stiff(system, m, tspan_arr: np.ndarray, y0_arr: np.ndarray, options: dict) -> Solution:
+    """Run ``m`` (ode23s or ode15s) compiled; ``options`` as :func:`odelab.solve` takes them."""
+    from odelab.solvers import api
+    from odelab.solvers.compiled.cache import load_kernels
+    from odelab.solvers.implicit import resolve_extras
+    from odelab.solvers.options import normalize_options, resolve_options
+
+    reason = why_not_stiff(m.name, system, options)
+    if reason:
+        raise InputError(f"the compiled backend cannot run {m.name} here: {reason}; use backend \"python\".",
+                         key="backend")
+    given = normalize_options(options, m)
+    opts = resolve_options(m, given, tspan_arr, y0_arr.size)
+    for name in ("events", "nonnegative", "output_fcn", "args"):
+        if getattr(opts, name, None) not in (None, ()):
+            raise InputError(f"the compiled backend does not run `{name}` with {m.name} (it calls Python); use "
+                             "backend \"python\".", key=name)
+    extra = opts.extra if opts.extra is not None else resolve_extras(m, given, y0_arr.size)
+    n = y0_arr.size
+    module = system.module(jacobian=True)
+    rhs, jac = module.rhs, module.jac
+    p = system.parameter_vector()
+    t0 = float(tspan_arr[0])
+    y0_arr = np.array(y0_arr, dtype=float, order="C")
+    f0 = np.empty(n)
+    rhs(t0, y0_arr.copy(), p, f0)
+    if not np.all(np.isfinite(f0)):
+        return api._failed_at_start(m, tspan_arr, y0_arr, opts, f"the derivative at t = {t0:g} is not finite "
+                                    f"({api._fmt_vec(f0)}): check the right-hand side at the initial state")
+    kernels = load_kernels()
+    atol = np.ascontiguousarray(np.broadcast_to(np.asarray(opts.atol, dtype=float), (n,)), dtype=float)
+    capacity = tspan_arr.size if tspan_arr.size > 2 else 1 + int(opts.refine) * 64
+    args = (rhs, jac, np.array(tspan_arr, dtype=float), y0_arr, f0, p, float(opts.rtol), atol.copy(),
+            float(opts.max_step), float(opts.initial_step), int(opts.refine), int(opts.max_steps), int(capacity))
+    if m.name == "ode15s":
+        from odelab.solvers.implicit.ode15s import GAMMA, KAPPA
+
+        kappa = np.zeros(6) if extra["bdf"] else KAPPA
+        alpha = (1.0 - kappa) * GAMMA  # integrate_ode15s's, bit for bit
+        erconst = kappa * GAMMA + 1.0 / np.arange(1, 7)
+        result = kernels.loop("ode15s")(*args, int(extra["max_order"]), np.array(GAMMA), alpha, erconst)
+    else:
+        result = kernels.loop("ode23s")(*args)
+    t_out, y_out, count, nsteps, nfailed, nfevals, npds, ndecomps, nsolves, status, t_stop, h_stop = result
+    t, y = t_out[:count], y_out[:count]
+    if count < t_out.size // 2:  # do not keep a mostly empty buffer alive
+        t, y = t.copy(), y.copy()
+    message = api._status_message(status, m, t_stop, h_stop, y, y0_arr, opts, None, tspan_arr)
+    return Solution(t=t, y=y, stats=Stats(nsteps=nsteps, nfailed=nfailed, nfevals=nfevals + 1, npds=npds,
+                                          ndecomps=ndecomps, nsolves=nsolves),
+                    status=Status(status).label, reason=Status(status), message=message, method=m.name,
+                    warnings=opts.warnings)

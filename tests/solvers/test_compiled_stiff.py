@@ -1,0 +1,164 @@
+"""The compiled ode23s and ode15s take the Python path's steps, with its statistics and values.
+
+The Python path is what an experiment's stiff case runs: :func:`odelab.solve` with the exact
+Jacobian of the equations (``complex_step_jacobian``); the compiled path generates the same
+Jacobian and calls the same LAPACK routines. Problems: Robertson, HIRES (Hairer & Wanner's
+test set), van der Pol with mu = 1000 and a chain of masses with stiff springs and dampers.
+"""
+
+import numpy as np
+import pytest
+
+import odelab
+from odelab.exceptions import InputError
+from odelab.expressions import compile_vector
+from odelab.solvers.compiled import CompiledSystem, solve_compiled
+from odelab.solvers.compiled.stiff import STIFF_METHODS, why_not_stiff
+from odelab.systems.jacobian import complex_step_jacobian
+
+EPS = np.finfo(float).eps
+
+
+def _chain(n):
+    """n masses between a wall and a free end, springs k and dampers c, a unit force on the last."""
+    states = [f"x{i}" for i in range(n)] + [f"v{i}" for i in range(n)]
+    equations = [f"v{i}" for i in range(n)]
+    for i in range(n):
+        left_x, right_x = (f"x{i - 1}" if i else "0"), (f"x{i + 1}" if i < n - 1 else f"x{i}")
+        left_v, right_v = (f"v{i - 1}" if i else "0"), (f"v{i + 1}" if i < n - 1 else f"v{i}")
+        equations.append(f"k*({left_x} - 2*x{i} + {right_x}) + c*({left_v} - 2*v{i} + {right_v})"
+                         + (" + 1" if i == n - 1 else ""))
+    return states, equations
+
+
+CHAIN = _chain(10)
+PROBLEMS = {
+    "robertson": (["y1", "y2", "y3"], ["-0.04*y1 + 1e4*y2*y3", "0.04*y1 - 1e4*y2*y3 - 3e7*y2^2", "3e7*y2^2"], {},
+                  [0, 0.4, 4, 40, 400, 4e3, 4e4, 4e5, 4e6, 4e8, 4e10], [1, 0, 0],
+                  dict(rtol=1e-4, atol=[1e-8, 1e-14, 1e-8])),
+    "hires": ([f"y{i}" for i in range(1, 9)],
+              ["-1.71*y1 + 0.43*y2 + 8.32*y3 + 0.0007", "1.71*y1 - 8.75*y2", "-10.03*y3 + 0.43*y4 + 0.035*y5",
+               "8.32*y2 + 1.71*y3 - 1.12*y4", "-1.745*y5 + 0.43*y6 + 0.43*y7",
+               "-280*y6*y8 + 0.69*y4 + 1.71*y5 - 0.43*y6 + 0.69*y7", "280*y6*y8 - 1.81*y7", "-280*y6*y8 + 1.81*y7"],
+              {}, [0, 321.8122], [1, 0, 0, 0, 0, 0, 0, 0.0057], dict(rtol=1e-4, atol=1e-7)),
+    "vdp": (["x", "v"], ["v", "mu*(1 - x^2)*v - x"], {"mu": 1000.0}, [0, 3000], [2, 0], {}),
+    "chain": (*CHAIN, {"k": 1e4, "c": 1e3}, list(np.linspace(0, 10, 101)), [0.0] * 20, dict(rtol=1e-4, atol=1e-7)),
+}
+
+
+def _both(name, method, **extra):
+    states, equations, parameters, tspan, y0, options = PROBLEMS[name]
+    options = {**options, **extra}
+    system = CompiledSystem.from_equations(states, equations, parameters)
+    F = compile_vector(equations, args=["t", *states], constants=parameters)
+    jacobian = complex_step_jacobian(equations, states, parameters)
+    python = odelab.solve(lambda t, x: F(t, *x), tspan, y0, method=method, jacobian=jacobian, **options)
+    compiled = solve_compiled(system, tspan, y0, method, jacobian=jacobian, **options)
+    return python, compiled
+
+
+def assert_same(python, compiled, ulps):
+    """Same steps and counters (every field of MATLAB's Stats), same output times, values within
+    ``ulps`` spacings of the solution's scale."""
+    assert compiled.stats == python.stats
+    assert (compiled.status, compiled.message) == (python.status, python.message)
+    assert compiled.t.shape == python.t.shape and compiled.y.shape == python.y.shape
+    np.testing.assert_array_equal(compiled.t, python.t)
+    scale = np.max(np.abs(python.y), axis=0)
+    assert np.all(np.abs(compiled.y - python.y) <= ulps * EPS * scale)
+
+
+@pytest.mark.parametrize("name", list(PROBLEMS))
+def test_ode23s_takes_the_python_steps(name):
+    python, compiled = _both(name, "ode23s")
+    assert python.stats.nsteps > 100 and python.stats.npds == python.stats.nsteps  # a Jacobian a step
+    assert_same(python, compiled, 4)  # the same operations in the same order: equal to the bit here
+
+
+@pytest.mark.parametrize("options", [{"refine": 4}, {"initial_step": 1e-6, "max_step": 50.0},
+                                     {"atol": [1e-7, 1e-5]}])
+def test_ode23s_options_match(options):
+    python, compiled = _both("vdp", "ode23s", **options)
+    assert_same(python, compiled, 4)
+
+
+def test_ode23s_step_limit_fails_as_on_python():
+    with pytest.warns(odelab.SolverWarning, match="max_steps = 60"):
+        python, compiled = _both("vdp", "ode23s", max_steps=60)
+    assert_same(python, compiled, 4)
+    assert compiled.status == "failed" and compiled.stats.nsteps == 60
+
+
+@pytest.mark.parametrize("tspan", [[0.0, 5.0], list(np.linspace(0, 5, 23))])
+def test_ode23s_on_a_tspan_grid(tspan):
+    states, equations, parameters, *_ = PROBLEMS["hires"]
+    system = CompiledSystem.from_equations(states, equations, parameters)
+    F = compile_vector(equations, args=["t", *states], constants=parameters)
+    J = complex_step_jacobian(equations, states, parameters)
+    y1 = [0.7, 0.1, 0.05, 0.1, 0.01, 0.3, 0.001, 0.005]
+    python = odelab.solve(lambda t, x: F(t, *x), tspan, y1, method="ode23s", jacobian=J, rtol=1e-5)
+    compiled = solve_compiled(system, tspan, y1, "ode23s", jacobian=J, rtol=1e-5)
+    assert_same(python, compiled, 4)
+
+
+def test_ode23s_backwards():
+    """Stiff backwards in time (the damping has the sign that decays towards t = 0)."""
+    system = CompiledSystem.from_equations(["x", "y"], ["-w*y", "w*x + 50*(y - sin(t))"], {"w": 2.0})
+    F = compile_vector(["-2*y", "2*x + 50*(y - sin(t))"], args=["t", "x", "y"])
+    J = complex_step_jacobian(["-w*y", "w*x + 50*(y - sin(t))"], ["x", "y"], {"w": 2.0})
+    python = odelab.solve(lambda t, x: F(t, *x), [6.0, 0.0], [1.0, 0.0], method="ode23s", jacobian=J, refine=3)
+    compiled = solve_compiled(system, [6.0, 0.0], [1.0, 0.0], "ode23s", jacobian=J, refine=3)
+    assert python.t[-1] == 0.0 and python.stats.nsteps > 20
+    assert compiled.stats == python.stats
+    scale = np.max(np.abs(python.y))
+    assert np.max(np.abs(compiled.y - python.y)) <= 1e3 * EPS * scale  # sin: numpy's and the C library's
+
+
+def test_linear_systems_use_their_matrix():
+    A = np.array([[-1000.0, 1.0], [0.0, -0.5]])
+    system = CompiledSystem.linear(A, ["a", "b"])
+    def fun(t, x):  # A x summed in index order, as the generated rhs sums it (A @ x is BLAS's order)
+        return np.array([A[0, 0] * x[0] + A[0, 1] * x[1], A[1, 0] * x[0] + A[1, 1] * x[1]])
+
+    python = odelab.solve(fun, [0, 10], [1.0, 1.0], method="ode23s", jacobian=A)
+    compiled = solve_compiled(system, [0, 10], [1.0, 1.0], "ode23s", jacobian=A)
+    assert_same(python, compiled, 4)
+    tight = solve_compiled(system, [0, 10], [1.0, 1.0], "ode23s", rtol=1e-7, atol=1e-12)
+    b = np.exp(-5.0)  # b(10); a(t) = b/(1000 - 0.5) + (1 - 1/999.5) e^(-1000 t)
+    assert abs(tight.y[-1, 1] - b) < 1e-4 * b  # second order, local error control: ~200 steps of 1e-7
+    assert abs(tight.y[-1, 0] - b / 999.5) < 1e-4 * b / 999.5
+
+
+def test_the_generated_jacobian_is_the_python_paths():
+    """The same complex-step rules; the elementary functions are the C library's where numpy
+    may use its own SIMD versions (on AVX-512), so an entry may differ by a rounding."""
+    states = ["a", "b"]
+    equations = ["sin(a)*exp(b)/(1 + a^2) + t/3 + abs(b) + sqrt(a*a + 1) + atan2(a, b) + min(a, b, 2) + mod(a, 0.7)",
+                 "log(1 + a*a)/b + where(a > b, a, b) + tanh(b) + a/b + heaviside(a) + cos(t)*a^2.5 + 2^b"]
+    system = CompiledSystem.from_equations(states, equations)
+    jac = system.module(jacobian=True).jac
+    reference = complex_step_jacobian(equations, states, {})
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        y, t = rng.uniform(0.1, 2.0, 2), rng.uniform(0.0, 3.0)
+        J = np.empty((2, 2))
+        jac(t, y, system.parameter_vector(), J)
+        expected = reference(t, y)  # sums of terms of size ~1: a rounding of one term, against that size
+        np.testing.assert_allclose(J, expected, rtol=4 * EPS, atol=8 * EPS * np.max(np.abs(expected)))
+
+
+def test_what_stays_on_python_is_named():
+    system = CompiledSystem.from_equations(["x", "v"], ["v", "-x"])
+    assert why_not_stiff("ode23t", system) is not None and "ode23t" in why_not_stiff("ode23t", system)
+    assert "`mass`" in why_not_stiff("ode23s", system, {"mass": np.eye(2)})
+    assert "`jpattern`" in why_not_stiff("ode23s", system, {"jpattern": np.eye(2)})
+    assert "Python function" in why_not_stiff("ode23s", system, {"jacobian": lambda t, y: np.eye(2)})
+    inputs = CompiledSystem.from_system(["x"], ["-x + u"], inputs=["u"])
+    assert "inputs" in why_not_stiff("ode23s", inputs)
+    diagram = CompiledSystem.generated(["x"], [], ["    _out[0] = -_y[0]"], [])
+    assert "diagrams" in why_not_stiff("ode23s", diagram)
+    with_events = system.with_events(["x"], [True], [0])
+    assert "[events]" in why_not_stiff("ode23s", with_events)
+    with pytest.raises(InputError, match="`events`"):
+        solve_compiled(system, [0, 1], [1.0, 0.0], "ode23s", events=lambda t, y: y[0])
+    assert all(why_not_stiff(m, system) is None for m in STIFF_METHODS)
