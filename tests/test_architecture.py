@@ -29,7 +29,6 @@ LONG_FUNCTIONS = {
     "odelab.solvers.implicit.ode15s.integrate_ode15s": "core26: one attempt loop for the implicit solvers",
     "odelab.solvers.implicit.ode23t.integrate_ode23t": "core26: one attempt loop for the implicit solvers",
     "odelab.solvers.numjac.numjac": "core26: solvers/",
-    "odelab.solvers.dde23.dde23": "delays: the dde23 driver (onto core26's shared controller)",
 }
 
 

@@ -8,8 +8,9 @@ Numer. Math. 37, 2001, 441-458):
 * **The Bogacki-Shampine 3(2) pair** of ``ode23`` with its cubic Hermite interpolant (the
   pair's own continuous extension: the end values and slopes of each step determine it), the
   same error norm (weighted by the larger of ``|y|`` and ``|ynew|``, ``AbsTol/RelTol`` below)
-  and the same step-size rules as :func:`odelab.ode23`, with ``RelTol = 1e-3`` and
-  ``AbsTol = 1e-6``.
+  and the same step-size rules as :func:`odelab.ode23` (:mod:`odelab.solvers.controller`'s
+  ``min_step``, ``first_step``, ``clamp_step``, ``shrink`` and ``grow``), with ``RelTol = 1e-3``
+  and ``AbsTol = 1e-6``.
 * **The method of steps**: a delayed value ``y(t - tau)`` in a stage is the history before
   ``t0``, and afterwards the Hermite interpolant of the mesh already computed.
 * **Discontinuity tracking**: the slope of the solution jumps at ``t0`` (the history's slope
@@ -50,6 +51,7 @@ import numpy as np
 
 from odelab.exceptions import InputError, SolverWarning
 from odelab.solution import Solution, Stats
+from odelab.solvers.controller import clamp_step, first_step, given_step, grow, shrink
 from odelab.solvers.dense import query_times
 from odelab.solvers.events import CallbackError, as_event_function, locate_events
 
@@ -387,6 +389,41 @@ def dde23(ddefun, lags, history, tspan, options=None, **kwargs) -> DDESolution:
     opts = _normalize({**(dict(options) if options else {}), **kwargs})
     if not callable(ddefun):
         raise InputError(f"`ddefun` must be a function ddefun(t, y, Z); got {ddefun!r}.", key="ddefun")
+    run = _Run(ddefun, _setup(lags, history, tspan, opts))
+    try:
+        run.integrate()
+    except CallbackError as exc:
+        raise InputError(f"the {exc.what} raised {type(exc.original).__name__}: {exc.original} at t = {exc.t:g}.",
+                         key="Events" if exc.what.startswith("events") else "history") from None
+    return run.solution()
+
+
+@dataclass(eq=False)
+class _Setup:
+    """A dde23 problem as checked: the span, the initial state, the lags and history, the points
+    of low smoothness, the tolerances and step limits."""
+
+    t0: float
+    tf: float
+    y0: np.ndarray
+    lags: np.ndarray
+    hist: _History
+    discont: np.ndarray  # the points of (t0, tf] stepped onto, tf last
+    old_discont: np.ndarray  # a continued solution's points before t0 - maxlag
+    new_discont: np.ndarray  # the points of this integration (t0, seeds, propagated)
+    minlag: float
+    rtol: float
+    threshold: np.ndarray
+    norm_control: bool
+    hmax: float
+    htry: float | None
+    max_steps: Any
+    events: Any
+    warns: list
+
+
+def _setup(lags, history, tspan, opts: dict) -> _Setup:
+    """Check dde23's arguments and options; track the points of low smoothness."""
     lags_arr = np.atleast_1d(np.asarray(lags, dtype=float)).ravel() if np.size(lags) else np.empty(0)
     if lags_arr.size and (not np.all(np.isfinite(lags_arr)) or np.any(lags_arr <= 0)):
         raise InputError(f"the lags must be positive constants; got {np.asarray(lags).tolist()!r}. "
@@ -433,7 +470,6 @@ def dde23(ddefun, lags, history, tspan, options=None, **kwargs) -> DDESolution:
         tracked = np.array([tf])
         new_discont = np.array([t0])
         minlag = math.inf
-    discont = tracked  # (t0, tf], tf last
 
     rtol = float(_positive("RelTol", opts.get("rtol", 1e-3))[0])
     warns: list[str] = []
@@ -444,17 +480,54 @@ def dde23(ddefun, lags, history, tspan, options=None, **kwargs) -> DDESolution:
     norm_control = bool(opts.get("norm_control", False))
     if norm_control and atol.size != 1:
         raise InputError("with NormControl on, AbsTol must be a scalar.", key="AbsTol")
-    threshold = atol / rtol
     tlen = tf - t0
     hmax = min(tlen, float(_positive("MaxStep", opts["max_step"])[0])) if opts.get("max_step") is not None \
         else 0.1 * tlen
     htry = float(_positive("InitialStep", opts["initial_step"])[0]) if opts.get("initial_step") is not None else None
-    max_steps = opts.get("max_steps")
+    events = opts.get("events")
+    if events is not None and not callable(events):
+        raise InputError(f"`Events` must be a function ev(t, y, Z) returning (value, isterminal, direction); "
+                         f"got {events!r}.", key="Events")
+    return _Setup(t0, tf, y0, lags_arr, hist, tracked, old_discont, new_discont, minlag, rtol, atol / rtol,
+                  norm_control, hmax, htry, opts.get("max_steps"), events, warns)
 
-    def delayed(tnow: float, mesh: _Mesh) -> np.ndarray:
-        Z = np.empty((n, lags_arr.size))
+
+def _norm(v) -> float:
+    return float(np.linalg.norm(v))
+
+
+class _Run:
+    """One dde23 integration: the method of steps on the growing Hermite mesh, with MATLAB's
+    ode23 step rules (:mod:`odelab.solvers.controller`) and dde23's own (onto the points of low
+    smoothness; the short-lag iteration)."""
+
+    def __init__(self, ddefun, setup: _Setup):
+        self.ddefun, self.s = ddefun, setup
+        self.n = n = setup.y0.size
+        self.nfevals = self.nsteps = self.nfailed = 0
+        self.status, self.message = "success", "The solver reached the end of the time span."
+        self.Z0 = self.delayed(setup.t0, _Mesh(setup.t0, setup.y0, np.zeros(n))) if setup.lags.size \
+            else np.empty((n, 0))
+        self.f0 = self.evaluate(setup.t0, setup.y0, self.Z0)
+        self.mesh = _Mesh(setup.t0, setup.y0, self.f0)
+        self.ev = self.valt = None
+        self.te: list[float] = []
+        self.ye: list[np.ndarray] = []
+        self.ie: list[int] = []
+        if setup.events is not None:
+            user = setup.events
+
+            def events_now(t, y):
+                return user(t, y, self.delayed(t, self.mesh) if setup.lags.size else np.empty((n, 0)))
+
+            self.ev, self.valt = as_event_function(events_now, (), setup.t0, setup.y0.copy(), name="Events")
+
+    def delayed(self, tnow: float, mesh: _Mesh) -> np.ndarray:
+        """``Z``: the state at ``tnow - lag_j`` for each lag, from the history or the mesh."""
+        n, hist = self.n, self.s.hist
+        Z = np.empty((n, self.s.lags.size))
         first = mesh.t[0]
-        for j, lag in enumerate(lags_arr):
+        for j, lag in enumerate(self.s.lags):
             tq = tnow - lag
             if tq < first:
                 value = hist(tq)
@@ -466,210 +539,190 @@ def dde23(ddefun, lags, history, tspan, options=None, **kwargs) -> DDESolution:
                 Z[:, j] = mesh.value(tq)
         return Z
 
-    nfevals = 0
-
-    def evaluate(t: float, y: np.ndarray, Z: np.ndarray) -> np.ndarray:
-        nonlocal nfevals
-        nfevals += 1
-        out = np.asarray(ddefun(t, y.copy(), Z), dtype=float).ravel()
-        if out.size != n:
-            raise InputError(f"ddefun returned {out.size} values at t = {t:g}; the system has {n} states "
+    def evaluate(self, t: float, y: np.ndarray, Z: np.ndarray) -> np.ndarray:
+        self.nfevals += 1
+        out = np.asarray(self.ddefun(t, y.copy(), Z), dtype=float).ravel()
+        if out.size != self.n:
+            raise InputError(f"ddefun returned {out.size} values at t = {t:g}; the system has {self.n} states "
                              "(the history's length).", key="ddefun")
         return out
 
-    Z0 = delayed(t0, _Mesh(t0, y0, np.zeros(n))) if lags_arr.size else np.empty((n, 0))
-    f0 = evaluate(t0, y0, Z0)
-    mesh = _Mesh(t0, y0, f0)
-
-    events = opts.get("events")
-    ev = None
-    if events is not None:
-        if not callable(events):
-            raise InputError(f"`Events` must be a function ev(t, y, Z) returning (value, isterminal, direction); "
-                             f"got {events!r}.", key="Events")
-
-        def events_now(t, y):
-            return events(t, y, delayed(t, mesh) if lags_arr.size else np.empty((n, 0)))
-
-        ev, valt = as_event_function(events_now, (), t0, y0.copy(), name="Events")
-    te_out: list[float] = []
-    ye_out: list[np.ndarray] = []
-    ie_out: list[int] = []
-
-    def norm_of(v):
-        return float(np.linalg.norm(v))
-
-    # initial step (ode23's rule, then at most half the shortest lag: the first step is explicit)
-    hmin = 16.0 * math.ulp(t0)
-    if htry is None:
-        h = min(hmax, tf - t0)
-        if norm_control:
-            rh = (norm_of(f0) / max(norm_of(y0), float(threshold[0]))) / (0.8 * rtol ** _POW)
+    def first_step(self) -> float:
+        """ode23's initial step, then at most half the shortest lag (the first step is explicit)."""
+        s, f0, y0 = self.s, self.f0, self.s.y0
+        if s.htry is not None:
+            return min(given_step(s.htry, s.t0, s.hmax), 0.5 * s.minlag)
+        if s.norm_control:
+            rh = (_norm(f0) / max(_norm(y0), float(s.threshold[0]))) / (0.8 * s.rtol ** _POW)
         else:
-            rh = float(np.max(np.abs(f0) / np.maximum(np.abs(y0), threshold))) / (0.8 * rtol ** _POW)
-        if h * rh > 1:
-            h = 1.0 / rh
-        h = max(h, hmin)
-    else:
-        h = min(hmax, max(hmin, htry))
-    h = min(h, 0.5 * minlag)
+            rh = float(np.max(np.abs(f0) / np.maximum(np.abs(y0), s.threshold))) / (0.8 * s.rtol ** _POW)
+        return min(first_step(rh, s.tf - s.t0, s.hmax, s.t0), 0.5 * s.minlag)
 
-    t, y, f1 = t0, y0, f0
-    normy = norm_of(y0) if norm_control else 0.0
-    nsteps = nfailed = 0
-    nextdsc = 0
-    status, message = "success", "The solver reached the end of the time span."
-    done = False
-    try:
-        while not done:
-            hmin = 16.0 * math.ulp(t)
-            h = min(hmax, max(hmin, h))
-            hitdsc = False
-            distance = discont[nextdsc] - t
-            if min(1.1 * h, hmax) >= distance:  # stretch onto the next point of low smoothness
-                h = distance
-                hitdsc = True
-            elif 2.0 * h >= distance:  # two equal steps onto it rather than one and a sliver
-                h = 0.5 * distance
-            if not hitdsc and minlag < h < 2.0 * minlag:
-                h = minlag
+    def step_size(self, t: float, h: float, target: float):
+        """``(hmin, h, hitdsc)`` at the top of a step: ``h`` within ``[hmin, hmax]``, stretched onto
+        the next point of low smoothness ``target`` (tf the last) when within 10 % of it and of
+        MaxStep (MATLAB's dde23: ``min(1.1 h, hmax) >= distance``), halved when two equal steps
+        reach it rather than one and a sliver; a step between one and two shortest lags is cut to
+        the lag."""
+        s = self.s
+        distance = target - t
+        hmin, h, hitdsc = clamp_step(t, target if distance <= s.hmax else math.inf, h, s.hmax)
+        if hitdsc:
+            return hmin, distance, True
+        if 2.0 * h >= distance:  # two equal steps onto it rather than one and a sliver
+            h = 0.5 * distance
+        if s.minlag < h < 2.0 * s.minlag:
+            h = s.minlag
+        return hmin, h, False
 
-            nofailed = True
-            while True:
-                tnew = discont[nextdsc] if hitdsc else t + h
-                h = tnew - t
-                t1, t2 = t + _C2 * h, t + _C3 * h
-                maxit = _MAXIT if minlag < h else 1
-                mesh.discard()
-                itfail = False
-                last_y = None
-                for it in range(maxit):
-                    Z = delayed(t1, mesh) if lags_arr.size else Z0
-                    f2 = evaluate(t1, y + (h * _A21) * f1, Z)
-                    Z = delayed(t2, mesh) if lags_arr.size else Z0
-                    f3 = evaluate(t2, y + (h * _A32) * f2, Z)
-                    ynew = y + h * (_B[0] * f1 + _B[1] * f2 + _B[2] * f3)
-                    Z = delayed(tnew, mesh) if lags_arr.size else Z0
-                    f4 = evaluate(tnew, ynew, Z)
-                    if maxit > 1:
-                        if it > 0:
-                            if norm_control:
-                                errit = norm_of(ynew - last_y) / max(normy, norm_of(ynew), float(threshold[0]))
-                            else:
-                                errit = float(np.max(np.abs(ynew - last_y)
-                                                     / np.maximum(np.maximum(np.abs(y), np.abs(ynew)), threshold)))
-                            if errit <= 0.1 * rtol:
-                                break
-                        # the next pass interpolates the delayed values on this tentative step
-                        mesh.propose(tnew, ynew, f4)
-                        last_y = ynew
-                        itfail = it == maxit - 1
-                if not (np.all(np.isfinite(ynew)) and np.all(np.isfinite(f4))):
-                    status = "failed"
-                    message = (f"The solution or its derivative became NaN or infinite at t = {tnew:g}: check the "
-                               "equations (a division by zero, a blow-up) near there.")
-                    done = True
+    def stages(self, t, y, f1, h, tnew):
+        """The Bogacki-Shampine stages of the step ``t -> tnew``, with the short-lag iteration
+        when ``h`` exceeds the shortest lag: ``(ynew, f2, f3, f4, itfail)``."""
+        s, mesh = self.s, self.mesh
+        lagged = s.lags.size > 0
+        t1, t2 = t + _C2 * h, t + _C3 * h
+        maxit = _MAXIT if s.minlag < h else 1
+        mesh.discard()
+        itfail = False
+        last_y = None
+        for it in range(maxit):
+            f2 = self.evaluate(t1, y + (h * _A21) * f1, self.delayed(t1, mesh) if lagged else self.Z0)
+            f3 = self.evaluate(t2, y + (h * _A32) * f2, self.delayed(t2, mesh) if lagged else self.Z0)
+            ynew = y + h * (_B[0] * f1 + _B[1] * f2 + _B[2] * f3)
+            f4 = self.evaluate(tnew, ynew, self.delayed(tnew, mesh) if lagged else self.Z0)
+            if maxit > 1:
+                if it > 0 and self.scaled(ynew - last_y, y, ynew) <= 0.1 * s.rtol:
                     break
-                if itfail:
-                    nfailed += 1
-                    if h <= hmin:
-                        status, message = _tolerance_failure(t, hmin)
-                        done = True
-                        break
-                    h = 0.5 * h
-                    if h < 2.0 * minlag:
-                        h = minlag
-                    hitdsc = False
-                    continue
-                fE = _E[0] * f1 + _E[1] * f2 + _E[2] * f3 + _E[3] * f4
-                if norm_control:
-                    normynew = norm_of(ynew)
-                    err = h * (norm_of(fE) / max(normy, normynew, float(threshold[0])))
-                else:
-                    err = h * float(np.max(np.abs(fE) / np.maximum(np.maximum(np.abs(y), np.abs(ynew)), threshold)))
-                if err > rtol:
-                    nfailed += 1
-                    if h <= hmin:
-                        status, message = _tolerance_failure(t, hmin)
-                        done = True
-                        break
-                    if nofailed:
-                        nofailed = False
-                        h = max(hmin, h * max(0.5, 0.8 * (rtol / err) ** _POW))
-                    else:
-                        h = max(hmin, 0.5 * h)
-                    hitdsc = False
-                    continue
-                break
-            if done:
-                break
-            nsteps += 1
-            mesh.discard()
-
-            if ev is not None:
-                # delayed values inside the step come from the step's own cubic
+                # the next pass interpolates the delayed values on this tentative step
                 mesh.propose(tnew, ynew, f4)
-                ta, ya, fa = t, y, f1
+                last_y = ynew
+                itfail = it == maxit - 1
+        return ynew, f2, f3, f4, itfail
 
-                def interpolate(tq, ta=ta, ya=ya, fa=fa, tb=tnew, yb=ynew, fb=f4):
-                    return _hermite(tq, ta, ya, fa, tb, yb, fb)
+    def scaled(self, v, y, ynew) -> float:
+        """``v`` in the error norm: weighted by ``max(|y|, |ynew|, atol/rtol)``, or relative to
+        ``max(||y||, ||ynew||, atol/rtol)`` with NormControl."""
+        s = self.s
+        if s.norm_control:
+            return _norm(v) / max(_norm(y), _norm(ynew), float(s.threshold[0]))
+        return float(np.max(np.abs(v) / np.maximum(np.maximum(np.abs(y), np.abs(ynew)), s.threshold)))
 
-                te, ye, ie, valt, stop = locate_events(interpolate, ev, valt, t, y, tnew, ynew, t0)
-                mesh.discard()
-                if te:
-                    te_out += te
-                    ye_out += ye
-                    ie_out += ie
-                    if stop:
-                        _, f4 = _hermite(te[-1], t, y, f1, tnew, ynew, f4, derivative=True)
-                        tnew, ynew = te[-1], np.array(ye[-1], dtype=float)
-                        status, message = "success", f"A terminal event stopped the integration at t = {tnew:g}."
-                        done = True
+    def stop_with(self, status: str, message: str) -> None:
+        self.status, self.message = status, message
 
-            mesh.accept(tnew, ynew, f4)
+    def attempt_step(self, t, y, f1, h, hmin, hitdsc, nextdsc):
+        """Attempts from ``(t, y)`` until one is accepted: ``(tnew, ynew, f4, h, err, smooth)``
+        (``smooth``: accepted at the first attempt, so the step may grow), or None when the
+        integration failed (``self.status``)."""
+        s = self.s
+        nofailed = True
+        while True:
+            tnew = s.discont[nextdsc] if hitdsc else t + h
+            h = tnew - t
+            ynew, f2, f3, f4, itfail = self.stages(t, y, f1, h, tnew)
+            if not (np.all(np.isfinite(ynew)) and np.all(np.isfinite(f4))):
+                self.stop_with("failed", f"The solution or its derivative became NaN or infinite at t = {tnew:g}: check "
+                                    "the equations (a division by zero, a blow-up) near there.")
+                return None
+            if itfail:
+                self.nfailed += 1
+                if h <= hmin:
+                    self.stop_with(*_tolerance_failure(t, hmin))
+                    return None
+                h = 0.5 * h
+                if h < 2.0 * s.minlag:
+                    h = s.minlag
+                hitdsc = False
+                continue
+            err = h * self.scaled(_E[0] * f1 + _E[1] * f2 + _E[2] * f3 + _E[3] * f4, y, ynew)
+            if err <= s.rtol:
+                return tnew, ynew, f4, h, err, nofailed, hitdsc
+            self.nfailed += 1
+            if h <= hmin:
+                self.stop_with(*_tolerance_failure(t, hmin))
+                return None
+            h = shrink(h, hmin, err, s.rtol, _POW, 0.5, 0.8, nofailed)
+            nofailed = False
+            hitdsc = False
+
+    def locate(self, t, y, f1, tnew, ynew, f4):
+        """The events of the accepted step on its own cubic; ``(te, ye, slope)`` of a terminal one."""
+        mesh = self.mesh
+        mesh.propose(tnew, ynew, f4)  # delayed values inside the step come from the step's own cubic
+
+        def interpolate(tq):
+            return _hermite(tq, t, y, f1, tnew, ynew, f4)
+
+        te, ye, ie, self.valt, stop = locate_events(interpolate, self.ev, self.valt, t, y, tnew, ynew, self.s.t0)
+        mesh.discard()
+        self.te += te
+        self.ye += ye
+        self.ie += ie
+        if not stop:
+            return None
+        _, slope = _hermite(te[-1], t, y, f1, tnew, ynew, f4, derivative=True)
+        return te[-1], np.array(ye[-1], dtype=float), slope
+
+    def integrate(self) -> None:
+        s = self.s
+        t, y, f1 = s.t0, s.y0, self.f0
+        h = self.first_step()
+        nextdsc = 0
+        while True:
+            hmin, h, hitdsc = self.step_size(t, h, s.discont[nextdsc])
+            accepted = self.attempt_step(t, y, f1, h, hmin, hitdsc, nextdsc)
+            if accepted is None:
+                return
+            tnew, ynew, f4, h, err, smooth, hitdsc = accepted
+            self.nsteps += 1
+            self.mesh.discard()
+            done = False
+            if self.ev is not None:
+                cut = self.locate(t, y, f1, tnew, ynew, f4)
+                if cut is not None:
+                    tnew, ynew, f4 = cut
+                    self.stop_with("success", f"A terminal event stopped the integration at t = {tnew:g}.")
+                    done = True
+            self.mesh.accept(tnew, ynew, f4)
             if not done and hitdsc:
                 nextdsc += 1
-                done = nextdsc >= discont.size
-            if not done and max_steps is not None and nsteps >= int(max_steps):
-                status = "failed"
-                message = f"Stopped after max_steps = {int(max_steps)} steps, at t = {tnew:g}."
+                done = nextdsc >= s.discont.size
+            if not done and s.max_steps is not None and self.nsteps >= int(s.max_steps):
+                self.stop_with("failed", f"Stopped after max_steps = {int(s.max_steps)} steps, at t = {tnew:g}.")
                 done = True
-            if not done:
-                t, y, f1 = tnew, ynew, f4
-                if norm_control:
-                    normy = normynew
-                if nofailed and not itfail:
-                    temp = 1.25 * (err / rtol) ** _POW
-                    h = h / temp if temp > 0.2 else 5.0 * h
-                    h = min(max(hmin, h), hmax)
-    except CallbackError as exc:
-        raise InputError(f"the {exc.what} raised {type(exc.original).__name__}: {exc.original} at t = {exc.t:g}.",
-                         key="Events" if exc.what.startswith("events") else "history") from None
+            if done:
+                return
+            t, y, f1 = tnew, ynew, f4
+            if smooth:
+                h = min(max(hmin, grow(h, err, s.rtol, _POW, 1.25, 5.0)), s.hmax)
 
-    m = mesh.size
-    t_arr, y_arr, yp_arr = mesh.t[:m].copy(), mesh.y[:m].copy(), mesh.yp[:m].copy()
-    te_arr = np.array(te_out, dtype=float)
-    ye_arr = np.array(ye_out, dtype=float).reshape(-1, n)
-    ie_arr = np.array(ie_out, dtype=int)
-    stats = Stats(nsteps=nsteps, nfailed=nfailed, nfevals=nfevals)
-    discont_all = np.concatenate([old_discont, new_discont])
-    if hist.previous is not None:  # the result continues the previous solution (MATLAB merges them)
-        p = hist.previous
-        t_arr = np.concatenate([p.t, t_arr[1:]])
-        y_arr = np.concatenate([p.y, y_arr[1:]])
-        yp_arr = np.concatenate([p.yp, yp_arr[1:]])
-        te_arr = np.concatenate([p.te, te_arr])
-        ye_arr = np.concatenate([p.ye.reshape(-1, n), ye_arr])
-        ie_arr = np.concatenate([p.ie, ie_arr])
-        stats = Stats(nsteps=p.stats.nsteps + nsteps, nfailed=p.stats.nfailed + nfailed,
-                      nfevals=p.stats.nfevals + nfevals)
-    if status == "failed":
-        warnings.warn(message, SolverWarning, stacklevel=2)
-    return DDESolution(
-        t=t_arr, y=y_arr, stats=stats, status=status, message=message, method="dde23", warnings=tuple(warns),
-        te=te_arr, ye=ye_arr, ie=ie_arr, interpolant=HermiteMesh(t_arr, y_arr, yp_arr),
-        setup=None, yp=yp_arr, lags=lags_arr, history=hist.given, discont=discont_all,
-    )
+    def solution(self) -> DDESolution:
+        """The mesh as a :class:`DDESolution` (continuing a previous solution: both merged)."""
+        s, mesh, n = self.s, self.mesh, self.n
+        m = mesh.size
+        t_arr, y_arr, yp_arr = mesh.t[:m].copy(), mesh.y[:m].copy(), mesh.yp[:m].copy()
+        te_arr = np.array(self.te, dtype=float)
+        ye_arr = np.array(self.ye, dtype=float).reshape(-1, n)
+        ie_arr = np.array(self.ie, dtype=int)
+        stats = Stats(nsteps=self.nsteps, nfailed=self.nfailed, nfevals=self.nfevals)
+        discont_all = np.concatenate([s.old_discont, s.new_discont])
+        if s.hist.previous is not None:  # the result continues the previous solution (MATLAB merges them)
+            p = s.hist.previous
+            t_arr = np.concatenate([p.t, t_arr[1:]])
+            y_arr = np.concatenate([p.y, y_arr[1:]])
+            yp_arr = np.concatenate([p.yp, yp_arr[1:]])
+            te_arr = np.concatenate([p.te, te_arr])
+            ye_arr = np.concatenate([p.ye.reshape(-1, n), ye_arr])
+            ie_arr = np.concatenate([p.ie, ie_arr])
+            stats = Stats(nsteps=p.stats.nsteps + self.nsteps, nfailed=p.stats.nfailed + self.nfailed,
+                          nfevals=p.stats.nfevals + self.nfevals)
+        if self.status == "failed":
+            warnings.warn(self.message, SolverWarning, stacklevel=3)
+        return DDESolution(
+            t=t_arr, y=y_arr, stats=stats, status=self.status, message=self.message, method="dde23",
+            warnings=tuple(s.warns), te=te_arr, ye=ye_arr, ie=ie_arr, interpolant=HermiteMesh(t_arr, y_arr, yp_arr),
+            setup=None, yp=yp_arr, lags=s.lags, history=s.hist.given, discont=discont_all,
+        )
 
 
 def _tolerance_failure(t: float, hmin: float) -> tuple[str, str]:
