@@ -58,3 +58,40 @@ def test_a_figure_is_rasterised_once(monkeypatch):
     paths.clear()
     png = plots._draw_png(spec(0))
     assert once > 0 and len(paths) == once and png.startswith(b"\x89PNG")
+
+
+def _varied(k: int) -> FigureSpec:
+    """Two panels whose content differs in everything a panel sets: scales, limits, legends, notes, lines."""
+    t = np.linspace(0.01, 10, 60 + 40 * k)
+    e = np.abs(np.sin(t)) * 10.0 ** (-3 * k) + 1e-14
+    panels = [
+        (Panel("a log error", "t (s)", "|e|", (Line(t, e, "ode23", "#0072B2", marker="o"),), yscale="log",
+               xscale="log" if k == 2 else "linear", legend_outside=k == 0),
+         Panel("nothing", "t (s)", "y", (), note="no data"),
+         Panel("a long title that wraps over two lines of this panel, maybe more", "", "y (m)",
+               (Line(t, 1e4 * np.cos(t), "ode45", "#D55E00", linestyle="--"),),
+               reflines=(plots.RefLine(0.5, "threshold"),))),
+    ][0]
+    return FigureSpec(name=f"v{k}", caption="c", alt="a", panels=panels[k % 3:] + panels[:k % 3], columns=3,
+                      legend=k == 1)
+
+
+def test_a_kept_figure_draws_the_bytes_of_a_new_one(monkeypatch):
+    """A figure drawn on a kept figure of its shape (cleared of the last one's lines, legends, texts,
+    log scales and limits) is byte for byte the PNG a new figure gives, in any order."""
+    specs = [_varied(k) for k in range(3)] + [spec(0), spec(1)]
+    fresh = []
+    for s in specs:
+        plots._REUSABLE.clear()
+        fresh.append(plots._draw_png(s))
+    assert len(set(fresh)) == len(specs)
+    for order in ([0, 1, 2, 3, 4], [2, 1, 0, 4, 3], [1, 1, 0, 2, 2]):
+        plots._REUSABLE.clear()
+        for i in order:
+            assert plots._draw_png(specs[i]) == fresh[i], (order, i)
+    assert 1 <= len(plots._REUSABLE) <= plots._REUSABLE_MAX
+    new = plots.draw_figure(specs[0], render=False)  # the public figure is never a kept one
+    try:
+        assert all(new is not kept for kept in plots._REUSABLE.values())
+    finally:
+        plots._pyplot().close(new)

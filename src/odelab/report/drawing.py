@@ -87,7 +87,7 @@ def _draw_in_pool(specs: list, jobs: int) -> list[bytes]:
 
     from odelab.report import plots
 
-    plots._pyplot()  # imported before the fork: the workers inherit matplotlib and its font cache
+    plots._matplotlib()  # imported before the fork: the workers inherit matplotlib and its font cache
     order = sorted(range(len(specs)), key=lambda i: -_size(specs[i]))  # the largest first: no long tail
     pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("fork"))
     try:

@@ -370,15 +370,14 @@ def _pyplot():
     return plt
 
 
-def draw_figure(spec: FigureSpec, *, render: bool = True):
-    """The matplotlib figure of ``spec``, laid out; the caller closes it (``render_png`` does).
+def _matplotlib() -> None:
+    """What a kept figure needs of matplotlib (its Figure and the Agg canvas, not pyplot), imported."""
+    import matplotlib.backends.backend_agg  # noqa: F401
+    import matplotlib.figure  # noqa: F401
 
-    The layout is fixed margins measured once (:class:`_Grid`), not constrained layout,
-    whose passes (two per draw, each measuring every tick label) cost three quarters of a
-    figure's time. ``render=False`` lays it out without rasterising it: the same state for a
-    caller that saves the figure, which draws it anyway.
-    """
-    plt = _pyplot()
+
+def _shape(spec: FigureSpec) -> tuple[_Grid, int, float]:
+    """The grid of ``spec``'s panels, its number of columns and the figure's height (inches)."""
     n = max(len(spec.panels), 1)
     cols = max(1, min(spec.columns, n))
     rows = math.ceil(n / cols)
@@ -389,22 +388,104 @@ def draw_figure(spec: FigureSpec, *, render: bool = True):
         row, col = divmod(i, cols)
         in_row = min(cols, len(spec.panels) - row * cols)
         cells.append((row, 2 * col + (cols - in_row)))  # each panel spans two grid columns
-    grid = _Grid(FIGURE_WIDTH, height, ratios, cols, cells)
+    return _Grid(FIGURE_WIDTH, height, ratios, cols, cells), cols, height
+
+
+def _lay_out(fig, axes: list, grid: _Grid, spec: FigureSpec, cols: int) -> None:
+    """Draw ``spec``'s panels on ``axes`` (new or cleared) and place them with measured margins."""
+    for ax, rect, panel in zip(axes, grid.rects(*grid.guess(spec.panels)), spec.panels):
+        ax.set_position(rect)
+        _draw_panel(ax, panel, cols)
+    if spec.legend:
+        legend = _figure_legend(fig)
+        if legend is not None:
+            grid.top_band = legend.get_window_extent(fig.canvas.get_renderer()).height / fig.dpi + _PAD
+    for ax, rect in zip(axes, grid.rects(*grid.measured(fig, axes))):
+        ax.set_position(rect)
+
+
+def _new_figure(height: float, n: int):
+    """A figure of the report's width and ``height`` with ``n`` axes, on an Agg canvas of its own
+    (not pyplot's: nothing to close, and pyplot is not imported for it)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(FIGURE_WIDTH, height), dpi=DPI)
+    FigureCanvasAgg(fig)
+    for _ in range(n):
+        fig.add_axes((0.1, 0.1, 0.8, 0.8))
+    return fig
+
+
+def _clear(fig) -> None:
+    """``fig``'s axes as a new figure's, keeping the axes and their tick artists: what a panel
+    drew (lines, texts, legends, log scales, limits, the minor grid) removed; the figure's legend too.
+
+    Creating axes and their ticks is a third of a figure's time; the PNG drawn on a cleared
+    figure is byte for byte the one a new figure gives (``tests/report/test_drawing.py``)."""
+    for legend in list(fig.legends):
+        legend.remove()
+    for ax in fig.axes:
+        for artist in (*ax.lines, *ax.texts, *ax.collections, *ax.patches, *ax.images):
+            artist.remove()
+        if ax.get_legend() is not None:
+            ax.get_legend().remove()
+        ax.set_xscale("linear")
+        ax.set_yscale("linear")
+        ax.grid(False, which="minor")
+        ax.relim()
+        ax.set_xlim(0.0, 1.0, auto=True)  # a new axes' view, autoscaled once something is drawn
+        ax.set_ylim(0.0, 1.0, auto=True)
+
+
+# Figures kept for reuse, by shape (height, panel cells): one per figure kind of a report.
+_REUSABLE: dict[tuple, object] = {}
+_REUSABLE_MAX = 8
+
+
+def _reused_figure(spec: FigureSpec):
+    """A laid-out figure of ``spec`` drawn on a kept figure of its shape (or a new one, then kept).
+
+    The caller does not close it: it stays for the next figure of the same shape."""
+    grid, cols, height = _shape(spec)
+    key = (round(height, 9), tuple(grid.cells))
+    fig = _REUSABLE.pop(key, None)
+    with _rc_context():
+        try:
+            if fig is None:
+                fig = _new_figure(height, len(spec.panels))
+            else:
+                _clear(fig)
+            _lay_out(fig, list(fig.axes), grid, spec, cols)
+        except BaseException:
+            return None  # not kept: a half-drawn figure is never reused
+    _REUSABLE[key] = fig  # the most recently used last
+    while len(_REUSABLE) > _REUSABLE_MAX:
+        _REUSABLE.pop(next(iter(_REUSABLE)))
+    return fig
+
+
+def _rc_context():
+    import matplotlib
+
+    return matplotlib.rc_context(_STYLE)
+
+
+def draw_figure(spec: FigureSpec, *, render: bool = True):
+    """The matplotlib figure of ``spec``, laid out; the caller closes it (``render_png`` does).
+
+    The layout is fixed margins measured once (:class:`_Grid`), not constrained layout,
+    whose passes (two per draw, each measuring every tick label) cost three quarters of a
+    figure's time. ``render=False`` lays it out without rasterising it: the same state for a
+    caller that saves the figure, which draws it anyway.
+    """
+    plt = _pyplot()
+    grid, cols, height = _shape(spec)
     with plt.rc_context(_STYLE):
         fig = plt.figure(figsize=(FIGURE_WIDTH, height), dpi=DPI)
         try:
-            first = grid.rects(*grid.guess(spec.panels))
-            axes = []
-            for rect, panel in zip(first, spec.panels):
-                ax = fig.add_axes(rect)
-                _draw_panel(ax, panel, cols)
-                axes.append(ax)
-            if spec.legend:
-                legend = _figure_legend(fig)
-                if legend is not None:
-                    grid.top_band = legend.get_window_extent(fig.canvas.get_renderer()).height / fig.dpi + _PAD
-            for ax, rect in zip(axes, grid.rects(*grid.measured(fig, axes))):
-                ax.set_position(rect)
+            axes = [fig.add_axes((0.1, 0.1, 0.8, 0.8)) for _ in spec.panels]
+            _lay_out(fig, axes, grid, spec, cols)
             if render:
                 fig.canvas.draw()  # drawn now, so a caller can measure what was drawn
         except BaseException:
@@ -452,13 +533,17 @@ def render_png(spec: FigureSpec) -> bytes:
 
 
 def _draw_png(spec: FigureSpec) -> bytes:
-    # Laid out once (text extents only, no pixels) and rasterised once, by savefig.
-    plt = _pyplot()
-    fig = draw_figure(spec, render=False)
+    """Laid out once (text extents only, no pixels) and rasterised once, by savefig, on a
+    figure of the same shape kept from an earlier figure when there is one (:func:`_clear`)."""
+    fig = _reused_figure(spec)
+    fresh = fig is None
+    if fresh:  # it failed on a kept figure: drawn on a new one (which raises the error, if it is the spec's)
+        fig = draw_figure(spec, render=False)
     try:
         buf = io.BytesIO()
         # no timestamp in the metadata: the same data gives the same file, run after run
         fig.savefig(buf, format="png", dpi=DPI, facecolor="white", metadata={"Software": "odelab report"})
     finally:
-        plt.close(fig)
+        if fresh:
+            _pyplot().close(fig)
     return buf.getvalue()
