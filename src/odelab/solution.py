@@ -167,11 +167,12 @@ def deval(sol, t, derivative: bool = False):
     """
     interpolant = getattr(sol, "interpolant", None)  # any result with an interpolant (duck-typed)
     if interpolant is None:
+        from odelab.solvers.registry import dense_output_text
+
         method = getattr(sol, "method", "") or "this method"
         raise InputError(
-            f"this solution has no dense output: {method} does not provide one. Solve with ode23, ode45 "
-            "(their ntrp23/ntrp45 interpolants), ode78 or ode89 (Verner's), ode113 (Adams), ode23t or ode23tb "
-            "(their quadratics), or with a vector tspan of the times you need.",
+            f"this solution has no dense output: {method} does not provide one. Solve with {dense_output_text()}, "
+            "or with a vector tspan of the times you need.",
             key="sol",
         )
     if derivative:

@@ -23,6 +23,7 @@ from odelab.experiment.fields import check_keys, constant, expr
 from odelab.experiment.limits import DEFAULT_LIMITS, Limits, check_count, check_solve
 from odelab.experiment.section_checks import (check_analysis, check_jacobian, check_linearize, check_report,
                                               check_units)
+from odelab.solvers.registry import get_method, join_names, methods_with
 
 __all__ = ["compile_case"]
 
@@ -75,12 +76,12 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
         from odelab.experiment.backend import check_backend
 
         check_backend(backend, method, fast, "solver.backend", options, events)
-    if method.kind in ("adaptive", "implicit", "multistep"):
+    if method.matlab_defaults:
         resolved["solver"].setdefault("rtol", 1e-3)
         resolved["solver"].setdefault("atol", 1e-6)
     if system.kind == "ode" and system.jacobian is not None and built.jacobian is not None:
         check_jacobian(built.jacobian, system, states, params, float(tspan[0]), x0)
-    if method.kind == "implicit" and built.jacobian is not None:
+    if "jacobian" in method.options and built.jacobian is not None:
         # The stiff solvers get the exact Jacobian of a known system, never finite differences.
         options["jacobian"] = built.jacobian
         resolved["solver"]["jacobian"] = getattr(built.jacobian, "source", "the A matrix")
@@ -205,7 +206,6 @@ def _case_solver(model: schema.Experiment, built, params: dict, tspan: np.ndarra
     """The method, the options it runs with (state names made indices, a mass matrix evaluated) and the backend."""
     from odelab.experiment.delays import check_delay_method, method_name
     from odelab.solvers.options import as_tspan, normalize_options, resolve_options
-    from odelab.solvers.registry import get_method
 
     states = built.states
     method = get_method(method_name(model, built), key="solver.method")
@@ -213,7 +213,7 @@ def _case_solver(model: schema.Experiment, built, params: dict, tspan: np.ndarra
     options = {k: v for k, v in model.solver.model_dump().items()
                if k not in ("method", "backend", "zero_crossing") and v is not None}
     backend = model.solver.backend
-    runtime_options = _state_options(options, states, params, dae=method.name in ("ode15s", "ode23t"),
+    runtime_options = _state_options(options, states, params, dae=method.dae,
                                      takes_dependence="mstate_dependence" in method.options)
     try:
         as_tspan(tspan)
@@ -221,7 +221,7 @@ def _case_solver(model: schema.Experiment, built, params: dict, tspan: np.ndarra
     except InputError as exc:
         raise ExperimentError(exc.message.replace(f"`{exc.key}`", f"`solver.{exc.key}`"),
                               key=f"solver.{exc.key}" if exc.key else "solver") from None
-    check_solve(method_kind=method.kind, tspan=tspan, options=normalize_options(options, method),
+    check_solve(fixed_step=not method.adaptive, tspan=tspan, options=normalize_options(options, method),
                 refine_default=getattr(method, "refine", 1) or 1, limits=limits)
     resolved["solver"] = {"method": method.name, **_plain(options)}
     return method, runtime_options, backend
@@ -233,10 +233,9 @@ def _case_events(model: schema.Experiment, method, inputs, states, params: dict,
         return None
     from odelab.experiment.events import compile_events
 
-    if method.kind not in ("adaptive", "multistep", "implicit", "delay"):
-        raise ExperimentError(f"[events] are located by ode23, ode45, ode78, ode89, ode113, ode15s, ode23s, ode23t "
-                              f"and ode23tb (MATLAB's Events); `solver.method` is "
-                              f"{method.name!r}.", key="solver.method")
+    if not method.events:
+        raise ExperimentError(f"[events] are located by {join_names(methods_with(lambda m: m.events))} (MATLAB's "
+                              f"Events); `solver.method` is {method.name!r}.", key="solver.method")
     if inputs or model.linearize is not None:
         raise ExperimentError("[events] work with systems without [inputs] and without [linearize]; remove one "
                               "of them.", key="events")
@@ -267,8 +266,6 @@ def _case_data(model: schema.Experiment, events, path: Path, states, outputs, ts
 def _case_reference(model: schema.Experiment, built, method, signals, events, data, params: dict,
                     resolved: dict):
     """The exact solution (a function of t, from [exact]) and the kind of reference errors are measured against."""
-    from odelab.solvers.registry import get_method
-
     states, outputs = built.states, built.outputs
     exact_fn = None
     if model.exact is not None:
@@ -299,7 +296,7 @@ def _case_reference(model: schema.Experiment, built, method, signals, events, da
         kind = "high-accuracy"
     if ref.solver != "auto":
         get_method(ref.solver, key="reference.solver")
-    if method.kind == "delay":
+    if method.delays:
         from odelab.experiment.delays import check_delay_case
 
         check_delay_case(model, method, kind)

@@ -283,8 +283,7 @@ def model_at_times(problem, times: np.ndarray, integrate, result=None) -> tuple[
     from odelab.solvers.registry import get_method
 
     t0, tf = float(problem.tspan[0]), float(problem.tspan[-1])
-    kind = get_method(problem.method).kind
-    if kind == "fixed" and result is not None:
+    if not get_method(problem.method).adaptive and result is not None:  # a fixed step: its own grid
         series = result.series()
         return {name: np.interp(times, result.t, series[name]) for name in (*problem.states, *problem.outputs)}, None
     grid = np.unique(np.concatenate([[t0], times, [tf]]))

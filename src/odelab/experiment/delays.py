@@ -10,6 +10,7 @@ from __future__ import annotations
 from odelab.exceptions import ExperimentError, InputError
 from odelab.experiment import schema
 from odelab.experiment.cases import Built
+from odelab.solvers.registry import methods_with
 
 __all__ = ["build_delay", "is_delay_system", "check_delay_case"]
 
@@ -53,10 +54,13 @@ def build_delay(model: schema.Experiment, params: dict[str, float], states: tupl
 
 def check_delay_case(model: schema.Experiment, method, reference_kind: str) -> None:
     """The [solver] and [reference] of a delay system: dde23 only, and no high-accuracy reference."""
-    if method.kind != "delay":
+    if not method.delays:
+        names = methods_with(lambda m: m.delays, delays=True)
+        quoted = " or ".join(f'"{n}"' for n in names)
         raise ExperimentError(f"`solver.method` is {method.name!r}, but the equations have delayed states "
-                              "(lag(...)): they are solved by \"dde23\" (MATLAB's solver for delay equations). "
-                              "Write method = \"dde23\" (or \"auto\").", key="solver.method")
+                              f"(lag(...)): they are solved by {quoted} "
+                              f"(MATLAB's solver for delay equations). Write method = \"{names[0]}\" (or \"auto\").",
+                              key="solver.method")
     if reference_kind == "high-accuracy":
         raise ExperimentError("`reference.method` is \"high-accuracy\", which odelab computes for ordinary "
                               "equations only; for delay equations give the [exact] solution, or compare a case "
@@ -81,8 +85,8 @@ def check_delay_method(model: schema.Experiment, built: Built, method) -> None:
     if not is_delay_system(built):
         if model.history is not None:
             raise ExperimentError(_NO_LAG, key="history")
-        if method.kind == "delay":
-            raise ExperimentError("`solver.method` is \"dde23\", MATLAB's solver for delay equations, but this "
+        if method.delays:
+            raise ExperimentError(f"`solver.method` is \"{method.name}\", MATLAB's solver for delay equations, but this "
                                   "system has no delayed states (lag(x, tau) in [system.equations]): use ode23 or "
                                   "ode45.", key="solver.method")
         return

@@ -72,7 +72,7 @@ def case_cost(case) -> float:
         tableau = getattr(method, "tableau", None)
         stages = tableau.c.size if tableau is not None else 1
         h = p.options.get("h")
-        if method.kind == "fixed" and h:
+        if not method.adaptive and h:
             return stages * span / float(h)
         rtol = float(p.options.get("rtol", 1e-3))
         order = float(method.order or 4)

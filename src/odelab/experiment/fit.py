@@ -254,7 +254,7 @@ def _fit_method(name: str) -> str:
     from odelab.solvers.registry import get_method
 
     method = get_method(name, key="fit.method")
-    if method.kind not in ("adaptive", "multistep", "scipy") or method.name in ("Radau", "BDF", "LSODA"):
+    if not method.adaptive or method.stiff or method.delays:  # sensitivities: an adaptive explicit method
         raise ExperimentError(f"`fit.method` is {name!r}; states and sensitivities are integrated by an adaptive "
                               "explicit method: ode78 (the default), ode89, ode45, ode113 or DOP853.", key="fit.method")
     return method.name

@@ -406,6 +406,19 @@ def _inputs(out: list[KeyEntry]) -> None:
             out.append(KeyEntry(path, text, "required" if spec.default is None else shown, (), NOTES.get(path, "")))
 
 
+def _methods(out: list[KeyEntry]) -> None:
+    """``solver.method``'s choices and one entry per method of the registry: what it can do, what it takes."""
+    from odelab.solvers.registry import METHODS
+
+    out[:] = [KeyEntry(e.path, e.type, e.default, ("auto", *METHODS), e.text, e.matlab, e.children)
+              if e.path == "solver.method" else e for e in out]
+    for name, m in METHODS.items():
+        can = ", ".join(m.capabilities) or "none of events, dense output, a mass matrix, the compiled backend"
+        out.append(KeyEntry(f"solver.method.{name}", "method", None, (),
+                            f"{m.description} ({m.kind_label}; order {m.order_label}). Can do: {can}. "
+                            f"Options: {', '.join(m.options)}. Defaults: {m.defaults}."))
+
+
 def _blocks(out: list[KeyEntry]) -> None:
     """Each block type of the diagram registry, with its keys, defaults and meanings."""
     from odelab.signals import SIGNALS
@@ -480,8 +493,9 @@ _CACHED_FOR: list[tuple] = []  # the registries the cache was read from
 
 def _registries() -> tuple:
     from odelab.signals import SIGNALS
+    from odelab.solvers.registry import METHODS
 
-    return tuple(SIGNALS.items())
+    return tuple(SIGNALS.items()), tuple(METHODS.items())
 
 
 def entries() -> tuple[KeyEntry, ...]:
@@ -497,6 +511,7 @@ def entries() -> tuple[KeyEntry, ...]:
         out: list[KeyEntry] = []
         _walk(schema.Experiment, "", out)
         _inputs(out)
+        _methods(out)
         _blocks(out)
         _elements(out)
         _free_form(out)
@@ -554,7 +569,8 @@ def describe(entry: KeyEntry, width: int = 78) -> str:
     if entry.default is not None:
         lines.append(f"  default: {entry.default}")
     if entry.choices:
-        lines.append(f"  choices: {', '.join(entry.choices)}")
+        lines.append(textwrap.fill(f"choices: {', '.join(entry.choices)}", width, initial_indent="  ",
+                                   subsequent_indent="    ", break_on_hyphens=False))
     if entry.matlab:
         lines.append(f"  MATLAB: {', '.join(entry.matlab)} (also accepted)")
     if entry.children:

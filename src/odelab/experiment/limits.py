@@ -110,7 +110,7 @@ def fixed_step_count(tspan: np.ndarray, h: float) -> float:
     return float(np.sum(np.maximum(1.0, np.ceil(spans / h - 1e-9))))
 
 
-def check_solve(*, method_kind: str, tspan: np.ndarray, options: dict, refine_default: int, limits: Limits) -> None:
+def check_solve(*, fixed_step: bool, tspan: np.ndarray, options: dict, refine_default: int, limits: Limits) -> None:
     """Estimate a solve's steps and output points from the file alone; refuse one over budget.
 
     Fixed-step methods: the grid is known, ceil(span / h) steps. Adaptive methods (explicit,
@@ -120,7 +120,7 @@ def check_solve(*, method_kind: str, tspan: np.ndarray, options: dict, refine_de
     """
     span = float(abs(tspan[-1] - tspan[0]))
     given_times = tspan.size > 2
-    if method_kind == "fixed" and "h" in options:
+    if fixed_step and "h" in options:
         h = float(options["h"])
         steps = fixed_step_count(tspan, h)
         if not limits.allows("steps", steps):

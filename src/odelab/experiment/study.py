@@ -86,11 +86,11 @@ def parse_study(spec: Any, sweep, cases) -> StudySpec:
     wanted = "fixed" if over == "solver.h" else None
     for case in cases:
         method = get_method(case.problem.method)
-        if wanted == "fixed" and method.kind != "fixed":
+        if wanted == "fixed" and method.adaptive:
             raise ExperimentError(f"`study.over` is \"solver.h\", a step-size sweep, but case {case.name!r} uses "
                                   f"{method.name}, which chooses its own steps: sweep \"solver.rtol\" for adaptive "
                                   "methods.", key="study.over")
-        if over != "solver.h" and method.kind == "fixed":
+        if over != "solver.h" and not method.adaptive:
             raise ExperimentError(f"`study.over` is {over!r}, but case {case.name!r} uses the fixed-step "
                                   f"{method.name}, which has no tolerance: sweep \"solver.h\" for it.",
                                   key="study.over")

@@ -52,9 +52,9 @@ def _steps(run: StoredRun) -> tuple[np.ndarray, np.ndarray] | None:
     if time.get("output") is not None or time.get("points") is not None or run.inputs:
         return None  # output at the user's times (or pieces between input breakpoints): steps unknown
     m = _method(run.method)
-    if m is None or m.kind not in ("adaptive", "implicit", "multistep", "scipy"):
+    if m is None or not m.adaptive or m.delays:
         return None
-    refine = int(solver.get("refine", m.refine if m.kind in ("adaptive", "implicit", "multistep") else 1) or 1)
+    refine = int(solver.get("refine", m.refine if m.matlab_defaults else 1) or 1)
     t = run.t[::refine]
     if t.size < 2:
         return None

@@ -13,7 +13,7 @@ from odelab.solution import Solution, Stats
 from odelab.solvers import engine
 from odelab.solvers.controller import min_step
 from odelab.solvers.options import SolverOptions, as_tspan, as_y0, normalize_options, resolve_options
-from odelab.solvers.registry import Method, get_method
+from odelab.solvers.registry import Method, get_method, methods_with
 from odelab.solvers.status import Status
 
 __all__ = ["ode23", "ode45", "solve", "odextend"]
@@ -236,18 +236,19 @@ def _solve_method(fun, tspan, y0, method: str, options: dict) -> Solution:
     if not callable(fun):
         raise InputError(f"`fun` must be a callable fun(t, y); got {fun!r}.", key="fun")
     delayed = getattr(fun, "lags", None) is not None and hasattr(fun, "ddefun")
-    if delayed and m.kind != "delay":
+    if delayed and not m.delays:
+        names = " or ".join(f'method = "{n}"' for n in methods_with(lambda x: x.delays, delays=True))
         raise InputError(f"this system has delayed states (lag(...)): {m.name} solves ordinary equations only; "
-                         "use method = \"dde23\" (MATLAB's solver for delay equations).", key="method")
+                         f"use {names} (MATLAB's solver for delay equations).", key="method")
     tspan_arr = as_tspan(tspan)
     if m.kind == "delay":  # dde23 (odelab.solvers.dde23), which evaluates the delayed states itself
         from odelab.solvers.dde23 import solve_delay
 
         return solve_delay(fun, tspan_arr, as_y0(y0), normalize_options(options, m))
     y0_arr = as_y0(y0, allow_complex=True)
-    if np.iscomplexobj(y0_arr) and m.kind not in ("adaptive", "multistep"):
-        raise InputError(f"a complex `y0` is integrated by ode23/ode45/ode78/ode89/ode113 (as MATLAB's); {m.name} "
-                         "takes real y0: split it into real and imaginary parts.", key="y0")
+    if np.iscomplexobj(y0_arr) and not m.complex_y0:
+        raise InputError(f"a complex `y0` is integrated by {'/'.join(methods_with(lambda x: x.complex_y0))} "
+                         f"(as MATLAB's); {m.name} takes real y0: split it into real and imaginary parts.", key="y0")
     given = normalize_options(options, m)
     opts = resolve_options(m, given, tspan_arr, y0_arr.size)
     user_fun = fun
@@ -272,6 +273,7 @@ def _solve_method(fun, tspan, y0, method: str, options: dict) -> Solution:
     if not np.all(np.isfinite(f0)):
         return _failed_at_start(m, tspan_arr, y0_arr, opts, f"the derivative at t = {t0:g} is not finite "
                                 f"({_fmt_vec(f0)}): check the right-hand side at the initial state")
+    # the driver of the method's kind (registry.DRIVERS); the only place that reads Method.kind
     if m.kind == "implicit":
         return _solve_implicit(rhs, tspan_arr, y0_arr, f0, m, opts)
     if m.kind in ("adaptive", "multistep"):

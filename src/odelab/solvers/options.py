@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from odelab.exceptions import InputError
-from odelab.solvers.registry import Method
+from odelab.solvers.registry import Method, join_names, methods_with
 
 __all__ = ["SolverOptions", "normalize_options", "as_tspan", "as_y0", "resolve_options"]
 
@@ -132,25 +132,24 @@ def _state_indices(name: str, value, n: int) -> np.ndarray:
 def _not_for_method(canonical: str, name: str, method: Method) -> str:
     if canonical == "h":
         return (
-            f"`{name}` (a fixed step) is for the fixed-step methods (euler, heun, midpoint, "
-            f"ralston, rk3, rk4); {method.name} chooses its own steps: use `rtol`/`atol`, "
-            "`max_step` or `initial_step` instead."
+            f"`{name}` (a fixed step) is for the fixed-step methods "
+            f"({', '.join(methods_with(lambda m: not m.adaptive))}); {method.name} chooses its own steps: use "
+            "`rtol`/`atol`, `max_step` or `initial_step` instead."
         )
     if canonical in ("mass", "mstate_dependence"):
         # say what is wrong with the mass, not which option name the solver lacks
-        from odelab.solvers.registry import METHODS
-
-        takes = [m for m, spec in METHODS.items() if canonical in spec.options]
+        takes = methods_with(lambda m: canonical in m.options)
         if canonical == "mass":
             return (f"`{name}` (M y' = f): {method.name} solves y' = f only, with no mass matrix; the solvers that "
                     f"take a mass are {', '.join(takes)}.")
         return (f"`{name}` describes a mass that depends on t or the states, but {method.name} takes a constant mass "
                 f"matrix only; a mass M(t, y) is solved by {', '.join(takes)} (remove `{name}` for a constant "
                 "mass).")
-    if canonical == "nonnegative" and method.name == "ode23s":
-        return (f"`{name}` is not available for ode23s, as in MATLAB (its NonNegative documentation excludes "
-                "ode23s); keep the solution non-negative with ode15s, ode23t or ode23tb.")
-    if method.kind == "fixed":
+    if canonical == "nonnegative" and method.stiff and method.source == "odelab":
+        stiff = methods_with(lambda m: m.stiff and "nonnegative" in m.options)
+        return (f"`{name}` is not available for {method.name}, as in MATLAB (its NonNegative documentation excludes "
+                f"{method.name}); keep the solution non-negative with {join_names(stiff, 'or')}.")
+    if not method.adaptive:
         return (
             f"`{name}` does not apply to {method.name}, a fixed-step method: it takes only the "
             "step `h`. Use ode23/ode45 for error control."
@@ -259,7 +258,7 @@ def resolve_options(method: Method, opts: Mapping[str, object], tspan: np.ndarra
     """Fill in defaults and check every value, as MATLAB's ``odearguments`` does."""
     notes: list[str] = []
     span = abs(float(tspan[-1] - tspan[0]))
-    if method.kind == "fixed":
+    if not method.adaptive:
         if "h" not in opts:
             raise InputError(
                 f"{method.name} is a fixed-step method: give the step `h` (e.g. h = {span / 100:g} "
@@ -298,7 +297,7 @@ def resolve_options(method: Method, opts: Mapping[str, object], tspan: np.ndarra
     if "max_step" in opts:
         max_step = min(span, _positive("max_step", opts["max_step"]))
     else:
-        max_step = 0.1 * span if method.kind in ("adaptive", "implicit", "multistep") else math.inf
+        max_step = 0.1 * span if method.matlab_defaults else math.inf
     initial_step = _positive("initial_step", opts["initial_step"]) if "initial_step" in opts else math.nan
 
     refine = opts.get("refine", method.refine)
@@ -321,7 +320,7 @@ def resolve_options(method: Method, opts: Mapping[str, object], tspan: np.ndarra
         raise InputError(f"`mstate_dependence` must be 'none', 'weak' or 'strong' (MATLAB's MStateDependence); "
                          f"got {dependence!r}.", key="mstate_dependence")
     extra = None
-    if method.kind == "implicit":
+    if "jacobian" in method.options:  # the stiff solvers' own options (Jacobian, JPattern, MaxOrder...)
         from odelab.solvers.implicit import resolve_extras
 
         extra = resolve_extras(method, opts, n)

@@ -1,42 +1,97 @@
-"""The registry of integration methods, by name."""
+"""The registry of integration methods, by name, with what each can do.
+
+A :class:`Method` declares its capabilities (events, dense output, complex ``y0``, a mass
+matrix, DAEs, the compiled backend, the options it takes) and the driver that runs it; every
+module that needs to know whether a method can do something asks the method, and every message
+about what a method cannot do lists the methods that can from :data:`METHODS`
+(:func:`methods_with`, :func:`listing`). A new method is one :func:`register_method` call.
+"""
 
 from __future__ import annotations
 
 import difflib
+import re
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 from odelab.exceptions import InputError
 from odelab.solvers import tableau as tb
 from odelab.solvers import verner
 
-__all__ = ["Method", "METHODS", "get_method"]
+__all__ = ["Method", "METHODS", "DRIVERS", "get_method", "register_method", "methods_with", "listing",
+           "join_names", "dense_output_text", "compiled_methods_text"]
+
+# The drivers: what runs a method of each kind (odelab.solvers.api dispatches on it, and only it).
+DRIVERS = {
+    "adaptive": "odelab.solvers.engine.integrate_adaptive: an explicit Runge-Kutta pair, MATLAB's controller",
+    "fixed": "odelab.solvers.engine.integrate_fixed: an explicit Runge-Kutta method on a fixed step h",
+    "multistep": "odelab.solvers.adams.integrate_ode113: Adams-Bashforth-Moulton PECE (Shampine & Gordon)",
+    "implicit": "odelab.solvers.implicit.solve_implicit: odelab's stiff solvers (one module each)",
+    "delay": "odelab.solvers.dde23.solve_delay: delay equations with constant lags",
+    "scipy": "odelab.solvers.scipy_adapter.solve_scipy: SciPy's solve_ivp solver classes, stepped",
+}
+
+# The options of each family of methods (odelab's names; MATLAB's spellings in odelab.solvers.options).
+EXPLICIT_OPTIONS = ("rtol", "atol", "max_step", "initial_step", "refine", "norm_control", "max_steps",
+                    "events", "nonnegative", "mass", "mstate_dependence", "output_fcn", "output_sel", "args")
+FIXED_OPTIONS = ("h", "args")
+DELAY_OPTIONS = ("rtol", "atol", "max_step", "initial_step", "norm_control", "max_steps", "events", "args")
+IMPLICIT_OPTIONS = ("rtol", "atol", "max_step", "initial_step", "refine", "max_steps", "events", "jacobian",
+                    "jpattern", "vectorized", "mass", "args")
+SCIPY_OPTIONS = ("rtol", "atol", "max_step", "initial_step", "max_steps", "args")
+
+MASS_KINDS = ("", "constant", "moving")  # none; a constant M; M, M(t) or M(t, y) (MStateDependence)
 
 
 @dataclass(frozen=True)
 class Method:
-    """An integration method odelab can run.
+    """An integration method odelab can run, and what it can do.
 
     Attributes
     ----------
     name
         Registry name, as users type it (``"ode45"``, ``"rk4"``, ``"Radau"``).
     kind
-        ``"adaptive"`` (odelab's engine with MATLAB's controller), ``"fixed"`` (odelab's
-        engine on a fixed step ``h``), ``"implicit"`` (odelab's stiff solvers in
-        :mod:`odelab.solvers.implicit`), ``"multistep"`` (ode113, :mod:`odelab.solvers.adams`)
-        or ``"scipy"`` (``scipy.integrate`` solver classes).
+        The driver that runs it, a key of :data:`DRIVERS`: ``"adaptive"`` (odelab's engine with
+        MATLAB's controller), ``"fixed"`` (odelab's engine on a fixed step ``h``), ``"implicit"``
+        (:mod:`odelab.solvers.implicit`), ``"multistep"`` (ode113, :mod:`odelab.solvers.adams`),
+        ``"delay"`` (dde23) or ``"scipy"`` (``scipy.integrate`` solver classes). Only the
+        dispatch in :mod:`odelab.solvers.api` reads it; everything else asks a capability.
     order
         Order of accuracy of the propagated solution; for variable-order methods the
         highest order used (see ``orders``).
     description
         One line for ``odelab solvers``.
     tableau
-        The Butcher tableau (odelab's own methods).
+        The Butcher tableau (odelab's own Runge-Kutta methods).
     power, shrink_min, refine
         MATLAB controller constants for adaptive methods: exponent 1/(q+1), smallest first
         reduction factor after a failure, default output points per step.
     stiff
         Whether the method is meant for stiff problems.
+    options
+        The solver options it takes (odelab's names, see :mod:`odelab.solvers.options`).
+    events
+        It locates [events] (MATLAB's ``Events``).
+    dense
+        What to say of its interpolant in a message (``""``: said with the next method's, or
+        no interpolant); ``dense_output`` says whether ``deval`` works on its solutions.
+    complex_y0
+        It integrates a complex ``y0`` in complex arithmetic (as MATLAB's explicit solvers).
+    mass
+        The mass matrices of ``M y' = f`` it takes: ``""`` none, ``"constant"``, or
+        ``"moving"`` (``M``, ``M(t)`` or ``M(t, y)``).
+    dae
+        It takes a singular mass matrix: an index-1 DAE.
+    compiled, compiled_events
+        The compiled (numba) backend runs it; and locates its [events].
+    matlab_defaults
+        MATLAB's odeset defaults apply (rtol 1e-3, atol 1e-6, ``MaxStep`` a tenth of the span,
+        ``Refine``).
+    delays
+        It solves delay equations (and only those).
+    source
+        Whose implementation it is: ``"odelab"`` or ``"SciPy"``.
     """
 
     name: str
@@ -50,6 +105,37 @@ class Method:
     stiff: bool = False
     orders: str = ""
     problem: str = "non-stiff"
+    options: tuple[str, ...] = SCIPY_OPTIONS
+    events: bool = False
+    dense_output: bool = False
+    dense: str = ""
+    complex_y0: bool = False
+    mass: str = ""
+    dae: bool = False
+    compiled: bool = False
+    compiled_events: bool = False
+    matlab_defaults: bool = False
+    delays: bool = False
+    source: str = "odelab"
+
+    def __post_init__(self):
+        if self.kind not in DRIVERS:
+            raise ValueError(f"Method {self.name!r}: kind {self.kind!r} is not a driver ({', '.join(DRIVERS)}).")
+        if self.mass not in MASS_KINDS:
+            raise ValueError(f"Method {self.name!r}: mass {self.mass!r} is not one of {MASS_KINDS}.")
+        if self.dae and not self.mass:
+            raise ValueError(f"Method {self.name!r} takes a DAE, so it takes a mass matrix: give `mass`.")
+        if bool(self.mass) != ("mass" in self.options):
+            raise ValueError(f"Method {self.name!r}: `mass` and the option `mass` disagree.")
+        if self.events != ("events" in self.options):
+            raise ValueError(f"Method {self.name!r}: `events` and the option `events` disagree.")
+        if self.compiled_events and not (self.compiled and self.events):
+            raise ValueError(f"Method {self.name!r}: compiled events need `compiled` and `events`.")
+
+    @property
+    def adaptive(self) -> bool:
+        """Whether it chooses its own steps (under tolerances) rather than taking a fixed ``h``."""
+        return "h" not in self.options
 
     @property
     def kind_label(self) -> str:
@@ -59,16 +145,16 @@ class Method:
     @property
     def defaults(self) -> str:
         """MATLAB's defaults for the method, one line."""
-        if self.kind == "fixed":
+        if not self.adaptive:
             return "h required"
-        if self.kind == "delay":
+        if self.delays:
             return "rtol 1e-3, atol 1e-6, max_step 0.1*span"
         text = "rtol 1e-3, atol 1e-6"
-        if self.kind in ("adaptive", "implicit", "multistep"):
+        if self.matlab_defaults:
             text += f", refine {self.refine}, max_step 0.1*span"
-        if self.name == "ode15s":
+        if "max_order" in self.options:
             text += ", max_order 5, NDF (bdf off)"
-        if self.kind == "implicit":
+        if "jacobian" in self.options:
             text += ", Jacobian by finite differences"
         return text
 
@@ -82,92 +168,157 @@ class Method:
         return str(self.order)
 
     @property
-    def options(self) -> tuple[str, ...]:
-        """Option names the method accepts."""
-        if self.kind in ("adaptive", "multistep"):
-            return ("rtol", "atol", "max_step", "initial_step", "refine", "norm_control", "max_steps",
-                    "events", "nonnegative", "mass", "mstate_dependence", "output_fcn", "output_sel", "args")
-        if self.kind == "fixed":
-            return ("h", "args")
-        if self.kind == "delay":
-            return ("rtol", "atol", "max_step", "initial_step", "norm_control", "max_steps", "events", "args")
-        if self.kind == "implicit":
-            common = ("rtol", "atol", "max_step", "initial_step", "refine", "max_steps", "events", "jacobian",
-                      "jpattern", "vectorized", "mass", "args")
-            common += () if self.name == "ode23s" else ("nonnegative",)  # MATLAB's ode23s has no NonNegative
-            return common + (("max_order", "bdf") if self.name == "ode15s" else ())
-        return ("rtol", "atol", "max_step", "initial_step", "max_steps", "args")
+    def capabilities(self) -> tuple[str, ...]:
+        """What it can do, in words (``odelab explain solver.method.<name>``, the docs)."""
+        out = []
+        if self.delays:
+            out.append("delay equations")
+        if self.events:
+            out.append("events")
+        if self.dense_output:
+            out.append("dense output (deval)")
+        if self.complex_y0:
+            out.append("complex y0")
+        if self.mass == "moving":
+            out.append("a mass M(t, y)")
+        elif self.mass:
+            out.append("a constant mass matrix" + (", singular too (index-1 DAEs)" if self.dae else ""))
+        if self.compiled:
+            out.append("the compiled backend" + (" (with events)" if self.compiled_events else ""))
+        return tuple(out)
 
 
-def _adaptive(name, tableau, shrink_min, refine, description):
+def _adaptive(name, tableau, shrink_min, refine, description, dense="", compiled=False):
     return Method(
-        name=name,
-        kind="adaptive",
-        order=tableau.order,
-        description=description,
-        tableau=tableau,
-        power=1.0 / (tableau.error_order + 1),
-        shrink_min=shrink_min,
-        refine=refine,
-        problem="non-stiff",
+        name=name, kind="adaptive", order=tableau.order, description=description, tableau=tableau,
+        power=1.0 / (tableau.error_order + 1), shrink_min=shrink_min, refine=refine, problem="non-stiff",
+        options=EXPLICIT_OPTIONS, events=True, dense_output=True, dense=dense, complex_y0=True, mass="moving",
+        compiled=compiled, compiled_events=compiled, matlab_defaults=True,
     )
 
 
-def _implicit(name, order, orders, problem, description):
+def _implicit(name, order, orders, problem, description, dae=False, dense_output=False, dense="", extra=(),
+              nonnegative=True):
+    own = IMPLICIT_OPTIONS + (("nonnegative",) if nonnegative else ()) + extra
     return Method(name=name, kind="implicit", order=order, orders=orders, description=description, stiff=True,
-                  problem=problem)
+                  problem=problem, options=own, events=True, dense_output=dense_output,
+                  dense=dense, mass="constant", dae=dae, matlab_defaults=True)
 
 
 def _fixed(name, tableau, description):
     return Method(name=name, kind="fixed", order=tableau.order, description=description, tableau=tableau,
-                  problem="non-stiff (fixed h)")
+                  problem="non-stiff (fixed h)", options=FIXED_OPTIONS, compiled=True)
+
+
+def _scipy(name, order, description, **kw):
+    return Method(name, "scipy", order, description, options=SCIPY_OPTIONS, source="SciPy", **kw)
 
 
 METHODS: dict[str, Method] = {
     m.name: m
     for m in (
-        _adaptive("ode23", tb.BS23, 0.5, 1, "MATLAB's ode23: Bogacki-Shampine 3(2), adaptive"),
-        _adaptive("ode45", tb.DP54, 0.1, 4, "MATLAB's ode45: Dormand-Prince 5(4), adaptive"),
+        # ode23's interpolant is named with ode45's in messages (dense = "": said with the next)
+        _adaptive("ode23", tb.BS23, 0.5, 1, "MATLAB's ode23: Bogacki-Shampine 3(2), adaptive", compiled=True),
+        _adaptive("ode45", tb.DP54, 0.1, 4, "MATLAB's ode45: Dormand-Prince 5(4), adaptive",
+                  dense="their ntrp23/ntrp45 interpolants", compiled=True),
         _implicit("ode15s", 5, "1-5", "stiff, DAE",
-                  "MATLAB's ode15s: variable-order NDF/BDF (orders 1-5), for stiff problems and index-1 DAEs"),
+                  "MATLAB's ode15s: variable-order NDF/BDF (orders 1-5), for stiff problems and index-1 DAEs",
+                  dae=True, extra=("max_order", "bdf")),
         _implicit("ode23s", 2, "2(3)", "stiff",
-                  "MATLAB's ode23s: modified Rosenbrock (2,3) W-method, for stiff problems at crude tolerances"),
+                  "MATLAB's ode23s: modified Rosenbrock (2,3) W-method, for stiff problems at crude tolerances",
+                  nonnegative=False),  # MATLAB's ode23s has no NonNegative
         _implicit("ode23t", 2, "2", "stiff, DAE",
                   "MATLAB's ode23t: trapezoidal rule with its free interpolant, for moderately stiff problems "
-                  "and index-1 DAEs"),
+                  "and index-1 DAEs", dae=True, dense_output=True, dense="their quadratics"),
         _implicit("ode23tb", 2, "2(3)", "stiff",
-                  "MATLAB's ode23tb: TR-BDF2 (gamma = 2 - sqrt 2), for stiff problems at crude tolerances"),
+                  "MATLAB's ode23tb: TR-BDF2 (gamma = 2 - sqrt 2), for stiff problems at crude tolerances",
+                  dense_output=True, dense="their quadratics"),
         # Orders 1-13 as MATLAB documents them: predictor order k <= 12, corrector k+1 (local
         # extrapolation). Shampine & Gordon's DE/STEP/INTRP in odelab.solvers.adams.
         Method("ode113", "multistep", 13, "MATLAB's ode113: variable-order Adams-Bashforth-Moulton PECE "
-               "(Shampine & Gordon), for tight tolerances and expensive f", orders="1-13", refine=1),
+               "(Shampine & Gordon), for tight tolerances and expensive f", orders="1-13", refine=1,
+               options=EXPLICIT_OPTIONS, events=True, dense_output=True, dense="Adams", complex_y0=True,
+               mass="moving", matlab_defaults=True),
         _adaptive("ode78", verner.VERNER87, 0.1, 1,
-                  "MATLAB's ode78: Verner's most efficient 8(7) pair, 8th-order interpolant, adaptive"),
+                  "MATLAB's ode78: Verner's most efficient 8(7) pair, 8th-order interpolant, adaptive",
+                  dense="Verner's"),
         _adaptive("ode89", verner.VERNER98, 0.1, 1,
-                  "MATLAB's ode89: Verner's most robust 9(8) pair, 8th-order interpolant, adaptive"),
+                  "MATLAB's ode89: Verner's most robust 9(8) pair, 8th-order interpolant, adaptive",
+                  dense="Verner's"),
         # odelab.solvers.dde23: delay equations with constant lags (Shampine & Thompson 2001)
         Method("dde23", "delay", 3, "MATLAB's dde23: delay equations y'(t) = f(t, y, y(t - tau)) with constant "
-               "lags; Bogacki-Shampine 3(2), discontinuity tracking", orders="3(2)", problem="delay (constant lags)"),
+               "lags; Bogacki-Shampine 3(2), discontinuity tracking", orders="3(2)", problem="delay (constant lags)",
+               options=DELAY_OPTIONS, events=True, dense_output=True, delays=True),
         _fixed("euler", tb.EULER, "Forward Euler, fixed step h"),
         _fixed("heun", tb.HEUN, "Heun's method (improved Euler), fixed step h"),
         _fixed("midpoint", tb.MIDPOINT, "Explicit midpoint, fixed step h"),
         _fixed("ralston", tb.RALSTON, "Ralston's second-order method, fixed step h"),
         _fixed("rk3", tb.KUTTA3, "Kutta's third-order method, fixed step h"),
         _fixed("rk4", tb.RK4, "Classical fourth-order Runge-Kutta, fixed step h"),
-        Method("RK23", "scipy", 3, "SciPy solve_ivp RK23 (Bogacki-Shampine, SciPy's controller)"),
-        Method("RK45", "scipy", 5, "SciPy solve_ivp RK45 (Dormand-Prince, SciPy's controller)"),
-        Method("DOP853", "scipy", 8, "SciPy solve_ivp DOP853 (Dormand-Prince 8(5,3))"),
-        Method("Radau", "scipy", 5, "SciPy solve_ivp Radau IIA, implicit, for stiff problems", stiff=True,
-               problem="stiff"),
-        Method("BDF", "scipy", 5, "SciPy solve_ivp BDF (orders 1-5), implicit, for stiff problems", stiff=True,
+        _scipy("RK23", 3, "SciPy solve_ivp RK23 (Bogacki-Shampine, SciPy's controller)"),
+        _scipy("RK45", 5, "SciPy solve_ivp RK45 (Dormand-Prince, SciPy's controller)"),
+        _scipy("DOP853", 8, "SciPy solve_ivp DOP853 (Dormand-Prince 8(5,3))"),
+        _scipy("Radau", 5, "SciPy solve_ivp Radau IIA, implicit, for stiff problems", stiff=True, problem="stiff"),
+        _scipy("BDF", 5, "SciPy solve_ivp BDF (orders 1-5), implicit, for stiff problems", stiff=True,
                orders="1-5", problem="stiff"),
         # LSODA: Adams orders 1-12 while non-stiff, BDF orders 1-5 once stiff (Petzold 1983).
-        Method("LSODA", "scipy", 12, "SciPy solve_ivp LSODA (Adams/BDF switching)", stiff=True,
+        _scipy("LSODA", 12, "SciPy solve_ivp LSODA (Adams/BDF switching)", stiff=True,
                orders="Adams 1-12 / BDF 1-5", problem="both (switches)"),
     )
 }
 
-_BY_LOWER = {name.lower(): m for name, m in METHODS.items()}
+
+def register_method(method: Method) -> Method:
+    """Add ``method`` to :data:`METHODS` (the loader, messages, ``odelab solvers``/``explain`` read it)."""
+    if not isinstance(method, Method):
+        raise TypeError(f"register_method takes a Method; got {method!r}.")
+    clash = next((n for n in METHODS if n.lower() == method.name.lower() and n != method.name), None)
+    if clash:
+        raise ValueError(f"method {method.name!r} would shadow {clash!r} (names are matched without case).")
+    METHODS[method.name] = method
+    return method
+
+
+def _suite_number(name: str) -> float:
+    digits = re.match(r"ode(\d+)", name)
+    return float(digits.group(1)) if digits else float("inf")
+
+
+def listing(methods: Iterable[Method]) -> list[Method]:
+    """``methods`` in the order messages list them: MATLAB's suite by number (non-stiff, then stiff), the rest
+    in registry order."""
+    order = {name: i for i, name in enumerate(METHODS)}
+    return sorted(methods, key=lambda m: (m.delays, m.stiff, not m.adaptive, _suite_number(m.name),
+                                          order.get(m.name, len(order))))
+
+
+def methods_with(test: Callable[[Method], bool], *, delays: bool | None = False) -> list[str]:
+    """Names of the registered methods that pass ``test``, in :func:`listing` order; ``delays``: only the
+    methods for delay equations (True), only those for ODEs (False, the default), or both (None)."""
+    return [m.name for m in listing(METHODS.values()) if test(m) and (delays is None or m.delays == delays)]
+
+
+def join_names(names: Iterable[str], last: str = "and") -> str:
+    """``"a, b and c"``."""
+    names = list(names)
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} {last} {names[-1]}"
+
+
+def dense_output_text() -> str:
+    """The methods with dense output, each family with its interpolant: the ``deval`` message's list."""
+    parts: list[str] = []
+    run: list[str] = []
+    label = ""
+    for m in listing(m for m in METHODS.values() if m.dense_output and not m.delays):
+        if run and m.dense != label:
+            parts.append(f"{' or '.join(run)}" + (f" ({label})" if label else ""))
+            run = []
+        run.append(m.name)
+        label = m.dense
+    if run:
+        parts.append(f"{' or '.join(run)}" + (f" ({label})" if label else ""))
+    return ", ".join(parts)
+
 
 # What users type when they mean a suite member: MATLAB names without their letter, other
 # tools' names for the same methods. Checked before the spelling-based suggestion.
@@ -184,12 +335,13 @@ def get_method(name: str, *, key: str = "method") -> Method:
     """Look a method up by name (case-insensitive), with a did-you-mean on failure."""
     if not isinstance(name, str):
         raise InputError(f"`{key}` must be a method name such as 'ode45'; got {name!r}.", key=key)
-    method = _BY_LOWER.get(name.lower())
+    by_lower = {n.lower(): m for n, m in METHODS.items()}
+    method = by_lower.get(name.lower())
     if method is None:
         meant = _MEANT.get(name.lower().strip())
         if meant is None:
-            close = difflib.get_close_matches(name.lower(), list(_BY_LOWER), n=1)
-            meant = _BY_LOWER[close[0]].name if close else None
+            close = difflib.get_close_matches(name.lower(), list(by_lower), n=1)
+            meant = by_lower[close[0]].name if close else None
         hint = f" Did you mean '{meant}'?" if meant else ""
         raise InputError(
             f"`{key}` is {name!r}, which is not a method odelab knows.{hint} "
@@ -197,3 +349,11 @@ def get_method(name: str, *, key: str = "method") -> Method:
             key=key,
         )
     return method
+
+
+def compiled_methods_text(fixed: bool = True) -> str:
+    """The methods the compiled backend runs, as its messages list them: ``"ode23, ode45, fixed-step"``."""
+    names = methods_with(lambda m: m.compiled and m.adaptive)
+    if fixed and methods_with(lambda m: m.compiled and not m.adaptive):
+        names.append("fixed-step")
+    return ", ".join(names)

@@ -229,7 +229,7 @@ def whole_span_max_step(options: dict, method: str, t0: float, tf: float, *, cut
 
     if not cut or any(_is_max_step(key) and value is not None for key, value in options.items()):
         return options
-    if get_method(method).kind not in ("adaptive", "implicit", "multistep"):
+    if not get_method(method).matlab_defaults:  # MATLAB's MaxStep default: a tenth of the span
         return options
     return {**options, "max_step": 0.1 * abs(tf - t0)}
 

@@ -75,9 +75,13 @@ def resolve_extras(method, opts, n: int) -> dict:
                              "a constant M (MATLAB's time- or state-dependent Mass is not supported).", key="mass")
         mass = _square("mass", mass, n, "the mass matrix M of M y' = f(t, y)")
         dense = mass.toarray() if hasattr(mass, "toarray") else mass
-        if method.name not in ("ode15s", "ode23t") and np.linalg.matrix_rank(dense) < n:
+        if not method.dae and np.linalg.matrix_rank(dense) < n:
+            from odelab.solvers.registry import methods_with
+
+            first, *others = methods_with(lambda m: m.dae)
+            also = f" (or {', '.join(others)})" if others else ""
             raise InputError(f"`mass` is singular (a DAE); {method.name} needs a nonsingular mass matrix: use "
-                             "ode15s (or ode23t) for index-1 DAEs, as in MATLAB.", key="mass")
+                             f"{first}{also} for index-1 DAEs, as in MATLAB.", key="mass")
         out["mass"] = mass
     return out
 

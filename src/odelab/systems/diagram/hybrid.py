@@ -54,7 +54,8 @@ def needs_hybrid(diagram, zero_crossing: bool = True) -> bool:
 def _locates(method: str) -> bool:
     from odelab.solvers.registry import get_method
 
-    return get_method(method).kind in ("adaptive", "implicit", "multistep")
+    m = get_method(method)
+    return m.events and not m.delays  # it locates zero crossings (ODE methods with Events)
 
 
 def simulate_hybrid(diagram, tspan, x0=None, *, method: str = "ode45", zero_crossing: bool = True,
