@@ -87,23 +87,6 @@ NOTES: dict[str, str] = {
                      "dde23 (delay equations; `auto` picks it for lag()); "
                      "fixed-step euler, heun, midpoint, rk3, rk4; SciPy's RK23, RK45, DOP853, Radau, BDF, LSODA "
                      "(`odelab solvers` lists them).",
-    "solver.rtol": "Relative tolerance (MATLAB's RelTol; default 1e-3 for MATLAB's methods).",
-    "solver.atol": "Absolute tolerance, a number or one per state (MATLAB's AbsTol; default 1e-6).",
-    "solver.max_step": "The largest step (MATLAB's MaxStep; default a tenth of the span).",
-    "solver.initial_step": "The first step to try (MATLAB's InitialStep).",
-    "solver.refine": "Output points per step (MATLAB's Refine; ode45's default 4).",
-    "solver.norm_control": "Control the error in norm rather than per component (MATLAB's NormControl).",
-    "solver.h": "The step of a fixed-step method (euler, heun, midpoint, rk3, rk4), in the units of t.",
-    "solver.max_steps": "The largest number of steps before the case stops as failed; the run's own budget "
-                        "(--max-steps) caps it.",
-    "solver.max_order": "ode15s's highest order, 1 to 5 (MATLAB's MaxOrder).",
-    "solver.bdf": "ode15s with backward differentiation formulas instead of NDFs (MATLAB's BDF).",
-    "solver.vectorized": "The equations accept many states at once (MATLAB's Vectorized), for the stiff "
-                         "solvers' Jacobian.",
-    "solver.nonnegative": "States kept nonnegative (MATLAB's NonNegative), by name.",
-    "solver.mass": "A mass matrix M in M y' = f, of expressions of t, the states and parameters (MATLAB's Mass); "
-                   "singular with ode15s or ode23t for an index-1 DAE.",
-    "solver.mstate_dependence": "How the mass matrix depends on the state (MATLAB's MStateDependence).",
     "solver.zero_crossing": "Diagrams: locate the instants switching blocks (saturation, relay, switch...) change "
                             "formula and restart there (default true, Simulink's zero-crossing detection); false "
                             "steps over them. Each block's own `zero_crossing` key turns it off for that block.",
@@ -248,14 +231,24 @@ NOTES: dict[str, str] = {
                       "state).",
 }
 
-# MATLAB's odeset spellings of [solver] keys (see odelab.solvers.options).
-_MATLAB = {
-    "solver.rtol": ("RelTol",), "solver.atol": ("AbsTol",), "solver.max_step": ("MaxStep",),
-    "solver.initial_step": ("InitialStep",), "solver.refine": ("Refine",), "solver.norm_control": ("NormControl",),
-    "solver.max_order": ("MaxOrder",), "solver.bdf": ("BDF",), "solver.vectorized": ("Vectorized",),
-    "solver.nonnegative": ("NonNegative",), "solver.mass": ("Mass",),
-    "solver.mstate_dependence": ("MStateDependence",), "solver.max_steps": ("MaxSteps",),
-}
+def _matlab() -> dict[str, tuple[str, ...]]:
+    """MATLAB's odeset spellings of [solver] keys, from the option registry (odelab.solvers.optionset)."""
+    from odelab.solvers.optionset import OPTIONS
+
+    return {f"solver.{o.name}": o.matlab for o in OPTIONS.values() if o.toml and o.matlab}
+
+
+def _note(path: str) -> str:
+    """A key's sentence: NOTES, or for a solver option its registry entry's."""
+    if path in NOTES:
+        return NOTES[path]
+    if path.startswith("solver."):
+        from odelab.solvers.optionset import OPTIONS
+
+        option = OPTIONS.get(path.removeprefix("solver."))
+        if option is not None:
+            return option.doc
+    return ""
 
 # Tables the schema keeps free-form because another module checks them.
 _FREE_FORM = {
@@ -361,6 +354,10 @@ def _walk(model, prefix: str, out: list[KeyEntry]) -> None:
         key = info.alias or name
         path = f"{prefix}.{key}" if prefix else key
         text, choices, nested = _type_text(info.annotation)
+        if path == "solver":  # validated by the model the option registry builds
+            from odelab.experiment.schema import solver_model
+
+            text, choices, nested = "table", (), solver_model()
         origin = typing.get_origin(info.annotation)
         is_dict = origin is dict or any(typing.get_origin(a) is dict for a in typing.get_args(info.annotation))
         children: tuple[str, ...] = ()
@@ -368,7 +365,7 @@ def _walk(model, prefix: str, out: list[KeyEntry]) -> None:
             children = tuple(f.alias or n for n, f in nested.model_fields.items())
         elif is_dict:
             children = ("<name>",)
-        out.append(KeyEntry(path, text, _default_text(info), choices, NOTES.get(path, ""), _MATLAB.get(path, ()),
+        out.append(KeyEntry(path, text, _default_text(info), choices, _note(path), _matlab().get(path, ()),
                             children))
         if path in _FREE_FORM or path == "inputs":
             continue
@@ -493,9 +490,10 @@ _CACHED_FOR: list[tuple] = []  # the registries the cache was read from
 
 def _registries() -> tuple:
     from odelab.signals import SIGNALS
+    from odelab.solvers.optionset import OPTIONS
     from odelab.solvers.registry import METHODS
 
-    return tuple(SIGNALS.items()), tuple(METHODS.items())
+    return tuple(SIGNALS.items()), tuple(METHODS.items()), tuple(OPTIONS.items())
 
 
 def entries() -> tuple[KeyEntry, ...]:
@@ -528,7 +526,7 @@ def find(key: str) -> KeyEntry | None:
     key = key.strip().strip("[]").strip()
     if key in table:
         return table[key]
-    for path, spellings in _MATLAB.items():  # solver.RelTol -> solver.rtol
+    for path, spellings in _matlab().items():  # solver.RelTol -> solver.rtol
         if key.lower() in {f"{path.split('.')[0]}.{m}".lower() for m in spellings}:
             return table[path]
     parts = key.split(".")
@@ -719,7 +717,7 @@ def unknown_key_message(key: str, node=None) -> str:
     known = [k for k in keys_at(parent, node) if not k.startswith("<")]
     spellings = list(known)
     if parent == "solver":
-        spellings += [m for path, names in _MATLAB.items() for m in names]
+        spellings += [m for path, names in _matlab().items() for m in names]
     close = difflib.get_close_matches(leaf, spellings, n=1, cutoff=0.6)
     if not close:
         close = [k for k in spellings if k.lower() == leaf.lower().replace("_", "")][:1]

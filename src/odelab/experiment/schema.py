@@ -18,12 +18,7 @@ Number = Union[StrictInt, StrictFloat]
 Value = Union[StrictInt, StrictFloat, StrictStr]
 Matrix = Union[Value, list[Value], list[list[Value]]]
 
-__all__ = ["Experiment", "SOLVER_KEYS"]
-
-# [solver] keys, after MATLAB's names are mapped to odelab's (see odelab.solvers.options).
-SOLVER_KEYS = ("method", "rtol", "atol", "max_step", "initial_step", "refine", "norm_control", "h", "max_steps",
-               "max_order", "bdf", "vectorized",
-               "nonnegative", "mass", "mstate_dependence", "backend", "zero_crossing")
+__all__ = ["Experiment", "SOLVER_KEYS", "solver_model"]
 
 
 class _Section(BaseModel):
@@ -57,25 +52,58 @@ class Time(_Section):
 
 
 class Solver(_Section):
-    """[solver]: method and options (MATLAB's odeset names are mapped before validation)."""
+    """[solver]: the method, then the solver options of the option registry (see :func:`solver_model`)."""
 
     method: StrictStr = "ode45"
-    rtol: Number | None = None
-    atol: Union[Number, list[Number], None] = None
-    max_step: Number | None = None
-    initial_step: Number | None = None
-    refine: StrictInt | None = None
-    norm_control: Union[StrictBool, Literal["on", "off"], None] = None
-    h: Number | None = None
-    max_steps: StrictInt | None = None
-    max_order: StrictInt | None = None  # ode15s's MaxOrder
-    bdf: Union[StrictBool, Literal["on", "off"], None] = None  # ode15s's BDF
-    vectorized: Union[StrictBool, Literal["on", "off"], None] = None
-    nonnegative: list[StrictStr] | None = None  # state names; compiled to indices by the loader
-    mass: Matrix | None = None  # expressions of t, the states and the parameters
-    mstate_dependence: Literal["none", "weak", "strong"] | None = None
-    backend: Literal["auto", "python", "compiled"] = "auto"  # see odelab.solvers.compiled
-    zero_crossing: StrictBool = True  # diagrams: locate switching blocks' crossings (odelab.systems.diagram.zerocross)
+
+
+# The [solver] keys that are not solver options: which engine runs, and the diagrams' zero crossings.
+_SOLVER_RUN_KEYS: dict[str, Any] = {
+    "backend": (Literal["auto", "python", "compiled"], "auto"),  # see odelab.solvers.compiled
+    "zero_crossing": (StrictBool, True),  # diagrams: locate switching blocks' crossings (systems/diagram/zerocross)
+}
+# How an option is given in a file (odelab.solvers.optionset.SolverOption.toml) -> its type in the schema;
+# "state names" are compiled to indices and a "matrix" of expressions to numbers by the loader.
+_OPTION_TYPES: dict[str, Any] = {
+    "number": Number, "numbers": Union[Number, list[Number]], "integer": StrictInt,
+    "switch": Union[StrictBool, Literal["on", "off"]], "state names": list[StrictStr], "matrix": Matrix,
+    "text": StrictStr,
+}
+_SOLVER_MODELS: dict[tuple, type[BaseModel]] = {}
+
+
+def solver_model() -> type[BaseModel]:
+    """The model of [solver]: ``method``, every option of :data:`odelab.solvers.optionset.OPTIONS` that a file can
+    give (MATLAB's names are mapped to odelab's before validation), ``backend`` and ``zero_crossing``. Rebuilt when
+    an option is registered, so a solver option is one declaration in one file."""
+    from odelab.solvers.optionset import OPTIONS
+
+    shape = tuple((o.name, o.toml, o.choices) for o in OPTIONS.values() if o.toml)
+    model = _SOLVER_MODELS.get(shape)
+    if model is None:
+        fields: dict[str, Any] = {}
+        for name, toml, choices in shape:
+            kind = Literal[choices] if toml == "choice" else _OPTION_TYPES[toml]
+            fields[name] = (Optional[kind], None)
+        model = create_model("Solver", __base__=Solver, __doc__=Solver.__doc__, **fields, **_SOLVER_RUN_KEYS)
+        _SOLVER_MODELS.clear()  # one registry at a time
+        _SOLVER_MODELS[shape] = model
+    return model
+
+
+def __getattr__(name: str):
+    if name == "SOLVER_KEYS":  # [solver] keys, after MATLAB's names are mapped to odelab's: read from the registry
+        return tuple(solver_model().model_fields)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def _solver(value: Any, handler) -> BaseModel:
+    model = solver_model()
+    return value if isinstance(value, model) else model.model_validate(value)
+
+
+#: [solver]: validated by the model of the option registry as it is now.
+SolverTable = Annotated[Any, WrapValidator(_solver)]
 
 
 class Reference(_Section):
@@ -216,7 +244,7 @@ class Experiment(_Section):
     time: Time
     exact: dict[str, Value] | None = None
     history: dict[str, Value] | None = None  # [history]: x(t) for t <= t0 of delay equations (experiment/delays.py)
-    solver: Solver = Field(default_factory=Solver)
+    solver: SolverTable = Field(default_factory=lambda: solver_model()())
     reference: Reference = Field(default_factory=Reference)
     inputs: dict[str, InputSignal] | None = None
     linearize: Linearize | None = None
