@@ -19,7 +19,7 @@ from odelab.solvers import tableau as tb
 from odelab.solvers import verner
 
 __all__ = ["Method", "METHODS", "DRIVERS", "get_method", "register_method", "methods_with", "listing",
-           "join_names", "dense_output_text", "compiled_methods_text"]
+           "join_names", "dense_output_text"]
 
 # The drivers: what runs a method of each kind (odelab.solvers.api dispatches on it, and only it).
 DRIVERS = {
@@ -350,10 +350,3 @@ def get_method(name: str, *, key: str = "method") -> Method:
         )
     return method
 
-
-def compiled_methods_text(fixed: bool = True) -> str:
-    """The methods the compiled backend runs, as its messages list them: ``"ode23, ode45, fixed-step"``."""
-    names = methods_with(lambda m: m.compiled and m.adaptive)
-    if fixed and methods_with(lambda m: m.compiled and not m.adaptive):
-        names.append("fixed-step")
-    return ", ".join(names)
