@@ -492,8 +492,10 @@ def _registries() -> tuple:
     from odelab.signals import SIGNALS
     from odelab.solvers.optionset import OPTIONS
     from odelab.solvers.registry import METHODS
+    from odelab.systems.diagram.blocks import BLOCKS
 
-    return tuple(SIGNALS.items()), tuple(METHODS.items()), tuple(OPTIONS.items())
+    # by identity: a registry's entries are compared as the objects registered, never field by field
+    return tuple((name, id(v)) for registry in (SIGNALS, METHODS, OPTIONS, BLOCKS) for name, v in registry.items())
 
 
 def entries() -> tuple[KeyEntry, ...]:
