@@ -7,6 +7,7 @@ from rich.console import Console
 from rich.text import Text
 
 from odelab.experiment.grid import fits, print_grid  # noqa: F401 (print_grid re-exported)
+from odelab.experiment.studykinds import STUDY_KINDS, fmt_error
 from odelab.terminal import shown, visible
 
 __all__ = ["HEADLINE_NOTE", "fmt", "headline_text", "pointwise_text", "print_experiment", "print_grid"]
@@ -25,11 +26,7 @@ def _shown(text, *, lines: bool = False) -> str:
     return shown(str(text), lines=lines)
 
 
-def fmt(value, digits: int = 4) -> str:
-    """An error as the lab quotes it: 4 significant digits (1.068e-04), 'undefined' if missing."""
-    if value is None or (isinstance(value, float) and value != value):
-        return "undefined"
-    return f"{value:.{digits - 1}e}"
+fmt = fmt_error  # an error as the lab quotes it: 4 significant digits (1.068e-04), 'undefined' if missing
 
 
 def headline_text(e) -> str:
@@ -283,26 +280,12 @@ def print_sweep(console: Console, exp, results) -> None:
     study = run_study(exp.study, sweep_rows(results))
     over = exp.study.over.rsplit(".", 1)[-1]
     t = Table(show_edge=False, box=None, header_style="bold", pad_edge=False)
-    if study["kind"] == "convergence":
-        what = "max over the span" if study["error"] == "max" else "at the end"
-        console.print(f"convergence of the {_shown(study['quantity'])} error ({what}) against {_shown(over)}:")
-        for col in ("method", f"{over} range", "points fitted", "observed order", "nominal", "difference"):
-            t.add_column(_shown(col), justify="left" if col == "method" else "right")
-        for c in study["curves"]:
-            used = [h for h, why in zip(c["h"], c["excluded"]) if not why]
-            rng = f"{min(c['h']):.3g} - {max(c['h']):.3g}"
-            nominal = "-" if c["nominal"] is None else f"{c['nominal']:g}"
-            diff = "-" if c["nominal"] is None or c["order"] != c["order"] else f"{c['order'] - c['nominal']:+.2f}"
-            t.add_row(_shown(c["label"]), rng, f"{len(used)} of {len(c['h'])}", f"{c['order']:.3f}", nominal, diff)
-    else:
-        console.print(f"work-precision ({_shown(study['quantity'])} error at "
-                      f"{'the end' if study['error'] == 'end' else 'its largest'}) over {_shown(over)}:")
-        for col in ("method", "loosest: error", "fevals", "tightest: error", "fevals", "fevals per digit"):
-            t.add_column(_shown(col), justify="left" if col == "method" else "right")
-        for c in study["curves"]:
-            slope = c["slope"]
-            t.add_row(_shown(c["label"]), fmt(c["error"][0]), f"{c['nfevals'][0]:.0f}", fmt(c["error"][-1]),
-                      f"{c['nfevals'][-1]:.0f}", "-" if slope != slope else f"x{10 ** slope:.2f}")
+    heading, columns, rows = STUDY_KINDS[study["kind"]].terminal(study, over)
+    console.print(_shown(heading))
+    for i, col in enumerate(columns):
+        t.add_column(_shown(col), justify="left" if i == 0 else "right")
+    for row in rows:
+        t.add_row(_shown(row[0]), *row[1:])
     console.print(t)
     for w in study["warnings"]:
         console.print(f"[yellow]note: {_shown(w)}[/]")

@@ -223,8 +223,6 @@ NOTES: dict[str, str] = {
     "sweep.mode": "`product` (every combination, the default) or `zip` (the lists side by side).",
     "sweep.store": "`summary` (one table for the sweep, the default) or `all` (also every case's folder).",
     "study": "A study over a sweep: observed convergence order or work-precision.",
-    "study.kind": "`convergence` (error against step size or tolerance, with the fitted order) or "
-                  "`work-precision` (error against cost).",
     "study.over": "The swept key on the x axis (default solver.h, else solver.rtol).",
     "study.error": "`max` (the largest error over the span) or `end` (the error at the final time).",
     "study.quantity": "The state or output whose error is studied (default the first output, else the first "
@@ -484,18 +482,36 @@ def _free_form(out: list[KeyEntry]) -> None:
                                 _FREE_CHOICES.get(cpath, ()), NOTES.get(cpath, "")))
 
 
+def _studies(out: list[KeyEntry]) -> None:
+    """[study]'s keys and kinds, from the study-kind registry (odelab.experiment.studykinds)."""
+    from odelab.experiment.study import study_keys
+    from odelab.experiment.studykinds import STUDY_KINDS
+
+    kinds = "; ".join(f"`{name}`: {kind.DOC}" for name, kind in STUDY_KINDS.items())
+    replaced = {"study": lambda e: KeyEntry(e.path, e.type, e.default, e.choices, e.text, e.matlab, study_keys()),
+                "study.kind": lambda e: KeyEntry(e.path, e.type, e.default, tuple(STUDY_KINDS),
+                                                 f"The kind of study ({kinds}).", e.matlab, e.children)}
+    out[:] = [replaced[e.path](e) if e.path in replaced else e for e in out]
+    for name, kind in STUDY_KINDS.items():
+        for key, default in kind.KEYS.items():
+            out.append(KeyEntry(f"study.{key}", "value", None if default is None else repr(default), (),
+                                f"A {name} study's: {kind.DOCS.get(key, '')}".rstrip(": ")))
+
+
 _CACHE: list[tuple[KeyEntry, ...]] = []
 _CACHED_FOR: list[tuple] = []  # the registries the cache was read from
 
 
 def _registries() -> tuple:
+    from odelab.experiment.studykinds import STUDY_KINDS
     from odelab.signals import SIGNALS
     from odelab.solvers.optionset import OPTIONS
     from odelab.solvers.registry import METHODS
     from odelab.systems.diagram.blocks import BLOCKS
 
     # by identity: a registry's entries are compared as the objects registered, never field by field
-    return tuple((name, id(v)) for registry in (SIGNALS, METHODS, OPTIONS, BLOCKS) for name, v in registry.items())
+    registries = (SIGNALS, METHODS, OPTIONS, BLOCKS, STUDY_KINDS)
+    return tuple((name, id(v)) for registry in registries for name, v in registry.items())
 
 
 def entries() -> tuple[KeyEntry, ...]:
@@ -515,6 +531,7 @@ def entries() -> tuple[KeyEntry, ...]:
         _blocks(out)
         _elements(out)
         _free_form(out)
+        _studies(out)
         seen: dict[str, KeyEntry] = {}
         for e in out:
             seen.setdefault(e.path, e)

@@ -8,27 +8,34 @@ error = "max"             # "max": largest error over the span; "end": at the fi
 quantity = "y"            # the state or output measured (default: the first output, else state)
 ```
 
-The curves are the values of the other swept keys (usually ``solver.method``). The numbers
-come from :mod:`odelab.analysis.studies`; this module only gathers them from the results.
+The curves are the values of the other swept keys (usually ``solver.method``). What each kind
+computes and shows is its class in :mod:`odelab.experiment.studykinds` (the registry
+``STUDY_KINDS``); this module checks the table and gathers the numbers from the results.
 """
 
 from __future__ import annotations
 
 import difflib
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from odelab.exceptions import ExperimentError
+from odelab.experiment.studykinds import STUDY_KINDS
 from odelab.experiment.sweep import format_value
 
-__all__ = ["STUDY_KINDS", "StudySpec", "parse_study", "run_study", "sweep_rows"]
+__all__ = ["STUDY_KINDS", "StudySpec", "parse_study", "run_study", "sweep_rows", "study_keys"]
 
-STUDY_KINDS = ("convergence", "work-precision")
-_STUDY_KEYS = ("kind", "over", "error", "quantity")
+_COMMON_KEYS = ("kind", "over", "error", "quantity")
+
+
+def study_keys() -> tuple[str, ...]:
+    """Every key [study] knows: the common ones, then each registered kind's own."""
+    own = [k for kind in STUDY_KINDS.values() for k in kind.KEYS]
+    return _COMMON_KEYS + tuple(dict.fromkeys(own))
 
 
 @dataclass(frozen=True)
@@ -37,29 +44,35 @@ class StudySpec:
     over: str
     error: str
     quantity: str
+    options: dict[str, Any] = field(default_factory=dict, compare=False)  # the kind's own keys
 
-    def as_dict(self) -> dict[str, str]:
-        return {"kind": self.kind, "over": self.over, "error": self.error, "quantity": self.quantity}
+    def as_dict(self) -> dict[str, Any]:
+        return {"kind": self.kind, "over": self.over, "error": self.error, "quantity": self.quantity, **self.options}
 
 
 def parse_study(spec: Any, sweep, cases) -> StudySpec:
     """Check ``[study]`` against the sweep and the loaded cases."""
+    names = " or ".join(f'"{name}"' for name in STUDY_KINDS)
     if not isinstance(spec, dict):
-        raise ExperimentError("`study` must be a table: [study] with kind = \"convergence\" or "
-                              "\"work-precision\".", key="study")
+        raise ExperimentError(f"`study` must be a table: [study] with kind = {names}.", key="study")
+    known = study_keys()
     for key in spec:
-        if key not in _STUDY_KEYS:
-            close = difflib.get_close_matches(key, _STUDY_KEYS, n=1)
+        if key not in known:
+            close = difflib.get_close_matches(key, known, n=1)
             hint = f" Did you mean `{close[0]}`?" if close else ""
-            raise ExperimentError(f"unknown key `study.{key}`.{hint} Known keys in [study]: {', '.join(_STUDY_KEYS)}.",
+            raise ExperimentError(f"unknown key `study.{key}`.{hint} Known keys in [study]: {', '.join(known)}.",
                                   key=f"study.{key}")
     kind = spec.get("kind")
     if kind not in STUDY_KINDS:
-        raise ExperimentError(f"`study.kind` is {kind!r}; it must be \"convergence\" (error against step size or "
-                              "tolerance) or \"work-precision\" (error against cost).", key="study.kind")
+        choices = " or ".join(f'"{name}" ({k.DOC})' for name, k in STUDY_KINDS.items())
+        raise ExperimentError(f"`study.kind` is {kind!r}; it must be {choices}.", key="study.kind")
+    study_kind = STUDY_KINDS[kind]
+    foreign = [k for k in spec if k not in _COMMON_KEYS and k not in study_kind.KEYS]
+    if foreign:
+        raise ExperimentError(f"`study.{foreign[0]}` is not a key of a {kind} study; its keys: "
+                              f"{', '.join((*_COMMON_KEYS, *study_kind.KEYS))}.", key=f"study.{foreign[0]}")
     keys = sweep.keys
-    default = "solver.rtol" if kind == "work-precision" else ("solver.h" if "solver.h" in keys else "solver.rtol")
-    over = spec.get("over", default)
+    over = spec.get("over", study_kind.default_over(tuple(keys)))
     if over not in keys:
         swept = ", ".join(f'"{k}"' for k in keys)
         raise ExperimentError(f"`study.over` is {over!r}, but the sweep does not sweep it (it sweeps {swept}): "
@@ -68,7 +81,7 @@ def parse_study(spec: Any, sweep, cases) -> StudySpec:
     if any(isinstance(v, bool) or not isinstance(v, (int, float)) or v <= 0 for v in values):
         raise ExperimentError(f"`study.over` is {over!r}, whose swept values must be positive numbers for a log-log "
                               f"study; got {', '.join(format_value(v) for v in values)}.", key="study.over")
-    error = spec.get("error", "max" if kind == "convergence" else "end")
+    error = spec.get("error", study_kind.ERROR)
     if error not in ("max", "end"):
         raise ExperimentError(f"`study.error` is {error!r}; it must be \"max\" (the largest error over the span) "
                               "or \"end\" (the error at the final time).", key="study.error")
@@ -81,20 +94,9 @@ def parse_study(spec: Any, sweep, cases) -> StudySpec:
     if problem.reference == "none" and any(c.problem.reference == "none" for c in cases):
         raise ExperimentError("a study measures errors, but the experiment has no reference: add [exact], or "
                               "[reference] method = \"high-accuracy\".", key="study")
-    from odelab.solvers.registry import get_method
-
-    wanted = "fixed" if over == "solver.h" else None
-    for case in cases:
-        method = get_method(case.problem.method)
-        if wanted == "fixed" and method.adaptive:
-            raise ExperimentError(f"`study.over` is \"solver.h\", a step-size sweep, but case {case.name!r} uses "
-                                  f"{method.name}, which chooses its own steps: sweep \"solver.rtol\" for adaptive "
-                                  "methods.", key="study.over")
-        if over != "solver.h" and not method.adaptive:
-            raise ExperimentError(f"`study.over` is {over!r}, but case {case.name!r} uses the fixed-step "
-                                  f"{method.name}, which has no tolerance: sweep \"solver.h\" for it.",
-                                  key="study.over")
-    return StudySpec(kind=kind, over=over, error=error, quantity=quantity)
+    study_kind.check_cases(over, cases)
+    options = {k: spec.get(k, default) for k, default in study_kind.KEYS.items()}
+    return StudySpec(kind=kind, over=over, error=error, quantity=quantity, options=options)
 
 
 def _end_errors(result) -> dict[str, float]:
@@ -200,10 +202,8 @@ def _curve_label(row: dict, over: str) -> str:
 
 
 def run_study(spec: StudySpec, rows: list[dict[str, Any]]) -> dict[str, Any]:
-    """The study's result (JSON-ready): one fit or curve per value of the other swept keys."""
-    from odelab.analysis.studies import convergence_order, work_precision
-    from odelab.solvers.registry import get_method
-
+    """The study's result (JSON-ready): one fit or curve per value of the other swept keys (its kind's)."""
+    kind = STUDY_KINDS[spec.kind]
     groups: dict[str, list[dict]] = {}
     for row in rows:
         groups.setdefault(_curve_label(row, spec.over), []).append(row)
@@ -214,25 +214,9 @@ def run_study(spec: StudySpec, rows: list[dict[str, Any]]) -> dict[str, Any]:
         x = [float(m["swept"][spec.over]) for m in members]
         err = [float(m[measure].get(spec.quantity, math.nan)) if m["status"] == "success" else math.nan
                for m in members]
-        if spec.kind == "convergence":
-            method = get_method(members[0]["method"])
-            nominal = float(method.order) if spec.over == "solver.h" else None
-            steps = [m["nsteps"] or 1 for m in members]
-            scale = max(float(m["scale"].get(spec.quantity, 1.0)) for m in members)
-            quadrature = None
-            if nominal is not None and method.tableau is not None and all(m.get("quadrature") for m in members):
-                from odelab.analysis.studies import quadrature_order, quadrature_rule
-
-                quadrature = (quadrature_order(method.tableau.b, method.tableau.c),
-                              quadrature_rule(method.tableau.b, method.tableau.c))
-            fit = convergence_order(x, err, nominal=nominal, label=label, steps=steps, scale=scale,
-                                    quadrature=quadrature)
-            curves.append({"method": method.name, **fit.as_dict()})
-            warnings.extend(fit.warnings)
-        else:
-            curve = work_precision(label, x, err, [m["nfevals"] for m in members],
-                                   [m["elapsed_s"] for m in members])
-            curves.append({"method": members[0]["method"], **curve.as_dict()})
+        curve, notes = kind.curve(spec, label, x, err, members)
+        curves.append(curve)
+        warnings.extend(notes)
     return {**spec.as_dict(), "curves": curves, "warnings": warnings}
 
 

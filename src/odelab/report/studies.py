@@ -1,10 +1,8 @@
 """The report's sections for sweeps and studies, read from ``runs/<experiment>/sweep.json``.
 
-- a convergence study: error against h on log-log axes per problem, each method's points with
-  its fitted line C h^p drawn dashed, the points left out of the fit as crosses, and a table
-  of observed against nominal orders;
-- a work-precision study: error against function evaluations and against time, one curve
-  per method;
+- a study: its kind's section (:mod:`odelab.experiment.studykinds`), e.g. a convergence study's
+  error against h on log-log axes with each method's fitted C h^p, or a work-precision study's
+  error against function evaluations and time;
 - a sweep without a study: the quantity of interest (overshoot, peak, final value) against
   each swept number, one line per value of the other swept keys.
 
@@ -18,16 +16,18 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
-from odelab.report.plots import SERIES_COLORS, FigureSpec, Line, Panel, method_color
+from odelab.experiment.studykinds import MARKERS as _MARKERS
+from odelab.experiment.studykinds import STUDY_KINDS
+from odelab.experiment.studykinds import fmt_number as _g
+from odelab.experiment.studykinds import key_label as _label
+from odelab.report.plots import SERIES_COLORS, FigureSpec, Line, Panel
 
 __all__ = ["SWEEP_FORMAT", "StudySection", "collect_studies", "study_sections"]
 
 SWEEP_FORMAT = "odelab-sweep/1"
-_MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
 
 
 @dataclass(eq=False)
@@ -41,7 +41,7 @@ class StudySection:
     source: str
     file_sha256: str
     created: str
-    kind: str  # "convergence", "work-precision" or "sweep"
+    kind: str  # a study kind (odelab.experiment.studykinds.STUDY_KINDS) or "sweep"
     summary: str
     header: list[str]
     rows: list[list[str]]
@@ -70,93 +70,6 @@ def collect_studies(runs: Path, experiments: list[str] | None = None) -> tuple[l
         if experiments is None or record["experiment"] in experiments:
             records.append(record)
     return records, warnings
-
-
-def _g(value: Any, digits: int = 4) -> str:
-    if value is None or (isinstance(value, float) and not math.isfinite(value)):
-        return "—"
-    if isinstance(value, (int, float)):
-        return f"{value:.{digits}g}"
-    return str(value)
-
-
-def _label(key: str) -> str:
-    return key.rsplit(".", 1)[-1]
-
-
-def _curve_color(label: str, method: str, i: int) -> str:
-    return method_color(label) if label == method else SERIES_COLORS[i % len(SERIES_COLORS)]
-
-
-def _convergence(record: dict, study: dict, section: StudySection) -> None:
-    over = _label(study["over"])
-    what = "largest error over the span" if study["error"] == "max" else "error at the final time"
-    section.summary = (f"Global error of {study['quantity']} ({what}) against {over}, and the observed order: the "
-                       f"least-squares slope of log error on log {over}. Points left out of the fit (crosses) are "
-                       "spoiled by round-off or by steps too large for the asymptotic regime.")
-    section.header = ["method", f"{over} from", f"{over} to", "points fitted", "observed order", "nominal order",
-                      "observed − nominal"]
-    lines = []
-    for i, c in enumerate(study["curves"]):
-        h = np.asarray(c["h"], dtype=float)
-        err = np.array([np.nan if e is None else e for e in c["error"]], dtype=float)
-        used = np.array([not why for why in c["excluded"]])
-        order, nominal = c["order"], c["nominal"]
-        color = _curve_color(c["label"], c["method"], i)
-        marker = _MARKERS[i % len(_MARKERS)]
-        fitted = order is not None and math.isfinite(order)
-        name = f"{c['label']}: slope {order:.2f}" if fitted else f"{c['label']}: no fit"
-        lines.append(Line(h[used], err[used], name, color, linestyle="none", marker=marker, markersize=5))
-        if np.any(~used):
-            lines.append(Line(h[~used], err[~used], "_left out", color, linestyle="none", marker="x", markersize=6))
-        if fitted and np.count_nonzero(used) >= 2:
-            hs = np.array([h[used].min(), h[used].max()])
-            lines.append(Line(hs, 10.0 ** (c["intercept"] + order * np.log10(hs)), "_fit", color, linestyle="--",
-                              linewidth=1.0))
-        diff = order - nominal if fitted and nominal is not None else None
-        section.rows.append([c["label"], _g(min(h)), _g(max(h)), f"{int(used.sum())} of {h.size}",
-                             (f"{order:.3f} ({c['note']})" if c.get("note") else f"{order:.3f}") if fitted else "—",
-                             "—" if nominal is None else f"{nominal:g}",
-                             "—" if diff is None else f"{diff:+.3f}"])
-    panel = Panel(title=record.get("title") or record["experiment"], xlabel=f"{over} (log)",
-                  ylabel=f"{study['quantity']} error (log)", lines=tuple(lines), xscale="log", yscale="log",
-                  legend_outside=True, decades=16)  # every point down to round-off
-    section.figures.append(FigureSpec(
-        name=f"{section.anchor}-convergence", panels=(panel,), panel_height=3.0,
-        caption=f"Convergence: {what} of {study['quantity']} against {over}, log-log; dashed: the fitted C {over}^p, "
-                "crosses: points left out of the fit.",
-        alt=f"log-log plot of the error against {over} for " + ", ".join(c["label"] for c in study["curves"])))
-
-
-def _work_precision(record: dict, study: dict, section: StudySection) -> None:
-    what = "largest error over the span" if study["error"] == "max" else "error at the final time"
-    section.summary = (f"Work-precision: the {what} of {study['quantity']} against the work it cost, over a "
-                       f"sweep of {_label(study['over'])}. Lower left is better: the same accuracy for less work.")
-    section.header = ["method", "loosest: error", "fevals", "tightest: error", "fevals", "time (s)",
-                      "fevals ×10 per digit"]
-    fev_lines, time_lines = [], []
-    for i, c in enumerate(study["curves"]):
-        err = np.array([np.nan if e is None else e for e in c["error"]], dtype=float)
-        fev = np.asarray(c["nfevals"], dtype=float)
-        sec = np.asarray(c["seconds"], dtype=float)
-        color = _curve_color(c["label"], c["method"], i)
-        marker = _MARKERS[i % len(_MARKERS)]
-        fev_lines.append(Line(err, fev, c["label"], color, marker=marker))
-        time_lines.append(Line(err, sec, c["label"], color, marker=marker))
-        slope = c.get("slope")
-        section.rows.append([c["label"], _g(err[0], 3), _g(fev[0], 6), _g(err[-1], 3), _g(fev[-1], 6),
-                             _g(float(np.nansum(sec)), 3),
-                             "—" if slope is None or not math.isfinite(slope) else f"×{10 ** slope:.2f}"])
-    title = record.get("title") or record["experiment"]
-    section.figures.append(FigureSpec(
-        name=f"{section.anchor}-work-precision", columns=2, panel_height=2.6,
-        panels=(Panel(title="function evaluations", xlabel=f"{study['quantity']} error (log)",
-                      ylabel="function evaluations (log)", lines=tuple(fev_lines), xscale="log", yscale="log", decades=16),
-                Panel(title="time", xlabel=f"{study['quantity']} error (log)", ylabel="seconds (log)",
-                      lines=tuple(time_lines), xscale="log", yscale="log", decades=16)),
-        caption=f"{title}: {what} of {study['quantity']} against function evaluations (left) and time (right), "
-                "one curve per method, from loose to tight tolerances. Times of a few milliseconds are noisy.",
-        alt="work-precision diagram of " + ", ".join(c["label"] for c in study["curves"])))
 
 
 _METRICS = (("overshoot_percent", "overshoot (%)"), ("max", "peak"), ("final", "final value"))
@@ -234,10 +147,8 @@ def study_sections(records: list[dict], taken: set[str]) -> tuple[list[StudySect
             created=str(record.get("created", "")), kind=study["kind"] if study else "sweep", summary="", header=[],
             rows=[], cases=len(rows), failed=sum(1 for r in rows if isinstance(r, dict) and r.get("status") != "success"))
         try:
-            if study and study["kind"] == "convergence":
-                _convergence(record, study, section)
-            elif study and study["kind"] == "work-precision":
-                _work_precision(record, study, section)
+            if study and study["kind"] in STUDY_KINDS:  # each kind draws its section (experiment/studykinds.py)
+                STUDY_KINDS[study["kind"]].draw(record, study, section)
             else:
                 _parameter_sweep(record, section)
         except (KeyError, TypeError, ValueError, IndexError) as exc:
