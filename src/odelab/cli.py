@@ -15,6 +15,7 @@ from typing import Annotated, Optional
 import typer
 
 from odelab import __version__
+from odelab.experiment.runfiles import error_text, expand_paths
 
 app = typer.Typer(
     name="odelab",
@@ -76,30 +77,7 @@ def _consoles():
     return out, Console(stderr=True, highlight=False, soft_wrap=True, emoji=False)
 
 
-def _error_text(exc) -> str:
-    """One or two lines: file, key, what is wrong, how to fix it."""
-    text = str(exc)
-    if getattr(exc, "key", None) and f"`{exc.key}`" not in text and exc.key not in text:
-        prefix = f"{exc.source}: " if getattr(exc, "source", None) else ""
-        text = prefix + f"`{exc.key}`: " + text[len(prefix):]
-    return text
-
-
-def expand_paths(paths: list[Path]) -> tuple[list[Path], list[tuple[Path, str]]]:
-    """Files to run: files as given, folders' *.toml files; missing paths are reported."""
-    files: list[Path] = []
-    problems: list[tuple[Path, str]] = []
-    for path in paths:
-        if path.is_dir():
-            found = sorted(p for p in path.glob("*.toml") if p.is_file())
-            if not found:
-                problems.append((path, "is a folder with no *.toml experiment files in it."))
-            files.extend(found)
-        elif path.exists():
-            files.append(path)
-        else:
-            problems.append((path, "no such file or folder; check the path."))
-    return files, problems
+_error_text = error_text  # the core's one-line form of an error (odelab.experiment.runfiles)
 
 
 @app.command(cls=_Command)
@@ -135,10 +113,8 @@ def run(
 
     _one_blas_thread()  # before numpy's import
 
-    from odelab.exceptions import InputError
     from odelab.experiment.executors import EXECUTORS
-    from odelab.experiment.loader import load_experiments
-    from odelab.experiment.naming import check_experiment_names
+    from odelab.experiment.runfiles import RunConfig, run_files
 
     # Everything worth saying (RelTol raised, equilibrium residuals...) reaches the user as a
     # note in the output; Python's own warning lines would only repeat it.
@@ -155,47 +131,9 @@ def run(
     if scheduler and executor != "dask":
         err.print("[bold red]error:[/] `--scheduler` is the address of a Dask scheduler: add `--executor dask`.")
         raise typer.Exit(EXIT_INPUT)
-    files, problems = expand_paths(paths)
-    bad = [f"{p}: {why}" for p, why in problems]
-    loaded = []
-    for file in files:
-        try:
-            loaded.extend(load_experiments(file, limits=limits))
-        except InputError as exc:
-            bad.append(_error_text(exc))
-    for exp, exc in check_experiment_names(loaded):  # two files that would share a results folder
-        loaded.remove(exp)
-        bad.append(_error_text(exc))
-    if any(e.fit is not None for e in loaded) or validate_with is not None:
-        loaded = _fit_all(loaded, bad, validate_with)
-    for line in bad:
-        err.print(f"[bold red]error:[/] {_escape(line)}")
-
-    total = sum(len(e.cases) for e in loaded)
-    with _interruptible(err, total) as done:
-        return _run_all(loaded, bad, out, err, runs=runs, json_out=json_out, table=table or trajectories, mat=mat,
-                        max_steps=max_steps, store=store, total=total, done=done, backend=backend, jobs=jobs,
-                        executor=executor, scheduler=scheduler, limits=limits)
-
-
-def _fit_all(loaded, bad, validate_with):
-    """Estimate each experiment's [fit] before its cases run (they then run at the estimates)."""
-    from odelab.exceptions import InputError
-    from odelab.experiment.fit import fit_experiment
-
-    if validate_with is not None and not any(e.fit is not None for e in loaded):
-        bad.append(f"--validate-with {validate_with}: it checks a fitted model, and no experiment has a [fit].")
-        return loaded
-    out = []
-    for exp in loaded:
-        if exp.fit is None:
-            out.append(exp)
-            continue
-        try:
-            out.append(fit_experiment(exp, validate_with=str(validate_with) if validate_with else None))
-        except InputError as exc:
-            bad.append(_error_text(exc.located(source=str(exp.source))))
-    return out
+    config = RunConfig(runs=runs, store=store, mat=mat, max_steps=max_steps, limits=limits, backend=backend,
+                       jobs=jobs, executor=executor, scheduler=scheduler, validate_with=validate_with)
+    _draw_run(run_files(paths, config), out, err, runs=runs, json_out=json_out, table=table or trajectories)
 
 
 MAX_STEPS_HELP = ("Budget of steps per solve: an adaptive solve stops there, a fixed-step one over it is refused "
@@ -222,161 +160,88 @@ def _limits(max_steps: int, limit: list[str] | None, err):
     return limits
 
 
-class _Terminated(BaseException):
-    """SIGTERM, raised like KeyboardInterrupt so that cleanup (temporary files) runs."""
-
-
-@contextlib.contextmanager
-def _interruptible(err, total: int):
-    """Turn Ctrl-C and SIGTERM into a clean stop: finished cases stay stored, nothing half-written."""
+def _draw_run(run, out, err, *, runs, json_out: bool, table: bool) -> None:
+    """Draw a run's events (odelab.experiment.runfiles): errors, a progress bar, each experiment's tables or one
+    JSON document; Ctrl-C and SIGTERM stop it cleanly (finished cases stay stored, nothing half-written)."""
     import signal
 
+    from odelab.experiment.runfiles import Terminated
+
     def on_term(signum, frame):
-        raise _Terminated()
+        raise Terminated()
 
     previous = signal.signal(signal.SIGTERM, on_term)
-    done = [0]
+    events = iter(run)
     try:
-        yield done
-    except (KeyboardInterrupt, _Terminated) as exc:
+        code = _draw_events(events, out, err, runs=runs, json_out=json_out, table=table)
+    except (KeyboardInterrupt, Terminated) as exc:
+        try:  # an interrupt between two events: the run stores what finished all the same
+            events.throw(exc)
+        except (KeyboardInterrupt, Terminated):
+            pass
+        total = run.total
         what = "interrupted" if isinstance(exc, KeyboardInterrupt) else "terminated"
-        err.print(f"[bold red]{what}:[/] {done[0]} of {total} case{'s' if total != 1 else ''} finished and stored; "
-                  "the case that was running was not stored.")
+        err.print(f"[bold red]{what}:[/] {run.finished} of {total} case{'s' if total != 1 else ''} finished and "
+                  "stored; the case that was running was not stored.")
         raise typer.Exit(130 if isinstance(exc, KeyboardInterrupt) else 143) from None
     finally:
         signal.signal(signal.SIGTERM, previous)
+    raise typer.Exit(code)
 
 
-def _run_all(loaded, bad, out, err, *, runs, json_out, table, mat, max_steps, store, total, done, jobs, executor,
-             scheduler, backend=None, limits=None) -> None:
-    from odelab.exceptions import InputError
-    from odelab.experiment.executors import CaseError, run_cases
+def _draw_events(events, out, err, *, runs, json_out: bool, table: bool) -> int:
+    """The exit code, after drawing every event."""
+    from odelab.experiment import runfiles as rf
 
     report_json = {"experiments": []}
-    any_failed = False
-    stored = 0
-    cases = [case for exp in loaded for case in exp.cases]
-    state = {"progress": None, "failed": 0}
-
-    def on_done(finished, failed):
-        state["failed"] = failed
-        if state["progress"] is not None:
-            state["progress"].update(state["task"], completed=finished, failed=failed)
-
-    # Each case is stored the moment it finishes, whichever process ran it, so that a killed run
-    # keeps what it finished: its folder, or (a sweep storing only its table) the sweep's table
-    # of the cases finished so far, rewritten at a pace that keeps its cost small.
-    from odelab.experiment.store import Pace
-
-    by_key = {(str(e.source), e.name): e for e in loaded}
-    partial: dict[tuple, list] = {}
-    pace = Pace()
-    stored_now: set[tuple] = set()
-
-    def on_result(result):
-        if isinstance(result, CaseError):
-            return
-        key = (str(result.case.source), result.case.experiment)
-        exp = by_key[key]
-        if store and (exp.sweep is None or exp.sweep.store == "all"):
-            _store(result, runs, mat, err)
-        elif store:
-            partial.setdefault(key, []).append(result)
-            if pace.due(key) and len(partial[key]) < len(exp.cases):  # the last: written in full below
-                with pace.timed(key):
-                    _store_sweep(exp, sorted(partial[key], key=lambda r: r.case.index), runs, err)
-        stored_now.add(_case_key(result.case))
-        done[0] += 1
-
-    _prepare_references(cases, max_steps, err)  # in this process, before a pool forks (the workers inherit them)
-    try:  # a process pool forks its workers here, before the progress bar starts its thread
-        stream = run_cases(cases, executor=executor, jobs=jobs, scheduler=scheduler, max_steps=max_steps or None,
-                           on_done=on_done, backend=backend, on_result=on_result, limits=limits)
-        iterator = iter(stream)
-    except InputError as exc:
-        err.print(f"[bold red]error:[/] {_escape(_error_text(exc))}")
-        raise typer.Exit(EXIT_INPUT) from None
-    with _progress(err, shown=total >= 2 and err.is_terminal) as progress:
-        state["progress"], state["task"] = progress, progress.add_task("running", total=total, failed=0)
-        for exp in loaded:
-            progress.update(state["task"], description=_escape(exp.name))
-            results = []
-            try:
-                for case in exp.cases:
-                    try:
-                        result = next(iterator)
-                    except InputError as exc:  # a Dask scheduler that cannot be reached
-                        err.print(f"[bold red]error:[/] {_escape(_error_text(exc))}")
-                        raise typer.Exit(EXIT_INPUT) from None
-                    if isinstance(result, CaseError):  # found only when running, e.g. no equilibrium for an input
-                        message = _error_text(result.error.located(source=str(case.source)))
-                        bad.append(message)
-                        err.print(f"[bold red]error:[/] {_escape(message)} (case {_escape(repr(case.name))})")
-                        continue
-                    results.append(result)
-                    any_failed |= result.unexpected_failure or result.extra.get("fit", {}).get("status") == "failed"
-            except (KeyboardInterrupt, _Terminated) as exc:
-                if store:  # what finished: this experiment's cases so far, and any a pool finished out of order
-                    done[0] += _store_interrupted(loaded, exp, results, getattr(exc, "finished", ()), runs, mat,
-                                                  err, stored_now)
-                raise
-            if store and exp.sweep is not None and results:
-                _store_sweep(exp, results, runs, err)
-            if json_out:
-                from odelab.experiment.store import summary
-
-                report_json["experiments"].append({
-                    "name": exp.name, "title": exp.title, "file": str(exp.source),
-                    "cases": [{"name": r.case.name, **summary(r), **(_trajectory(r) if table else {})}
-                              for r in results]})
-            elif results:
-                from odelab.experiment.display import print_experiment
-
-                print_experiment(out, exp, results, table=table)
-            stored += len(results) if store else 0
+    progress = task = None
+    with contextlib.ExitStack() as stack:
+        for event in events:
+            if isinstance(event, rf.FileError):
+                where = f" (case {_escape(repr(event.case))})" if event.case is not None else ""
+                err.print(f"[bold red]error:[/] {_escape(event.message)}{where}")
+            elif isinstance(event, rf.Fatal):
+                err.print(f"[bold red]error:[/] {_escape(event.message)}")
+                return EXIT_INPUT
+            elif isinstance(event, rf.References):
+                _prepare_references(event, err)
+            elif isinstance(event, rf.Started):
+                progress = stack.enter_context(_progress(err, shown=event.total >= 2 and err.is_terminal))
+                task = progress.add_task("running", total=event.total, failed=0)
+            elif isinstance(event, rf.ExperimentStarted):
+                progress.update(task, description=_escape(event.experiment.name))
+            elif isinstance(event, rf.CaseDone):
+                progress.update(task, completed=event.finished, failed=event.failed)
+            elif isinstance(event, rf.ExperimentDone):
+                _draw_experiment(event.experiment, event.results, out, report_json if json_out else None, table)
+            elif isinstance(event, rf.Finished):
+                finished = event
     if json_out:
         import json
 
-        if bad:
-            report_json["errors"] = bad
+        if finished.errors:
+            report_json["errors"] = list(finished.errors)
         sys.stdout.write(json.dumps(report_json, indent=2, allow_nan=False) + "\n")
-    elif stored:
+    elif finished.stored:
         out.print(f"results stored in {_escape(str(runs))}/")
-    raise typer.Exit(EXIT_INPUT if bad else EXIT_FAILED if any_failed else EXIT_OK)
+    return EXIT_INPUT if finished.errors else EXIT_FAILED if finished.any_failed else EXIT_OK
 
 
-def _store_interrupted(loaded, current, results, finished, runs, mat, err, stored_now=frozenset()) -> int:
-    """On Ctrl-C: store the sweep tables of what finished, and cases that finished while interrupted.
+def _draw_experiment(exp, results, out, report_json: dict | None, table: bool) -> None:
+    if report_json is not None:
+        from odelab.experiment.store import summary
 
-    ``finished``: the cases that finished but were not yet yielded in case order; those in
-    ``stored_now`` (by :func:`_case_key`) are stored already. Returns how many cases were stored here.
-    """
-    from odelab.experiment.executors import CaseError
+        report_json["experiments"].append({
+            "name": exp.name, "title": exp.title, "file": str(exp.source),
+            "cases": [{"name": r.case.name, **summary(r), **(_trajectory(r) if table else {})} for r in results]})
+    elif results:
+        from odelab.experiment.display import print_experiment
 
-    extra: dict[tuple[str, str], list] = {}
-    for r in finished:
-        if not isinstance(r, CaseError):
-            extra.setdefault((str(r.case.source), r.case.experiment), []).append(r)
-    count = 0
-    for exp in loaded:
-        late = extra.get((str(exp.source), exp.name), [])
-        fresh = [r for r in late if _case_key(r.case) not in stored_now]
-        if exp.sweep is None or exp.sweep.store == "all":
-            for r in fresh:
-                _store(r, runs, mat, err)
-        mine = (list(results) if exp is current else []) + late
-        if exp.sweep is not None and mine:  # the sweep's table of what finished, in case order
-            _store_sweep(exp, sorted(mine, key=lambda r: r.case.index), runs, err)
-        count += len(fresh)
-    return count
-
-
-def _case_key(case) -> tuple:
-    return str(case.source), case.experiment, case.index
+        print_experiment(out, exp, results, table=table)
 
 
 class _NoProgress:
-    """What ``_run_all`` asks of a progress bar, when none is shown (one case, or output not a terminal)."""
+    """What ``_draw_events`` asks of a progress bar, when none is shown (one case, or output not a terminal)."""
 
     def __enter__(self):
         return self
@@ -391,15 +256,11 @@ class _NoProgress:
         return None
 
 
-def _prepare_references(cases, max_steps, err) -> None:
-    """The high-accuracy references the cases share, computed once with a status line on stderr:
-    which solver (and why a stiff one), then how far it got, then done (see docs/guide/references.md)."""
-    if not any(c.problem.reference == "high-accuracy" for c in cases):
-        return
-    from odelab.experiment.reference import prepare
-
+def _prepare_references(event, err) -> None:
+    """The high-accuracy references the cases share, with a status line on stderr: which solver (and why a
+    stiff one), then how far it got, then done (see docs/guide/references.md)."""
     if not err.is_terminal:  # a log or a pipe: the case's notes say which solver and why
-        prepare(cases, max_steps or None)
+        event.prepare(None)
         return
     with err.status("", spinner="dots") as live:
         def line(text: str) -> None:
@@ -407,7 +268,7 @@ def _prepare_references(cases, max_steps, err) -> None:
                 err.print(f"[dim]{_escape(text)}[/]")
             live.update(_escape(text))
 
-        prepare(cases, max_steps or None, progress=line)
+        event.prepare(line)
 
 
 def _progress(err, *, shown: bool):
@@ -431,26 +292,6 @@ def _trajectory(result) -> dict:
         abs_err, rel_err = error_columns(columns[name], ref)
         columns.update({f"{name}_ref": ref, f"{name}_abs_err": abs_err, f"{name}_rel_err": rel_err})
     return {"trajectory": json_safe(columns)}
-
-
-def _store(result, runs, mat, err) -> None:
-    from odelab.experiment.store import write_case
-
-    try:
-        write_case(result, runs, mat=mat)
-    except OSError as exc:
-        err.print(f"[bold red]error:[/] cannot write results to {_escape(str(runs))}: {_escape(str(exc))}")
-        raise typer.Exit(EXIT_INPUT) from None
-
-
-def _store_sweep(exp, results, runs, err) -> None:
-    from odelab.experiment.study import write_sweep
-
-    try:
-        write_sweep(exp, results, runs)
-    except OSError as exc:
-        err.print(f"[bold red]error:[/] cannot write results to {_escape(str(runs))}: {_escape(str(exc))}")
-        raise typer.Exit(EXIT_INPUT) from None
 
 
 def _escape(text: str) -> str:
