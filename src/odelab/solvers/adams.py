@@ -53,7 +53,10 @@ MAX_ORDER = 12  # highest predictor order k; the corrector (local extrapolation)
 # data statement), used to estimate the errors at orders k-2 .. k+1.
 GSTAR = np.array([np.nan, 0.5, 0.0833, 0.0417, 0.0264, 0.0188, 0.0143, 0.0114, 0.00936, 0.00789, 0.00679,
                   0.00592, 0.00524, 0.00468])  # 1-based
-_NCOL = MAX_ORDER + 3  # phi columns 1 .. k+2 (1-based; column 0 unused)
+_accumulate = np.add.accumulate
+_max = np.maximum.reduce  # ndarray.max without its Python wrapper (the same value, NaN included)
+_GSTAR = GSTAR.tolist()  # the same numbers as Python floats (the loop's scalar arithmetic)
+_NCOL = MAX_ORDER + 3  # phi columns 1 .. k+2 (1-based; column 0 unused, always zero)
 
 
 def _inv_weight(y, threshold, norm_control):
@@ -65,7 +68,7 @@ def _inv_weight(y, threshold, norm_control):
 def _wnorm(v, invwt, norm_control) -> float:
     if norm_control:
         return float(np.linalg.norm(v)) * invwt
-    return float(np.abs(v * invwt).max())
+    return float(_max(np.abs(v * invwt)))
 
 
 def _interpolation_coefficients(hi: np.ndarray, psi: np.ndarray, ki: int):
@@ -204,9 +207,11 @@ class _Adams:
     the order ``k`` and the bookkeeping of which coefficients are still valid (``ns``)."""
 
     __slots__ = ("phi", "psi", "alpha", "beta", "sig", "v", "w", "g", "k", "klast", "hlast", "ns", "phase1",
-                 "g_order", "g_arr")
+                 "g_order", "g_arr", "anchor", "nonnegative")
 
-    def __init__(self, f0: np.ndarray, dtype):
+    def __init__(self, f0: np.ndarray, dtype, nonnegative=None):
+        self.nonnegative = nonnegative
+        self.anchor = (0.0, f0, 1)  # (t, y, k+1) of the last accepted step's interpolant
         self.phi = np.zeros((_NCOL, f0.size), dtype=dtype)
         self.phi[1] = f0
         self.psi = [0.0] * 14
@@ -282,7 +287,7 @@ class _Adams:
             self.g_arr = np.array(self.g[1:k + 1])
             self.g_order = k
         p = y + h * (self.g_arr @ phi[1:k + 1])
-        phi[1:k + 1] = np.cumsum(phi[k:0:-1], axis=0)[::-1]
+        phi[1:k + 1] = _accumulate(phi[k:0:-1], axis=0)[::-1]  # numpy.cumsum's sums, without its wrapper
         return p
 
     def errors(self, yp: np.ndarray, p: np.ndarray, h: float, absh: float, invwt, norm_control: bool):
@@ -294,18 +299,18 @@ class _Adams:
             temp3 = _wnorm(phikp1, invwt, True)
             nkm1 = _wnorm(phi[k] + phikp1, invwt, True) if k >= 2 else 0.0
             nkm2 = _wnorm(phi[k - 1] + phikp1, invwt, True) if k >= 3 else 0.0
-        else:  # the three weighted max norms in two array operations
-            temp3 = float(np.abs(phikp1 * invwt).max())
-            nkm2 = nkm1 = 0.0
-            if k >= 2:
-                lower = np.abs((phi[max(k - 1, 1):k + 1] + phikp1) * invwt).max(axis=1)
-                nkm1 = float(lower[-1])
-                if k >= 3:
-                    nkm2 = float(lower[0])
+        else:
+            # the three weighted max norms in one array operation: rows k-1, k and k+1 of phi
+            # (row k+1 is zero after the prediction, row 0 always) plus phikp1
+            nkm2, nkm1, temp3 = _max(np.abs((phi[k - 1:k + 2] + phikp1) * invwt), axis=1).tolist()
+            if k < 3:
+                nkm2 = 0.0
+                if k < 2:
+                    nkm1 = 0.0
         err = absh * (g[k] - g[k + 1]) * temp3
-        erk = absh * sig[k + 1] * GSTAR[k] * temp3
-        erkm1 = absh * sig[k] * GSTAR[k - 1] * nkm1 if k >= 2 else 0.0
-        erkm2 = absh * sig[k - 1] * GSTAR[k - 2] * nkm2 if k >= 3 else 0.0
+        erk = absh * sig[k + 1] * _GSTAR[k] * temp3
+        erkm1 = absh * sig[k] * _GSTAR[k - 1] * nkm1 if k >= 2 else 0.0
+        erkm2 = absh * sig[k - 1] * _GSTAR[k - 2] * nkm2 if k >= 3 else 0.0
         knew = k
         if k == 2 and erkm1 <= 0.5 * erk:
             knew = 1
@@ -326,8 +331,8 @@ class _Adams:
         k, phi = self.k, self.phi
         self.klast = k
         self.hlast = h
-        phi[k + 1] = yp - phi[1]
-        phi[k + 2] = phi[k + 1] - phi[k + 2]
+        np.subtract(yp, phi[1], out=phi[k + 1])
+        np.subtract(phi[k + 1], phi[k + 2], out=phi[k + 2])
         phi[1:k + 1] += phi[k + 1]
 
     def next_order(self, knew: int, erk: float, erkm1: float, absh: float, invwt, norm_control: bool) -> float:
@@ -342,7 +347,7 @@ class _Adams:
             self.k = k - 1
             return erkm1
         if k + 1 <= self.ns:
-            erkp1 = absh * GSTAR[k + 1] * _wnorm(self.phi[k + 2], invwt, norm_control)
+            erkp1 = absh * _GSTAR[k + 1] * _wnorm(self.phi[k + 2], invwt, norm_control)
             if k == 1:
                 if erkp1 < 0.5 * erk:
                     self.k = k + 1
@@ -354,6 +359,22 @@ class _Adams:
                 self.k = k + 1
                 return erkp1
         return erk
+
+    def value_at(self, tq: float) -> np.ndarray:
+        """The last accepted step's interpolant at one time (events)."""
+        t, y, ki = self.anchor
+        return ntrp113(np.array([tq]), t, y, self.phi[1:ki + 1], np.array(self.psi[1:ki]), ki, self.nonnegative)[0][0]
+
+    def values(self, times, rows) -> None:
+        """The interpolant at the vector-tspan entries inside the step, into ``rows``."""
+        t, y, ki = self.anchor
+        rows[...] = ntrp113(np.array(times), t, y, self.phi[1:ki + 1], np.array(self.psi[1:ki]), ki,
+                            self.nonnegative)[0]
+
+    def interior(self, times) -> np.ndarray:
+        """The interpolant at the step's interior Refine times."""
+        t, y, ki = self.anchor
+        return ntrp113(times, t, y, self.phi[1:ki + 1], np.array(self.psi[1:ki]), ki, self.nonnegative)[0]
 
     def next_step(self, absh: float, erk: float, rtol: float) -> float:
         """The step size for the next step: doubled in phase 1 or when the error at the new order
@@ -378,13 +399,16 @@ def _shrink_after_failure(absh: float, hmin: float, failed: int, knew: int, erk:
     return max(reduce * absh, hmin), knew
 
 
-def _dense_output(store, nonnegative, y_final) -> AdamsDenseOutput | None:
-    """The piecewise interpolant from the step records (t_ref, y_ref, order, phi, psi), returning
-    ``y_final`` (the output's last row) at its end."""
+def _dense_output(store, psi_rows, nonnegative, y_final) -> AdamsDenseOutput | None:
+    """The piecewise interpolant from the step records (t_ref, y_ref, order, phi) and each step's
+    spacings ``psi_rows``, returning ``y_final`` (the output's last row) at its end."""
     if not store.count:
         return None
-    t_ref, y_ref, order, phi, psi = store.fields
+    t_ref, y_ref, order, phi = store.fields
     order = order.astype(np.intp)
+    psi = np.ones((order.size, MAX_ORDER))  # unused entries 1
+    for i, row in enumerate(psi_rows):
+        psi[i, :len(row)] = row
     offsets = np.concatenate([[0], np.cumsum(order)[:-1]]).astype(np.intp)
     flat = np.concatenate([phi[i, :order[i]] for i in range(order.size)])
     return AdamsDenseOutput(t=store.t[:-1].copy(), t_end=store.t[1:].copy(), t_ref=t_ref, y_ref=y_ref,
@@ -411,11 +435,12 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
         absh = first_step(rh, abs(float(tspan[1]) - t0), hmax, t0)
     else:
         absh = given_step(htry, t0, hmax)
-    state = _Adams(f0, y0.dtype)
-    # each step's record: its polynomial's anchor (t, y), its order k+1, differences and spacings
-    fields = [((), float), ((n,), y0.dtype), ((), np.intp), ((MAX_ORDER + 1, n), y0.dtype), ((MAX_ORDER,), float)]
+    state = _Adams(f0, y0.dtype, nonnegative)
+    # each step's record: its polynomial's anchor (t, y), its order k+1 and differences phi_1 ..
+    # phi_13 (those beyond k+1 unused), and its spacings psi_1 .. psi_k (a list a step)
+    fields = [((), float), ((n,), y0.dtype), ((), np.intp), ((MAX_ORDER + 1, n), y0.dtype)]
     out = StepOutput(tspan, y0, refine, fields, events, v0, output_fcn)
-    add, psi_row = out.store.add, np.ones(MAX_ORDER)
+    add, psi_rows, per_step, phi_rows = out.store.add, [], out.per_step, state.phi[1:MAX_ORDER + 2]
     nsteps = nfailed = nfevals = 0
     status = success = Status.SUCCESS  # a local: the enum's attribute lookup costs more than a step's test
     exception = None
@@ -465,23 +490,16 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
             ki = state.k + 1  # this step's interpolant: phi_1 .. phi_{k+1} and psi_1 .. psi_k after it
             state.correct(yp, h)
             erk = state.next_order(knew, erk, erkm1, absh, invwt, norm_control)
-            step_phi = state.phi[1:ki + 1].copy()
-            step_psi = np.array(state.psi[1:ki])
+            state.anchor = (tnew, y, ki)
             t_end, y_end, stop = tnew, y, False
             if events is not None:
-                cut = out.locate(lambda tq: ntrp113(np.array([tq]), tnew, y, step_phi, step_psi, ki, nonnegative)[0][0],
-                                 tlast, ylast, tnew, y)
+                cut = out.locate(state.value_at, tlast, ylast, tnew, y)
                 if cut is not None:
                     (t_end, y_end), done, stop = cut, True, True
                     status = Status.TERMINAL_EVENT
-            psi_row[:] = 1.0  # unused entries 1
-            psi_row[:ki - 1] = step_psi
-            add(t_end, y_end, tnew, y, ki, np.pad(step_phi, ((0, MAX_ORDER + 1 - ki), (0, 0))), psi_row)
-            if out.per_step and out.emit(
-                    tlast, t_end, y_end, stop,
-                    lambda times, rows: rows.__setitem__(Ellipsis, ntrp113(np.array(times), tnew, y, step_phi,
-                                                                           step_psi, ki, nonnegative)[0]),
-                    lambda times: ntrp113(times, tnew, y, step_phi, step_psi, ki, nonnegative)[0]):
+            add(t_end, y_end, tnew, y, ki, phi_rows)
+            psi_rows.append(state.psi[1:ki])
+            if per_step and out.emit(tlast, t_end, y_end, stop, state.values, state.interior):
                 status = Status.OUTPUT_STOP
                 t = t_end
                 break
@@ -497,4 +515,4 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
         exception = exc
     t_arr, y_arr = out.finish()
     return DriverResult(t_arr, y_arr, nsteps, nfailed, nfevals, status, t, abs(h), exception, out.found,
-                        _dense_output(out.store, nonnegative, y_arr[-1]))
+                        _dense_output(out.store, psi_rows, nonnegative, y_arr[-1]))

@@ -135,7 +135,7 @@ class StepStore:
     them to the N steps taken (in place: no copy of a long run's arrays).
     """
 
-    __slots__ = ("t", "y", "fields", "count", "capacity", "add", "_first", "_second")
+    __slots__ = ("t", "y", "fields", "count", "capacity", "add", "_first", "_second", "_third", "_fourth")
 
     def __init__(self, t0: float, y0: np.ndarray, fields=()):
         capacity = FIRST_CAPACITY
@@ -148,11 +148,9 @@ class StepStore:
         self.capacity = capacity
         #: ``add(t_end, y_end, *rows)``: record one step, its end, its end state and one row of
         #: each field (a method chosen by the number of fields: a driver calls it every step)
-        self.add = (self._add0, self._add1, self._add2)[len(self.fields)] if len(self.fields) < 3 else self._addn
-        self._bind()
-
-    def _bind(self) -> None:
-        self._first, self._second = (self.fields + [None, None])[:2]
+        self.add = (self._add0, self._add1, self._add2, self._addn, self._add4)[len(self.fields)] \
+            if len(self.fields) <= 4 else self._addn
+        self._first, self._second, self._third, self._fourth = (self.fields + [None] * 4)[:4]
 
     def _add0(self, t_end: float, y_end: np.ndarray) -> None:
         k = self.count
@@ -177,6 +175,18 @@ class StepStore:
             self._grow()
         self._first[k] = row
         self._second[k] = second
+        self.count = k = k + 1
+        self.t[k] = t_end
+        self.y[k] = y_end
+
+    def _add4(self, t_end: float, y_end: np.ndarray, first, second, third, fourth) -> None:
+        k = self.count
+        if k == self.capacity:
+            self._grow()
+        self._first[k] = first
+        self._second[k] = second
+        self._third[k] = third
+        self._fourth[k] = fourth
         self.count = k = k + 1
         self.t[k] = t_end
         self.y[k] = y_end
