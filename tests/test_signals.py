@@ -382,3 +382,19 @@ class TestValidation:
         assert piece(0.5) == 2.0
         form = ExactForm.of(Piece(-math.inf, math.inf, (Term(1.0),))).scaled(3.0)
         assert form(np.array([0.0, 10.0])).tolist() == [3.0, 3.0]
+
+
+def test_input_jumps_are_the_left_limits_and_values_at_each_jump():
+    from odelab.signals import Pulse, Ramp, Sine, Step, input_jumps
+
+    step, ramp = Step(time=1.0, initial=2.0, final=-1.0), Ramp(slope=3.0, start=0.5)
+    j = input_jumps([step, ramp], 0.0, 3.0)  # the ramp's kink at 0.5 too: both points on its curve
+    assert j["t"] == [0.5, 1.0] and j["after"] == [[2.0, 0.0], [-1.0, 1.5]]
+    assert j["before"][0] == [2.0, 0.0] and j["before"][1][0] == 2.0
+    assert j["before"][1][1] == pytest.approx(1.5, abs=3 * 4 * np.finfo(float).eps)  # slope 3, one ulp earlier
+    assert input_jumps([Sine()], 0.0, 3.0) is None  # no breakpoints
+    assert input_jumps([step], 1.0, 3.0) is None  # a jump at t0 is the start, not inside the span
+    assert input_jumps([step], 3.0, 0.0) == {"t": [1.0], "before": [[2.0]], "after": [[-1.0]]}  # in increasing t
+    pulse = input_jumps([Pulse(amplitude=1.0, period=1.0, width=0.5)], 0.0, 2.1)
+    assert pulse["t"] == [0.5, 1.0, 1.5, 2.0]
+    assert [b + a for b, a in zip(pulse["before"], pulse["after"])] == [[1.0, 0.0], [0.0, 1.0]] * 2

@@ -70,6 +70,7 @@ __all__ = [
     "ExactForm",
     "as_signal",
     "as_signals",
+    "input_jumps",
 ]
 
 # A Pulse over a window with more edges than this is refused: its breakpoints and pieces
@@ -1329,3 +1330,23 @@ def as_signals(u: Any, inputs: Sequence[str]) -> tuple[Signal, ...]:
             key="u",
         )
     return (as_signal(u, name="u"),)
+
+
+#: At most this many jumps are recorded by :func:`input_jumps` (beyond, a plot of the sampled
+#: values is as good: the jumps are closer together than a figure's pixels).
+MAX_RECORDED_JUMPS = 2000
+
+
+def input_jumps(signals: Sequence[Signal], t0: float, tf: float) -> dict[str, list] | None:
+    """The inputs' breakpoints strictly inside the span (where u or u' may jump; increasing) with
+    every input's value just before and at each (its left limit, one ulp earlier, and its value),
+    so that a plot against t draws a step as a step however the output rows fall (at a kink both
+    points lie on the curve). None without breakpoints or with more than
+    :data:`MAX_RECORDED_JUMPS` of them."""
+    lo, hi = min(t0, tf), max(t0, tf)
+    cuts = np.unique(np.concatenate([np.empty(0), *(s.breakpoints(lo, hi) for s in signals)]))
+    if not cuts.size or cuts.size > MAX_RECORDED_JUMPS:
+        return None
+    before = [[float(s(float(np.nextafter(c, -math.inf)))) for s in signals] for c in cuts]
+    at = [[float(s(float(c))) for s in signals] for c in cuts]
+    return {"t": cuts.tolist(), "before": before, "after": at}

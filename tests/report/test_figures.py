@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from odelab.report.collect import collect_runs
@@ -113,3 +114,28 @@ def test_the_check_finds_a_cut_off_title():
         assert clipped_texts(fig) != []
     finally:
         plt.close(fig)
+
+
+def test_an_input_step_is_drawn_as_a_step_not_a_slope(sections):
+    # linearisation.toml's f steps 0 -> 1 (about-0) and 1 -> 2 (about-f1) at t = 1; ode45's last
+    # row before it is near t = 0.8, so drawn from the rows alone the step was a slope from there
+    spec = sections["linearisation"].solution_figure
+    inputs = [p for p in spec.panels if p.ylabel == "f (N)"]
+    assert len(inputs) == 2
+    for panel, (lo, hi) in zip(inputs, [(0.0, 1.0), (1.0, 2.0)]):
+        (line,) = panel.lines
+        t, u = np.asarray(line.x), np.asarray(line.y)
+        k = int(np.flatnonzero(t == 1.0)[0])
+        assert (u[k], u[k + 1]) == (lo, hi)  # the left limit, then the value at the jump
+        assert np.all(u[t < 1.0] == lo) and np.all(u[k + 1:] == hi)
+
+
+def test_input_jumps_are_inserted_where_the_rows_miss_them():
+    from odelab.report.figures import with_input_jumps
+
+    t, u = np.array([0.0, 0.8, 1.3, 2.0]), np.array([0.0, 0.0, 1.0, 1.0])
+    jumps = {"t": [1.0, 5.0], "before": [[9.0, 0.0], [9.0, 1.0]], "after": [[9.0, 1.0], [9.0, 0.0]]}
+    t2, u2 = with_input_jumps(t, u, jumps, 1)  # the second input's column; t = 5 is beyond the rows
+    assert t2.tolist() == [0.0, 0.8, 1.0, 1.0, 1.3, 2.0] and u2.tolist() == [0.0, 0.0, 0.0, 1.0, 1.0, 1.0]
+    for bad in (None, {}, {"t": [1.0], "before": [[0.0]], "after": [[1.0, 2.0]]}):  # absent, or not odelab's
+        assert with_input_jumps(t, u, bad, 0)[0] is t

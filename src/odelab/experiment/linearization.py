@@ -87,6 +87,7 @@ def run_linearization_case(case: Case, *, max_steps: int | None = None) -> CaseR
     result = CaseResult(case=case, status=cmp.status, message=cmp.message or nl.message, stats=nl.stats,
                         elapsed=time.perf_counter() - start, t=cmp.t, x=cmp.x_nonlinear, u=cmp.u,
                         y=cmp.y_nonlinear if p.outputs else None, warnings=notes)
+    result.record_input_jumps()
     result.reference_kind = "linearization"
     reference = {n: cmp.x_linear[:, i] for i, n in enumerate(p.states)}
     if p.outputs:

@@ -57,6 +57,19 @@ class CaseResult:
     def method(self) -> str:
         return self.case.problem.method
 
+    def record_input_jumps(self) -> None:
+        """``extra["input_jumps"]``: where the case's input signals jump, with their values just
+        before and at each (:func:`odelab.signals.input_jumps`), so that the report draws a step
+        as a step whatever rows the solver output."""
+        p = self.case.problem
+        if self.u is None or not p.signals:
+            return
+        from odelab.signals import input_jumps
+
+        jumps = input_jumps(p.signals, float(p.tspan[0]), float(p.tspan[-1]))
+        if jumps is not None:
+            self.extra["input_jumps"] = jumps
+
     def series(self) -> dict[str, np.ndarray]:
         """Every named column at the output times: states, inputs, outputs."""
         p = self.case.problem

@@ -111,6 +111,7 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
     warnings += shadowing_note(p.parameters)  # "parameter e shadows the constant e (2.718...)"
     result = CaseResult(case=case, status=status, message=message, stats=stats, elapsed=elapsed, t=t, x=x, u=u,
                         y=y, warnings=list(warnings), events=events, event_marks=marks, backend=ran)
+    result.record_input_jumps()
     if p.fit is not None:  # the experiment's [fit], estimated before its cases ran (experiment/fit.py)
         result.extra["fit"] = p.fit
     _reference(result, max_steps)

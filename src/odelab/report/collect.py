@@ -300,6 +300,7 @@ _NAMES = [str]
 _MATRIX = [[_NUM]]
 _COMPLEX = {"re": _NUM, "im": _NUM}
 _EXTRA_SHAPES = {
+    "input_jumps": {"t": [_NUM], "before": [[_NUM]], "after": [[_NUM]]},
     "diagram": {"linear": bool, "dot": str, "states": _NAMES, "inputs": _NAMES, "outputs": _NAMES, "A": _MATRIX,
                 "B": _MATRIX, "C": _MATRIX, "D": _MATRIX},
     "analysis": {

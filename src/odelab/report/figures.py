@@ -105,7 +105,29 @@ def _input_line(run: StoredRun, name: str) -> Line | None:
     u = run.column(name)
     if u is None or not run.t.size:
         return None
-    return _line(run.t, u, "input", INPUT, zorder=2, marker=False)
+    t, u = with_input_jumps(run.t, u, run.extra.get("input_jumps"), list(run.inputs).index(name)
+                            if name in run.inputs else None)
+    return _line(t, u, "input", INPUT, zorder=2, marker=False)
+
+
+def with_input_jumps(t: np.ndarray, u: np.ndarray, jumps: dict | None, column: int | None):
+    """The input's rows with its jumps drawn as steps: at each recorded jump time inside the
+    rows' span, its value just before and at the jump (``extra["input_jumps"]``), whatever rows
+    the solver output there (without them a step is drawn as a slope from the row before)."""
+    if not jumps or column is None or t.size < 2 or not t[-1] > t[0]:
+        return t, u
+    times, before, after = (np.asarray(jumps.get(k, []), dtype=float) for k in ("t", "before", "after"))
+    if (times.ndim != 1 or before.ndim != 2 or before.shape != after.shape or before.shape[0] != times.size
+            or column >= before.shape[1]):
+        return t, u
+    inside = (times > t[0]) & (times <= t[-1])
+    if not inside.any():
+        return t, u
+    times, lo, hi = times[inside], before[inside, column], after[inside, column]
+    at = np.searchsorted(t, times, side="left")  # before any row already at the jump time
+    t_out = np.insert(t.astype(float), np.repeat(at, 2), np.repeat(times, 2))
+    u_out = np.insert(np.asarray(u, dtype=float), np.repeat(at, 2), np.column_stack([lo, hi]).reshape(-1))
+    return t_out, u_out
 
 
 def _title(text: str) -> str:
