@@ -110,6 +110,19 @@ def test_a_sweep_over_e(tmp_path):
             assert len(times) == count
 
 
+def test_a_sweep_says_the_shadowing_once_not_once_a_case(tmp_path):
+    from typer.testing import CliRunner
+
+    from odelab.cli import app
+
+    path = tmp_path / "ball.toml"
+    path.write_text(BALL.read_text() + '\n[sweep]\n"parameters.e" = [0.5, 0.7, 0.8]\n')
+    out = CliRunner().invoke(app, ["run", str(path), "--runs", str(tmp_path / "runs")]).output
+    assert out.count("parameter e shadows the constant e") == 1
+    assert "every case: note: parameter e shadows the constant e (2.718281828459045)" in out
+    assert "e=0.5: note: the case stopped at t = 4.28351" in out  # a case's own note keeps its case
+
+
 def test_pi_shadowed_in_an_experiment(tmp_path):
     path = tmp_path / "pi.toml"
     path.write_text("""

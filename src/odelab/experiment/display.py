@@ -93,6 +93,11 @@ def print_experiment(console: Console, exp, results, *, table: bool = False) -> 
                              "beside it", "listed after the table") if marked else
                          HEADLINE_NOTE if peak else POINTWISE_NOTE) + "[/]")
     undefined = []
+    # a note every case has (a parameter shadowing a constant, a cache note) is said once, not once a case
+    shared = [w for w in results[0].warnings if len(results) > 1 and not w.startswith(UNDEFINED_NOTE)
+              and all(w in r.warnings for r in results[1:])]
+    for w in shared:
+        console.print(f"[yellow]every case: note: {_shown(w, lines=True)}[/]")
     for r in results:
         if r.status != "success":
             colour = "yellow" if r.expected_stop else "red"
@@ -102,7 +107,7 @@ def print_experiment(console: Console, exp, results, *, table: bool = False) -> 
             if w.startswith(UNDEFINED_NOTE):
                 counts = ", ".join(f"{n} {e.undefined}" for n, e in r.errors.items() if e.undefined)
                 undefined.append(f"{r.case.name}: {counts}")
-            else:
+            elif w not in shared:
                 console.print(f"[yellow]{_shown(r.case.name)}: note: {_shown(w, lines=True)}[/]")
     if undefined:
         console.print("[dim]relative error undefined (reference zero or tiny; left out of the maximum) at this many "
