@@ -26,9 +26,6 @@ MAX_FUNCTION_LINES = 150
 # Functions over MAX_FUNCTION_LINES that other rooms own and have not yet cut (name: reason).
 LONG_FUNCTIONS = {
     "odelab.solvers.compiled.kernels._adaptive": "core26: one kernel now (events optional); its blocks into njit helpers",
-    "odelab.solvers.implicit.ode15s.integrate_ode15s": "core26: one attempt loop for the implicit solvers",
-    "odelab.solvers.implicit.ode23t.integrate_ode23t": "core26: one attempt loop for the implicit solvers",
-    "odelab.solvers.numjac.numjac": "core26: solvers/",
 }
 
 

@@ -112,7 +112,18 @@ def numjac(fun, t: float, y, fty, thresh, fac=None, *, vectorized: bool = False,
     def f1(yv):
         return np.asarray(fun(t, yv), dtype=float).reshape(n)
 
-    # The increments: fac relative to max(|y|, thresh), grown where they vanish in y + del.
+    yscale, delta, positive = _increments(y, fty, thresh, fac)
+    if pattern is None:
+        diffs = _dense_differences(fun, f1, t, y, fty, delta, vectorized)
+    else:
+        diffs = _grouped_differences(fun, f1, t, y, fty, delta, vectorized, pattern, groups)
+    retries = _adapt_factors(f1, y, fty, yscale, positive, fac, diffs)
+    return NumjacResult(diffs.jacobian(), fac, diffs.nfevals + retries, diffs.nfcalls + retries)
+
+
+def _increments(y, fty, thresh, fac):
+    """``(yscale, delta, positive)``: the increments ``fac * max(|y|, thresh)`` signed as ``f``,
+    grown (``fac`` in place) where they vanish in ``y + del``."""
     yscale = np.maximum(np.abs(y), thresh)
     delta = (y + fac * yscale) - y
     for j in np.nonzero(delta == 0)[0]:
@@ -127,115 +138,146 @@ def numjac(fun, t: float, y, fty, thresh, fac=None, *, vectorized: bool = False,
                 break
     positive = fty >= 0
     delta = np.where(positive, np.abs(delta), -np.abs(delta))  # the way the solution moves
+    return yscale, delta, positive
 
-    cols = np.arange(n)
-    if pattern is None:
-        if vectorized:
-            Fdel = np.asarray(fun(t, y[:, None] + np.diag(delta)), dtype=float).reshape(n, n)
-            nfcalls = 1
-        else:
-            Fdel = np.empty((n, n))
-            for j in range(n):
-                yd = y.copy()
-                yd[j] += delta[j]
-                Fdel[:, j] = f1(yd)
-            nfcalls = n
-        nfevals = n
-        Fdiff = Fdel - fty[:, None]
-        J = Fdiff / delta
-        absdiff = np.abs(Fdiff)
-        rowmax = np.argmax(absdiff, axis=0) if n else np.zeros(0, dtype=int)
-        difmax = absdiff[rowmax, cols]
-        absFdel_rm = np.abs(Fdel[rowmax, cols])
-        rows = idx = None
-    else:
+
+@dataclass
+class _Differences:
+    """The columns' differences and, per column, the row of the largest (``rowmax``), its size
+    (``difmax``) and ``|f(y + del)|`` there (``absFdel_rm``). Dense: ``J``; grouped by a
+    pattern: the CSC ``values`` with ``rows`` and ``idx`` (indptr)."""
+
+    rowmax: np.ndarray
+    difmax: np.ndarray
+    absFdel_rm: np.ndarray
+    nfevals: int
+    nfcalls: int
+    J: np.ndarray | None = None
+    values: np.ndarray | None = None
+    rows: np.ndarray | None = None
+    idx: np.ndarray | None = None
+
+    def column(self, j):
+        """Column ``j``'s stored entries (a view: writing to it changes the Jacobian)."""
+        return self.J[:, j] if self.rows is None else self.values[self.idx[j]:self.idx[j + 1]]
+
+    def jacobian(self):
+        if self.rows is None:
+            return self.J
         from scipy import sparse
 
-        S = sparse.csc_matrix(pattern, dtype=bool)
-        S.eliminate_zeros()
-        if groups is None:
-            groups = column_groups(S)
-        ng = len(groups)
-        g = np.empty(n, dtype=int)
-        for i, members in enumerate(groups):
-            g[members] = i
-        Ydel = np.repeat(y[:, None], ng, axis=1)
-        Ydel[cols, g] += delta
-        if vectorized:
-            Fdel = np.asarray(fun(t, Ydel), dtype=float).reshape(n, ng)
-            nfcalls = 1
-        else:
-            Fdel = np.empty((n, ng))
-            for i in range(ng):
-                Fdel[:, i] = f1(Ydel[:, i])
-            nfcalls = ng
-        nfevals = ng
-        rows = S.indices.astype(int)
-        counts = np.diff(S.indptr)
-        colidx = np.repeat(cols, counts)
-        values = (Fdel[rows, g[colidx]] - fty[rows]) / delta[colidx]
-        absdiff = np.abs(values * delta[colidx])
-        rowmax = np.zeros(n, dtype=int)
-        difmax = np.zeros(n)
-        for j in np.nonzero(counts)[0]:
-            lo, hi = S.indptr[j], S.indptr[j + 1]
-            m = lo + int(np.argmax(absdiff[lo:hi]))
-            rowmax[j] = rows[m]
-            difmax[j] = absdiff[m]
-        absFdel_rm = np.abs(Fdel[rowmax, g])
-        idx = S.indptr
+        n = self.rowmax.size
+        return sparse.csc_matrix((self.values, self.rows, self.idx), shape=(n, n))
 
-    def column(j):
-        return J[:, j] if rows is None else values[idx[j]:idx[j + 1]]
 
-    # Adjust fac for the next call (and retry columns that may be round-off alone).
+def _dense_differences(fun, f1, t, y, fty, delta, vectorized) -> _Differences:
+    """One forward difference per column (or one vectorised call)."""
+    n = y.size
+    cols = np.arange(n)
+    if vectorized:
+        Fdel = np.asarray(fun(t, y[:, None] + np.diag(delta)), dtype=float).reshape(n, n)
+        nfcalls = 1
+    else:
+        Fdel = np.empty((n, n))
+        for j in range(n):
+            yd = y.copy()
+            yd[j] += delta[j]
+            Fdel[:, j] = f1(yd)
+        nfcalls = n
+    Fdiff = Fdel - fty[:, None]
+    absdiff = np.abs(Fdiff)
+    rowmax = np.argmax(absdiff, axis=0) if n else np.zeros(0, dtype=int)
+    return _Differences(rowmax, absdiff[rowmax, cols], np.abs(Fdel[rowmax, cols]), n, nfcalls, J=Fdiff / delta)
+
+
+def _grouped_differences(fun, f1, t, y, fty, delta, vectorized, pattern, groups) -> _Differences:
+    """Structurally orthogonal columns of ``pattern`` perturbed together: one difference a group."""
+    from scipy import sparse
+
+    n = y.size
+    cols = np.arange(n)
+    S = sparse.csc_matrix(pattern, dtype=bool)
+    S.eliminate_zeros()
+    if groups is None:
+        groups = column_groups(S)
+    ng = len(groups)
+    g = np.empty(n, dtype=int)
+    for i, members in enumerate(groups):
+        g[members] = i
+    Ydel = np.repeat(y[:, None], ng, axis=1)
+    Ydel[cols, g] += delta
+    if vectorized:
+        Fdel = np.asarray(fun(t, Ydel), dtype=float).reshape(n, ng)
+        nfcalls = 1
+    else:
+        Fdel = np.empty((n, ng))
+        for i in range(ng):
+            Fdel[:, i] = f1(Ydel[:, i])
+        nfcalls = ng
+    rows = S.indices.astype(int)
+    counts = np.diff(S.indptr)
+    colidx = np.repeat(cols, counts)
+    values = (Fdel[rows, g[colidx]] - fty[rows]) / delta[colidx]
+    absdiff = np.abs(values * delta[colidx])
+    rowmax = np.zeros(n, dtype=int)
+    difmax = np.zeros(n)
+    for j in np.nonzero(counts)[0]:
+        lo, hi = S.indptr[j], S.indptr[j + 1]
+        m = lo + int(np.argmax(absdiff[lo:hi]))
+        rowmax[j] = rows[m]
+        difmax[j] = absdiff[m]
+    return _Differences(rowmax, difmax, np.abs(Fdel[rowmax, g]), ng, nfcalls, values=values, rows=rows,
+                        idx=S.indptr)
+
+
+def _adapt_factors(f1, y, fty, yscale, positive, fac, diffs: _Differences) -> int:
+    """Adjust ``fac`` (in place) for the next call, retrying the columns that may be round-off
+    alone with ``sqrt(fac)``; returns the evaluations the retries took."""
+    rowmax, difmax, rows, idx = diffs.rowmax, diffs.difmax, diffs.rows, diffs.idx
+    cols = np.arange(y.size)
+    retries = 0
     absFty = np.abs(fty)
     absFty_rm = absFty[rowmax]
-    check = ((absFdel_rm != 0) & (absFty_rm != 0)) | (difmax == 0)
-    if check.any():
-        Fscale = np.maximum(absFdel_rm, absFty_rm)
-        tiny = difmax <= ROUNDOFF * Fscale
-        for k in np.nonzero(check & tiny)[0]:
-            tmpfac = min(math.sqrt(fac[k]), FAC_MAX)
-            d = (y[k] + tmpfac * yscale[k]) - y[k]
-            if tmpfac == fac[k] or d == 0:
-                continue
-            d = abs(d) if positive[k] else -abs(d)
-            yd = y.copy()
-            yd[k] += d
-            fdel = f1(yd)
-            nfevals += 1
-            nfcalls += 1
-            fdiff = fdel - fty
-            tmp = fdiff / d
-            if rows is not None:
-                tmp_rows = rows[idx[k]:idx[k + 1]]
-                tmp = tmp[tmp_rows]
-                fdiff_k = fdiff[tmp_rows]
+    check = ((diffs.absFdel_rm != 0) & (absFty_rm != 0)) | (difmax == 0)
+    if not check.any():
+        return retries
+    Fscale = np.maximum(diffs.absFdel_rm, absFty_rm)
+    tiny = difmax <= ROUNDOFF * Fscale
+    for k in np.nonzero(check & tiny)[0]:
+        tmpfac = min(math.sqrt(fac[k]), FAC_MAX)
+        d = (y[k] + tmpfac * yscale[k]) - y[k]
+        if tmpfac == fac[k] or d == 0:
+            continue
+        d = abs(d) if positive[k] else -abs(d)
+        yd = y.copy()
+        yd[k] += d
+        fdel = f1(yd)
+        retries += 1
+        fdiff = fdel - fty
+        tmp = fdiff / d
+        if rows is not None:
+            tmp_rows = rows[idx[k]:idx[k + 1]]
+            tmp = tmp[tmp_rows]
+            fdiff_k = fdiff[tmp_rows]
+        else:
+            tmp_rows = cols
+            fdiff_k = fdiff
+        if fdiff_k.size == 0:
+            continue
+        m = int(np.argmax(np.abs(fdiff_k)))
+        rowm, difm = int(tmp_rows[m]), float(abs(fdiff_k[m]))
+        old = diffs.column(k)
+        if tmpfac * float(np.max(np.abs(tmp))) >= (float(np.max(np.abs(old))) if old.size else 0.0):
+            old[:] = tmp  # the new difference is more significant: keep it
+            fscale = max(abs(fdel[rowm]), absFty[rowm])
+            if difm <= SMALL * fscale:
+                fac[k] = min(10.0 * tmpfac, FAC_MAX)
+            elif difm > LARGE * fscale:
+                fac[k] = max(0.1 * tmpfac, FAC_MIN)
             else:
-                tmp_rows = cols
-                fdiff_k = fdiff
-            if fdiff_k.size == 0:
-                continue
-            m = int(np.argmax(np.abs(fdiff_k)))
-            rowm, difm = int(tmp_rows[m]), float(abs(fdiff_k[m]))
-            old = column(k)
-            if tmpfac * float(np.max(np.abs(tmp))) >= (float(np.max(np.abs(old))) if old.size else 0.0):
-                old[:] = tmp  # the new difference is more significant: keep it
-                fscale = max(abs(fdel[rowm]), absFty[rowm])
-                if difm <= SMALL * fscale:
-                    fac[k] = min(10.0 * tmpfac, FAC_MAX)
-                elif difm > LARGE * fscale:
-                    fac[k] = max(0.1 * tmpfac, FAC_MIN)
-                else:
-                    fac[k] = tmpfac
-        grow = check & ~tiny & (difmax <= SMALL * Fscale)
-        fac[grow] = np.minimum(10.0 * fac[grow], FAC_MAX)
-        shrink = check & (difmax > LARGE * Fscale)
-        fac[shrink] = np.maximum(0.1 * fac[shrink], FAC_MIN)
-
-    if rows is not None:
-        from scipy import sparse
-
-        J = sparse.csc_matrix((values, rows, idx), shape=(n, n))
-    return NumjacResult(J, fac, nfevals, nfcalls)
+                fac[k] = tmpfac
+    grow = check & ~tiny & (difmax <= SMALL * Fscale)
+    fac[grow] = np.minimum(10.0 * fac[grow], FAC_MAX)
+    shrink = check & (difmax > LARGE * Fscale)
+    fac[shrink] = np.maximum(0.1 * fac[shrink], FAC_MIN)
+    return retries

@@ -26,8 +26,8 @@ import numpy as np
 
 from odelab.solvers.controller import first_step, given_step
 
-__all__ = ["Work", "Output", "NonNegative", "rms_or_max", "initial_step", "newton", "Newton", "QuadraticSteps",
-           "quadratic_through"]
+__all__ = ["Work", "Output", "NonNegative", "rms_or_max", "initial_step", "newton", "rate_test", "Newton",
+           "QuadraticSteps", "quadratic_through"]
 
 EPS = float(np.finfo(float).eps)
 SQRT_EPS = math.sqrt(EPS)
@@ -165,7 +165,8 @@ class Newton:
 MAX_NEWTON = 4
 
 
-def newton(work: "Work", lu, residual, z: np.ndarray, scale: float, wt: np.ndarray, rtol: float, memory: Newton):
+def newton(work: "Work", lu, residual, z: np.ndarray, scale: float, wt: np.ndarray, rtol: float, memory: Newton,
+           minnrm: float | None = None):
     """Solve ``residual(z) = 0`` by simplified Newton with the factorisation ``lu`` of its matrix.
 
     Each iteration is one evaluation (in ``residual``) and one linear solve:
@@ -176,36 +177,50 @@ def newton(work: "Work", lu, residual, z: np.ndarray, scale: float, wt: np.ndarr
     :data:`MAX_NEWTON` iterations, and the iteration is abandoned as soon as it diverges
     (``||dy||`` not shrinking by 0.9) or cannot converge in the iterations left.
 
-    Returns ``(z, converged)``; ``memory`` carries the rate to the next call.
+    Returns ``(z, converged)``; ``memory`` carries the rate to the next call. ``minnrm``: the
+    change below which the iteration has converged outright (default ``100 eps`` of the
+    starting guess's weighted size; ode15s measures it on the step's starting state).
     """
-    minnrm = 100 * EPS * float(np.max(np.abs(z) * abs(scale) / wt)) if z.size else 0.0
+    if minnrm is None:
+        minnrm = 100 * EPS * float(np.max(np.abs(z) * abs(scale) / wt)) if z.size else 0.0
     oldnrm = 0.0
     for it in range(1, MAX_NEWTON + 1):
         dz = work.solve(lu, residual(z))
         z = z + dz
         newnrm = abs(scale) * float(np.max(np.abs(dz) / wt))
-        if not math.isfinite(newnrm):
-            return z, False
-        if newnrm <= minnrm:
-            return z, True
-        if it == 1:
-            if memory.havrate:
-                if newnrm * memory.rate / (1 - memory.rate) <= 0.05 * rtol:
-                    return z, True
-            else:
-                memory.rate = 0.0
-        elif newnrm > 0.9 * oldnrm:
-            return z, False
-        else:
-            memory.rate = max(0.9 * memory.rate, newnrm / oldnrm)
-            memory.havrate = True
-            errit = newnrm * memory.rate / (1 - memory.rate)
-            if errit <= 0.5 * rtol:
-                return z, True
-            if it == MAX_NEWTON or 0.5 * rtol < errit * memory.rate ** (MAX_NEWTON - it):
-                return z, False
+        verdict = rate_test(it, newnrm, oldnrm, minnrm, memory, rtol, MAX_NEWTON)
+        if verdict is not None:
+            return z, verdict
         oldnrm = newnrm
     return z, False
+
+
+def rate_test(it: int, newnrm: float, oldnrm: float, minnrm: float, memory: Newton, rtol: float, max_iter: int):
+    """The convergence test of MATLAB's simplified Newton iterations after iteration ``it``
+    (Shampine & Reichelt 1997, Section 2.3), with ``newnrm`` the weighted size of its change:
+    True (converged), False (diverging, or it cannot converge in the iterations left) or None
+    (iterate again). ``memory`` keeps the observed rate for the next call."""
+    if not math.isfinite(newnrm):
+        return False
+    if newnrm <= minnrm:
+        return True
+    if it == 1:
+        if memory.havrate:
+            if newnrm * memory.rate / (1 - memory.rate) <= 0.05 * rtol:
+                return True
+        else:
+            memory.rate = 0.0
+        return None
+    if newnrm > 0.9 * oldnrm:
+        return False
+    memory.rate = max(0.9 * memory.rate, newnrm / oldnrm)
+    memory.havrate = True
+    errit = newnrm * memory.rate / (1 - memory.rate)
+    if errit <= 0.5 * rtol:
+        return True
+    if it == max_iter or 0.5 * rtol < errit * memory.rate ** (max_iter - it):
+        return False
+    return None
 
 
 def consistent_slope(work: "Work", t: float, y: np.ndarray, f0: np.ndarray, J) -> np.ndarray:

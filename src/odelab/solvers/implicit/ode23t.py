@@ -46,20 +46,19 @@ consistent, see :func:`~odelab.solvers.implicit.common.consistent_slope`).
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 
-from odelab.solvers.status import Status
-from odelab.solvers.controller import clamp_step, first_step, given_step, shrink, shrink_after_newton
-from odelab.solvers.implicit.common import (EPS, SQRT_EPS, Newton, NonNegative, Output, QuadraticSteps, Work,
-                                           consistent_slope, quadratic_through)
+from odelab.solvers.controller import first_step, given_step, shrink, shrink_after_newton
+from odelab.solvers.implicit.common import (EPS, SQRT_EPS, Newton, QuadraticSteps, Work, consistent_slope,
+                                           quadratic_through, rate_test)
+from odelab.solvers.implicit.driver import Stepper, integrate
 
-__all__ = ["integrate_ode23t", "predict", "local_error", "rings", "interpolant", "solve_z", "hermite_midpoint"]
+__all__ = ["integrate_ode23t", "TrapezoidalStep", "predict", "local_error", "rings", "interpolant", "solve_z",
+           "hermite_midpoint"]
 
 POWER = 1.0 / 3.0
 MAX_NEWTON = 5
-KAPPA = 0.5  # Newton converges to KAPPA * RelTol
 DAMPING_STEPS = 2  # BDF1 steps taken to damp a ringing component
 
 
@@ -139,28 +138,172 @@ def solve_z(work: Work, lu, tnew: float, ynew: np.ndarray, znew: np.ndarray, gam
         z = z + dz
         y = y + gamma * dz
         newnrm = float(np.max(np.abs(dz) / np.maximum(wt, np.abs(y)))) if y.size else 0.0
-        if not math.isfinite(newnrm):
-            return y, z, False
-        if newnrm <= minnrm:
-            return y, z, True
-        if it == 1:
-            if memory.havrate:
-                if newnrm * memory.rate / (1 - memory.rate) <= 0.1 * KAPPA * rtol:
-                    return y, z, True
-            else:
-                memory.rate = 0.0
-        elif newnrm > 0.9 * oldnrm:
-            return y, z, False
-        else:
-            memory.rate = max(0.9 * memory.rate, newnrm / oldnrm)
-            memory.havrate = True
-            errit = newnrm * memory.rate / (1 - memory.rate)
-            if errit <= KAPPA * rtol:
-                return y, z, True
-            if it == MAX_NEWTON or KAPPA * rtol < errit * memory.rate ** (MAX_NEWTON - it):
-                return y, z, False
+        verdict = rate_test(it, newnrm, oldnrm, minnrm, memory, rtol, MAX_NEWTON)  # to RelTol/2
+        if verdict is not None:
+            return y, z, verdict
         oldnrm = newnrm
     return y, z, False
+
+
+class TrapezoidalStep(Stepper):
+    """ode23t's own part of the step: ``z = h y'``, the last three accepted points (``history``:
+    prediction, error estimate, interpolant), whether the step is BDF1 (``bdf1``: the first
+    step, a restart, or damping a ringing component) or TR, and the LU of ``M - gamma h J``."""
+
+    refresh_clears_nofailed = True
+
+    def __init__(self, work: Work, tspan, rtol, atol, nonnegative=None):
+        super().__init__(work, tspan, rtol, atol, nonnegative)
+        self.steps = QuadraticSteps()
+        self.memory = Newton()
+        self.dae = False
+        if work.mass is not None:
+            M = work.M
+            self.Md = M.toarray() if hasattr(M, "toarray") else np.asarray(M)
+            self.dae = np.linalg.matrix_rank(self.Md) < work.n
+
+    def start(self, t, y, f0, hmax, htry):
+        work, rtol, tdir = self.work, self.rtol, self.tdir
+        self.hmax = hmax
+        self.J = work.jacobian(t, y, f0, self.atol)  # numjac's thresh is AbsTol, as in MATLAB
+        self.jcurrent = True
+        yp = consistent_slope(work, t, y, f0, self.J)
+        wt = np.maximum(np.abs(y), self.threshold)
+        self._bdf1(0)  # the first step is BDF1
+        self.ringing = False
+        if htry == htry:
+            absh = given_step(htry, t, hmax)
+        else:
+            rh = 1.43 * float(np.max(np.abs(yp) / wt)) / rtol ** self.power
+            absh = first_step(rh, self.htspan, hmax, t)
+            if not self.dae:
+                # BDF1's error is h^2 |y''| / 2 with y'' = f_t + J y' (one evaluation).
+                h = tdir * absh
+                tdel = (t + tdir * min(SQRT_EPS * max(abs(t), abs(t + h)), absh)) - t
+                ypp = (work.f(t + tdel, y) - f0) / tdel + (self.J @ yp)
+                if work.mass is not None:
+                    ypp = np.linalg.solve(self.Md, ypp)
+                rh = 1.43 * math.sqrt(0.5 * float(np.max(np.abs(ypp) / wt)) / rtol)
+                absh = first_step(rh, self.htspan, hmax, t)
+        self.z = tdir * absh * yp
+        self.history = [(t, y)]
+        self.lu = None
+        self.need_lu = True
+        return absh
+
+    def _bdf1(self, damping):
+        """Take BDF1 steps (``damping`` of them to damp a ringing component, else until TR resumes)."""
+        self.bdf1, self.gamma, self.power, self.damping = True, 1.0, 0.5, damping
+
+    def begin_step(self, t, y, absh_before, absh, done):
+        self.h = self.tf - t if done else self.tdir * absh
+        if absh != absh_before:
+            self.z = (absh / absh_before) * self.z
+            self.need_lu = True
+        self.itfailed = 0
+
+    def jacobian_changed(self):
+        self.need_lu = True
+
+    def _rescaled(self, absh_old, absh):
+        self.h = self.tdir * absh
+        self.z = (absh / absh_old) * self.z
+        self.need_lu = True
+        return absh
+
+    def attempt(self, t, y, absh, done):
+        work, history, z = self.work, self.history, self.z
+        self.wt = wt = np.maximum(np.abs(y), self.threshold)
+        if self.need_lu:
+            self.lu = work.factor(work.M - (self.gamma * self.h) * self.J)
+            self.memory.havrate = False
+            self.need_lu = False
+        tnew = self.tf if done else t + self.h
+        self.h = h = tnew - t
+        if self.bdf1 and len(history) < 3:
+            ynew, znew = y + z, z
+        elif self.bdf1:  # damping a ringing component: z carries its error, the values less
+            ynew = predict(history, tnew)
+            znew = ynew - y
+        else:
+            ynew = predict(history, tnew)
+            znew = 2.0 * (ynew - y) - z
+        ynew, znew, converged = solve_z(work, self.lu, tnew, ynew, znew, self.gamma, h, wt, self.rtol, self.memory)
+        if not converged:
+            self.itfailed += 1
+            return None
+        wt = np.maximum(wt, np.abs(ynew))
+        n = y.size
+        if self.bdf1:
+            err = float(np.max(np.abs(0.5 * (znew - z)) / wt)) if n else 0.0
+        else:
+            est = np.abs(local_error(history, tnew, ynew)) / wt
+            err = float(np.max(est)) if n else 0.0
+            self.ringing = err > 0.1 * self.rtol and rings(history, ynew, int(np.argmax(est)))
+        self.tnew, self.znew = tnew, znew
+        return ynew, err
+
+    def after_newton_failure(self, absh, hmin):
+        if self.itfailed == 3 and not self.bdf1:
+            # Restart with BDF1, sized from y'' (the last three values).
+            self._bdf1(self.damping)
+            ypp2 = _divided_difference(self.history[-3:])  # y''/2
+            e = float(np.max(np.abs(ypp2) / self.wt)) * absh * absh
+            q = math.sqrt(e / self.rtol)
+            ratio = self.hmax / absh
+            if 0.7 < q * ratio:
+                ratio = 0.7 / q
+            return self._rescaled(absh, max(ratio * absh, hmin))
+        return self._rescaled(absh, shrink_after_newton(absh, hmin))
+
+    def after_error_failure(self, absh, hmin, err, nfails, nofailed):
+        absh_new = shrink(absh, hmin, err, self.rtol, self.power, 0.1, 0.7, True)
+        if not self.bdf1 and self.ringing:
+            self._bdf1(DAMPING_STEPS)
+        return self._rescaled(absh, absh_new)
+
+    def accept(self, t, y, ynew):
+        tnew, h, znew, history = self.tnew, self.h, self.znew, self.history
+        ymid = hermite_midpoint(y, self.z, ynew, znew) if self.bdf1 else None
+        interp = self.steps.add(t, h, y, *interpolant(history, tnew, ynew, ymid))
+        if self.bdf1 and self.damping > 1:
+            self.history = [(tnew, ynew)]  # damped: the next BDF1 step starts afresh from here
+        elif self.bdf1:
+            # The point before the step is "generated" at its midpoint.
+            self.history = [(t, y), (t + 0.5 * h, ymid), (tnew, ynew)]
+        else:
+            self.history = history[-2:] + [(tnew, ynew)]
+        self.z = znew
+        return tnew, ynew, interp
+
+    def cut(self, t):
+        self.steps.cut(t)
+
+    def next_step(self, absh, err, nofailed):
+        if self.bdf1 and self.damping > 1:
+            self.damping -= 1
+        elif self.bdf1:
+            # From BDF1 to TR: doubling h keeps gamma h, and so the LU.
+            self.bdf1, self.gamma, self.power, self.damping = False, 0.5, POWER, 0
+            absh *= 2.0
+            self.z = 2.0 * self.z
+        elif self.ringing:
+            self._bdf1(DAMPING_STEPS)
+            self.need_lu = True
+        elif nofailed:
+            q = (err / self.rtol) ** self.power
+            ratio = self.hmax / absh
+            if 0.7 < q * ratio:
+                ratio = 0.7 / q
+            ratio = min(5.0, max(0.2, ratio))
+            if abs(ratio - 1.0) > 0.2:
+                absh *= ratio
+                self.z = ratio * self.z
+                self.need_lu = True
+        return absh
+
+    def dense(self, y_final):
+        return self.steps.dense(y_final, self.nn)
 
 
 def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, max_steps, events=None,
@@ -169,187 +312,6 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
 
     ``events``: ``(ev, v0)`` (MATLAB's Events), located on the step's quadratic interpolant (a
     terminal event cuts the step and its interpolant there); the events found are left in
-    ``work.found``."""
-    t0, tf = float(tspan[0]), float(tspan[-1])
-    tdir = 1.0 if tf > t0 else -1.0
-    threshold = atol / rtol
-    nn = None if nonnegative is None else NonNegative(nonnegative, threshold)
-    out = Output(tspan, y0, refine, events, nn)
-    steps = QuadraticSteps()
-    nsteps = nfailed = 0
-    status, exception = Status.SUCCESS, None
-    t, y = t0, y0.copy()
-    absh = 0.0
-    M = work.M
-    n = y0.size
-    dae = False
-    if work.mass is not None:
-        Md = M.toarray() if hasattr(M, "toarray") else np.asarray(M)
-        dae = np.linalg.matrix_rank(Md) < n
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # singular iteration matrices show as failed Newton iterations
-        try:
-            J = work.jacobian(t, y, f0, atol)  # numjac's thresh is AbsTol, as in MATLAB
-            Jcurrent = True
-            yp = consistent_slope(work, t, y, f0, J)
-            wt = np.maximum(np.abs(y), threshold)
-            start, gamma, power = True, 1.0, 0.5  # the first step is BDF1
-            damping = 0  # BDF1 steps left to damp a ringing component
-            ringing = False
-            if htry == htry:
-                absh = given_step(htry, t0, hmax)
-            else:
-                rh = 1.43 * float(np.max(np.abs(yp) / wt)) / rtol ** power
-                absh = first_step(rh, abs(float(tspan[1]) - t0), hmax, t0)
-                if not dae:
-                    # BDF1's error is h^2 |y''| / 2 with y'' = f_t + J y' (one evaluation).
-                    h = tdir * absh
-                    tdel = (t + tdir * min(SQRT_EPS * max(abs(t), abs(t + h)), absh)) - t
-                    ypp = (work.f(t + tdel, y) - f0) / tdel + (J @ yp)
-                    if work.mass is not None:
-                        ypp = np.linalg.solve(Md, ypp)
-                    rh = 1.43 * math.sqrt(0.5 * float(np.max(np.abs(ypp) / wt)) / rtol)
-                    absh = first_step(rh, abs(float(tspan[1]) - t0), hmax, t0)
-            z = tdir * absh * yp
-            history = [(t, y)]
-            memory = Newton()
-            lu = None
-            need_lu, need_j = True, False
-            done = False
-            err = 0.0
-            while not done:
-                absh_last = absh
-                hmin, absh, done = clamp_step(t, tf, absh, hmax)
-                h = tf - t if done else tdir * absh
-                if absh != absh_last:
-                    z = (absh / absh_last) * z
-                    need_lu = True
-                nofailed = True
-                itfailed = 0
-                while True:  # attempts at this step
-                    wt = np.maximum(np.abs(y), threshold)
-                    if need_j:
-                        J = work.jacobian(t, y, None, atol)
-                        Jcurrent, need_j, need_lu = True, False, True
-                    if need_lu:
-                        lu = work.factor(M - (gamma * h) * J)
-                        memory.havrate = False
-                        need_lu = False
-                    tnew = tf if done else t + h
-                    h = tnew - t
-                    if start and len(history) < 3:
-                        ynew, znew = y + z, z
-                    elif start:  # damping a ringing component: z carries its error, the values less
-                        ynew = predict(history, tnew)
-                        znew = ynew - y
-                    else:
-                        ynew = predict(history, tnew)
-                        znew = 2.0 * (ynew - y) - z
-                    ynew, znew, converged = solve_z(work, lu, tnew, ynew, znew, gamma, h, wt, rtol, memory)
-                    if not converged:
-                        nfailed += 1
-                        nofailed = False
-                        itfailed += 1
-                        if not Jcurrent:
-                            need_j = True
-                            continue
-                        if absh <= hmin:
-                            status = Status.STEP_UNDERFLOW
-                            break
-                        absh_last = absh
-                        if itfailed == 3 and not start:
-                            # Restart with BDF1, sized from y'' (the last three values).
-                            start, gamma, power = True, 1.0, 0.5
-                            ypp2 = _divided_difference(history[-3:])  # y''/2
-                            e = float(np.max(np.abs(ypp2) / wt)) * absh * absh
-                            q = math.sqrt(e / rtol)
-                            ratio = hmax / absh
-                            if 0.7 < q * ratio:
-                                ratio = 0.7 / q
-                            absh = max(ratio * absh, hmin)
-                        else:
-                            absh = shrink_after_newton(absh, hmin)
-                        h = tdir * absh
-                        z = (absh / absh_last) * z
-                        need_lu = True
-                        done = False
-                        continue
-                    wt = np.maximum(wt, np.abs(ynew))
-                    if start:
-                        err = float(np.max(np.abs(0.5 * (znew - z)) / wt)) if n else 0.0
-                    else:
-                        est = np.abs(local_error(history, tnew, ynew)) / wt
-                        err = float(np.max(est)) if n else 0.0
-                        ringing = err > 0.1 * rtol and rings(history, ynew, int(np.argmax(est)))
-                    if nn is not None:
-                        err = nn.error(err, ynew, rtol)
-                    if err > rtol:
-                        nfailed += 1
-                        if absh <= hmin:
-                            status = Status.STEP_UNDERFLOW
-                            break
-                        nofailed = False
-                        absh_last = absh
-                        absh = shrink(absh_last, hmin, err, rtol, power, 0.1, 0.7, True)
-                        if not start and ringing:
-                            start, gamma, power, damping = True, 1.0, 0.5, DAMPING_STEPS
-                        h = tdir * absh
-                        z = (absh / absh_last) * z
-                        need_lu = True
-                        done = False
-                        continue
-                    if err != err:
-                        status = Status.NONFINITE
-                    break
-                if status != Status.SUCCESS:
-                    break
-
-                nsteps += 1
-                if nn is not None:
-                    ynew = nn.clip(ynew)
-                ymid = hermite_midpoint(y, z, ynew, znew) if start else None
-                if out.step(t, tnew, ynew, steps.add(t, h, y, *interpolant(history, tnew, ynew, ymid))):
-                    t, y = out.t[-1], out.y[-1]
-                    steps.cut(t)
-                    status = Status.TERMINAL_EVENT
-                    break
-                if start and damping > 1:
-                    history = [(tnew, ynew)]  # damped: the next BDF1 step starts afresh from here
-                elif start:
-                    # The point before the step is "generated" at its midpoint.
-                    history = [(t, y), (t + 0.5 * h, ymid), (tnew, ynew)]
-                else:
-                    history = history[-2:] + [(tnew, ynew)]
-                t, y, z = tnew, ynew, znew
-                Jcurrent = False
-                if done:
-                    break
-                if max_steps and nsteps >= max_steps:
-                    status = Status.MAX_STEPS
-                    break
-                if start and damping > 1:
-                    damping -= 1
-                elif start:
-                    # From BDF1 to TR: doubling h keeps gamma h, and so the LU.
-                    start, gamma, power, damping = False, 0.5, POWER, 0
-                    absh *= 2.0
-                    z = 2.0 * z
-                elif ringing:
-                    start, gamma, power, damping = True, 1.0, 0.5, DAMPING_STEPS
-                    need_lu = True
-                elif nofailed:
-                    q = (err / rtol) ** power
-                    ratio = hmax / absh
-                    if 0.7 < q * ratio:
-                        ratio = 0.7 / q
-                    ratio = min(5.0, max(0.2, ratio))
-                    if abs(ratio - 1.0) > 0.2:
-                        absh *= ratio
-                        z = ratio * z
-                        need_lu = True
-        except Exception as exc:  # the user's right-hand side (or Jacobian) failed
-            status, exception = Status.FUN_RAISED, exc
-    t_out, y_out = out.arrays()
-    work.found = out.found()
-    work.dense = steps.dense(y, nn)
-    return t_out, y_out, nsteps, nfailed, status, t, absh, exception
+    ``work.found``. ``nonnegative``: the indices kept >= 0 (MATLAB's NonNegative), or None."""
+    stepper = TrapezoidalStep(work, tspan, rtol, atol, nonnegative)
+    return integrate(stepper, tspan, y0, f0, hmax, htry, refine, max_steps, events)

@@ -32,16 +32,14 @@ refreshes a stale Jacobian, or else cuts the step by 0.3, as in ode15s.
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 
-from odelab.solvers.status import Status
-from odelab.solvers.controller import clamp_step, grow, shrink, shrink_after_newton
-from odelab.solvers.implicit.common import (Newton, NonNegative, Output, QuadraticSteps, Work, initial_step, newton,
-                                           quadratic_through)
+from odelab.solvers.controller import grow, shrink, shrink_after_newton
+from odelab.solvers.implicit.common import Newton, QuadraticSteps, Work, initial_step, newton, quadratic_through
+from odelab.solvers.implicit.driver import Stepper, integrate
 
-__all__ = ["integrate_ode23tb", "trbdf2_attempt", "GAMMA", "D", "W", "B", "BHAT"]
+__all__ = ["integrate_ode23tb", "TRBDF2Step", "trbdf2_attempt", "GAMMA", "D", "W", "B", "BHAT"]
 
 GAMMA = 2.0 - math.sqrt(2.0)
 D = GAMMA / 2.0  # = (1 - gamma) / (2 - gamma): the same diagonal for both stages
@@ -83,102 +81,76 @@ def trbdf2_attempt(work: Work, lu, t: float, y: np.ndarray, z: np.ndarray, zslop
     return ynew, yg, znew, est, True
 
 
+class TRBDF2Step(Stepper):
+    """ode23tb's own part of the step: ``y'`` and ``y''`` at the step's start (FSAL; the first
+    stage's starting guess), the LU of ``M - d h J`` keyed on ``h``, and the accepted steps'
+    quadratics (output and ``deval``)."""
+
+    def __init__(self, work: Work, tspan, rtol, atol, nonnegative=None):
+        super().__init__(work, tspan, rtol, atol, nonnegative)
+        self.steps = QuadraticSteps()  # the quadratic through y_n, y_g, y_n+1: Refine, tspan output and deval
+        self.memory = Newton()
+        self.lu, self.lu_h = None, None
+
+    def start(self, t, y, f0, hmax, htry):
+        work = self.work
+        self.J = work.jacobian(t, y, f0, self.atol)  # numjac's thresh is AbsTol, as in MATLAB
+        self.jcurrent = True
+        M = work.M
+        self.yp = f0 if work.mass is None else np.linalg.solve(M.toarray() if hasattr(M, "toarray") else M, f0)
+        self.ypp = np.zeros_like(self.yp)  # y'' from the last step, for the first stage's starting guess
+        return initial_step(self.yp, y, self.threshold, self.rtol, POWER, hmax, self.htspan, t, htry)
+
+    def jacobian_changed(self):
+        self.lu = None
+
+    def attempt(self, t, y, absh, done):
+        work = self.work
+        tnew = self.tf if done else t + self.tdir * absh
+        h = tnew - t
+        if self.lu is None or self.lu_h != h:
+            self.lu = work.factor(work.M - (D * h) * self.J)
+            self.lu_h = h
+            self.memory.havrate = False
+        wt = np.maximum(np.abs(y), self.threshold)
+        ynew, yg, znew, est, converged = trbdf2_attempt(work, self.lu, t, y, h * self.yp, h * h * self.ypp, h, wt,
+                                                        self.rtol, self.memory)
+        if not converged:
+            return None
+        scale = np.maximum(np.maximum(np.abs(y), np.abs(ynew)), self.threshold)
+        self.tnew, self.h, self.yg, self.znew = tnew, h, yg, znew
+        return ynew, float(np.max(np.abs(est) / scale))
+
+    def after_newton_failure(self, absh, hmin):
+        return shrink_after_newton(absh, hmin)
+
+    def after_error_failure(self, absh, hmin, err, nfails, nofailed):
+        return shrink(absh, hmin, err, self.rtol, POWER, 0.5, 0.8, nofailed)
+
+    def accept(self, t, y, ynew):
+        h = self.h
+        interp = self.steps.add(t, h, y, *quadratic_through(GAMMA, y, self.yg, ynew))
+        ypnew = self.znew / h
+        self.ypp = (ypnew - self.yp) / h
+        self.yp = ypnew
+        return self.tnew, ynew, interp
+
+    def cut(self, t):
+        self.steps.cut(t)
+
+    def next_step(self, absh, err, nofailed):
+        return grow(absh, err, self.rtol, POWER, 1.25, 5.0) if nofailed else absh
+
+    def dense(self, y_final):
+        return self.steps.dense(y_final, self.nn)
+
+
 def integrate_ode23tb(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, max_steps, events=None,
                       nonnegative=None):
     """Integrate with ode23tb; returns ``(t, y, nsteps, nfailed, status, t_stop, h_stop, exc)``.
 
     ``events``: ``(ev, v0)`` (MATLAB's Events), located on the step's quadratic interpolant (a
     terminal event cuts the step and its interpolant there); the events found are left in
-    ``work.found``."""
-    t0, tf = float(tspan[0]), float(tspan[-1])
-    tdir = 1.0 if tf > t0 else -1.0
-    threshold = atol / rtol
-    nn = None if nonnegative is None else NonNegative(nonnegative, threshold)
-    out = Output(tspan, y0, refine, events, nn)
-    steps = QuadraticSteps()  # the quadratic through y_n, y_g, y_n+1: Refine, tspan output and deval
-    nsteps = nfailed = 0
-    status, exception = Status.SUCCESS, None
-    t, y = t0, y0.copy()
-    M = work.M
-    absh = 0.0
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # singular iteration matrices show as failed Newton iterations
-        try:
-            J = work.jacobian(t, y, f0, atol)  # numjac's thresh is AbsTol, as in MATLAB
-            Jcurrent = True
-            yp = f0 if work.mass is None else np.linalg.solve(M.toarray() if hasattr(M, "toarray") else M, f0)
-            absh = initial_step(yp, y0, threshold, rtol, POWER, hmax, abs(float(tspan[1]) - t0), t0, htry)
-            ypp = np.zeros_like(yp)  # y'' from the last step, for the first stage's starting guess
-            memory = Newton()
-            lu, lu_h = None, None
-            while True:
-                hmin, absh, done = clamp_step(t, tf, absh, hmax)
-                nofailed = True
-                while True:  # attempts at this step
-                    tnew = tf if done else t + tdir * absh
-                    h = tnew - t
-                    if lu is None or lu_h != h:
-                        lu = work.factor(M - (D * h) * J)
-                        lu_h = h
-                        memory.havrate = False
-                    wt = np.maximum(np.abs(y), threshold)
-                    ynew, yg, znew, est, converged = trbdf2_attempt(work, lu, t, y, h * yp, h * h * ypp, h, wt,
-                                                                    rtol, memory)
-                    if not converged:
-                        nfailed += 1
-                        if not Jcurrent:
-                            J = work.jacobian(t, y, None, atol)
-                            Jcurrent = True
-                            lu = None
-                            continue
-                        if absh <= hmin:
-                            status = Status.STEP_UNDERFLOW
-                            break
-                        absh = shrink_after_newton(absh, hmin)
-                        done = False
-                        nofailed = False
-                        continue
-                    scale = np.maximum(np.maximum(np.abs(y), np.abs(ynew)), threshold)
-                    err = float(np.max(np.abs(est) / scale))
-                    if nn is not None:
-                        err = nn.error(err, ynew, rtol)
-                    if err > rtol:
-                        nfailed += 1
-                        if absh <= hmin:
-                            status = Status.STEP_UNDERFLOW
-                            break
-                        absh = shrink(absh, hmin, err, rtol, POWER, 0.5, 0.8, nofailed)
-                        done = False
-                        nofailed = False
-                        continue
-                    if err != err:
-                        status = Status.NONFINITE
-                    break
-                if status != Status.SUCCESS:
-                    break
-
-                nsteps += 1
-                if nn is not None:
-                    ynew = nn.clip(ynew)
-                if out.step(t, tnew, ynew, steps.add(t, h, y, *quadratic_through(GAMMA, y, yg, ynew))):
-                    t, y = out.t[-1], out.y[-1]
-                    steps.cut(t)
-                    status = Status.TERMINAL_EVENT
-                    break
-                ypnew = znew / h
-                ypp = (ypnew - yp) / h
-                t, y, yp = tnew, ynew, ypnew
-                Jcurrent = False
-                if done:
-                    break
-                if max_steps and nsteps >= max_steps:
-                    status = Status.MAX_STEPS
-                    break
-                if nofailed:
-                    absh = grow(absh, err, rtol, POWER, 1.25, 5.0)
-        except Exception as exc:  # the user's right-hand side (or Jacobian) failed
-            status, exception = Status.FUN_RAISED, exc
-    t_out, y_out = out.arrays()
-    work.found = out.found()
-    work.dense = steps.dense(y, nn)
-    return t_out, y_out, nsteps, nfailed, status, t, absh, exception
+    ``work.found``. ``nonnegative``: the indices kept >= 0 (MATLAB's NonNegative), or None."""
+    return integrate(TRBDF2Step(work, tspan, rtol, atol, nonnegative), tspan, y0, f0, hmax, htry, refine, max_steps,
+                     events)

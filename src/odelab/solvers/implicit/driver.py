@@ -1,0 +1,178 @@
+"""The one attempt loop of odelab's stiff solvers (ode15s, ode23s, ode23t, ode23tb).
+
+Every stiff solver of the MATLAB ODE Suite advances the same way (Shampine & Reichelt, *The
+MATLAB ODE Suite*, SIAM J. Sci. Comput. 18(1), 1997, Section 2-3): at the top of a step the
+step size is clamped by MATLAB's rules (:func:`odelab.solvers.controller.clamp_step`); an
+attempt either fails in its Newton iteration (the Jacobian is refreshed if it is stale, else
+the step is cut), fails its error test (the step is cut by the method's rule), or is
+accepted; a failure at ``|h| <= hmin`` stops the run; an accepted step is output (``Refine``
+points or ``tspan`` times from the method's interpolant, events located on it, MATLAB's
+NonNegative projection), and the next step size is chosen by the method. :func:`integrate`
+is that loop, once; a :class:`Stepper` is one method's own part: its start, its attempt, its
+reactions to a failure, what it keeps from an accepted step and how it chooses the next one.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from odelab.solvers.controller import clamp_step
+from odelab.solvers.implicit.common import NonNegative, Output, Work
+from odelab.solvers.status import Status
+
+__all__ = ["Stepper", "integrate"]
+
+
+class Stepper:
+    """One stiff method's step, driven by :func:`integrate`.
+
+    The base holds what every method shares: the problem's :class:`Work` (function,
+    Jacobian source, counters), the tolerances, MATLAB's ``threshold = AbsTol/RelTol``, the
+    direction of integration, the current Jacobian ``J`` and whether it was formed at the
+    current point (``jcurrent``, cleared by the driver after every accepted step), and the
+    NonNegative constraint ``nn`` (or None).
+    """
+
+    #: A Newton failure that only refreshes a stale Jacobian still counts as a failed attempt
+    #: of the step (no growth after it): ode23t's rule; ode15s and ode23tb do not count it.
+    refresh_clears_nofailed = False
+
+    def __init__(self, work: Work, tspan, rtol: float, atol: np.ndarray, nonnegative=None):
+        self.work = work
+        self.rtol = rtol
+        self.atol = atol
+        self.threshold = atol / rtol
+        self.t0, self.tf = float(tspan[0]), float(tspan[-1])
+        self.htspan = abs(float(tspan[1]) - self.t0)
+        self.tdir = 1.0 if self.tf > self.t0 else -1.0
+        self.nn = None if nonnegative is None else NonNegative(nonnegative, self.threshold)
+        self.J = None
+        self.jcurrent = False
+
+    def refresh_jacobian(self, t: float, y: np.ndarray) -> None:
+        """Form ``J`` again at ``(t, y)`` (numjac's ``thresh`` is AbsTol, as in MATLAB)."""
+        self.J = self.work.jacobian(t, y, None, self.atol)
+        self.jcurrent = True
+        self.jacobian_changed()
+
+    def jacobian_changed(self) -> None:
+        """The iteration matrix must be formed again (a new ``J``)."""
+
+    # --- the method's own part --------------------------------------------------------------
+
+    def start(self, t: float, y: np.ndarray, f0: np.ndarray, hmax: float, htry: float) -> float:
+        """Prepare the first step at ``(t0, y0)`` and return its size ``|h|``."""
+        raise NotImplementedError
+
+    def begin_step(self, t: float, y: np.ndarray, absh_before: float, absh: float, done: bool) -> None:
+        """The step size was clamped from ``absh_before`` to ``absh`` (``done``: it lands on tf)."""
+
+    def attempt(self, t: float, y: np.ndarray, absh: float, done: bool):
+        """Try the step: ``(ynew, err)`` with ``err`` in units of RelTol's norm, or None when
+        the Newton iteration did not converge."""
+        raise NotImplementedError
+
+    def after_newton_failure(self, absh: float, hmin: float) -> float:
+        """The step after a Newton failure with a current Jacobian (MATLAB: 0.3 |h|)."""
+        raise NotImplementedError
+
+    def after_error_failure(self, absh: float, hmin: float, err: float, nfails: int, nofailed: bool) -> float:
+        """The step after a failed error test (``nfails``: error failures of this step so far)."""
+        raise NotImplementedError
+
+    def accept(self, t: float, y: np.ndarray, ynew: np.ndarray):
+        """Keep the accepted step; return ``(tnew, ynew, interp)``, ``interp(times)`` the step's
+        interpolant as states (len(times), n)."""
+        raise NotImplementedError
+
+    def cut(self, t: float) -> None:
+        """A terminal event ended the last accepted step at ``t``."""
+
+    def next_step(self, absh: float, err: float, nofailed: bool) -> float:
+        """The size of the next step after an accepted one."""
+        raise NotImplementedError
+
+    def dense(self, y_final: np.ndarray):
+        """The solution's dense output for ``deval`` (or None)."""
+        return None
+
+
+def integrate(stepper: Stepper, tspan, y0, f0, hmax, htry, refine, max_steps, events=None):
+    """Run ``stepper`` over ``tspan``; returns the engine's tuple
+    ``(t, y, nsteps, nfailed, status, t_stop, h_stop, exc)``.
+
+    ``events``: ``(ev, v0)`` (MATLAB's Events) located on each accepted step's interpolant; the
+    events found and the dense output are left in ``stepper.work`` (``found``, ``dense``)."""
+    work, rtol, nn = stepper.work, stepper.rtol, stepper.nn
+    tf = stepper.tf
+    out = Output(tspan, y0, refine, events, nn)
+    nsteps = nfailed = 0
+    status, exception = Status.SUCCESS, None
+    t, y = stepper.t0, y0.copy()
+    absh = 0.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # singular iteration matrices show as failed Newton iterations
+        try:
+            absh = stepper.start(t, y, f0, hmax, htry)
+            while True:
+                absh_before = absh
+                hmin, absh, done = clamp_step(t, tf, absh, hmax)
+                stepper.begin_step(t, y, absh_before, absh, done)
+                nofailed, nfails = True, 0
+                while True:  # attempts at this step
+                    trial = stepper.attempt(t, y, absh, done)
+                    if trial is None:  # the Newton iteration did not converge
+                        nfailed += 1
+                        nofailed = nofailed and not stepper.refresh_clears_nofailed
+                        if not stepper.jcurrent:
+                            stepper.refresh_jacobian(t, y)
+                            continue
+                        if absh <= hmin:
+                            status = Status.STEP_UNDERFLOW
+                            break
+                        absh = stepper.after_newton_failure(absh, hmin)
+                        done, nofailed = False, False
+                        continue
+                    ynew, err = trial
+                    if nn is not None:
+                        err = nn.error(err, ynew, rtol)
+                    if err > rtol:
+                        nfailed += 1
+                        nfails += 1
+                        if absh <= hmin:
+                            status = Status.STEP_UNDERFLOW
+                            break
+                        absh = stepper.after_error_failure(absh, hmin, err, nfails, nofailed)
+                        done, nofailed = False, False
+                        continue
+                    if err != err:
+                        status = Status.NONFINITE
+                    break
+                if status != Status.SUCCESS:
+                    break
+
+                nsteps += 1
+                if nn is not None:
+                    ynew = nn.clip(ynew)
+                tnew, ynew, interp = stepper.accept(t, y, ynew)
+                if out.step(t, tnew, ynew, interp):
+                    t, y = out.t[-1], out.y[-1]
+                    stepper.cut(t)
+                    status = Status.TERMINAL_EVENT
+                    break
+                t, y = tnew, ynew
+                stepper.jcurrent = False
+                if done:
+                    break
+                if max_steps and nsteps >= max_steps:
+                    status = Status.MAX_STEPS
+                    break
+                absh = stepper.next_step(absh, err, nofailed)
+        except Exception as exc:  # the user's right-hand side (or Jacobian) failed
+            status, exception = Status.FUN_RAISED, exc
+    t_out, y_out = out.arrays()
+    work.found = out.found()
+    work.dense = stepper.dense(y)
+    return t_out, y_out, nsteps, nfailed, status, t, absh, exception
