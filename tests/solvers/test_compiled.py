@@ -96,7 +96,7 @@ def test_the_shipped_cases_left_on_python_are_the_documented_ones():
             if _why_python(case) is not None}
     assert left == {
         ("stiff", "it runs odelab's explicit Runge-Kutta methods (ode23"),  # Radau
-        ("stiff", "the compiled stiff solvers are ode23s"),  # ode23t, ode23tb (ode15s until it is compiled)
+        ("stiff", "the compiled stiff solvers are ode23s"),  # ode23t, ode23tb ("ode23s, ode15s: ...")
         ("work-precision", "it runs odelab's explicit Runge-Kutta methods (ode23"),  # SciPy's RK45, DOP853...
         # the saturation's zero crossings are located on the Python path (diagrams, d5a4ce6)
         ("feedback_pi", "its block `actuator` (saturation) has zero crossings located by the Python driver "

@@ -75,6 +75,61 @@ def test_ode23s_takes_the_python_steps(name):
     assert_same(python, compiled, 4)  # the same operations in the same order: equal to the bit here
 
 
+@pytest.mark.parametrize("name", list(PROBLEMS))
+def test_ode15s_takes_the_python_steps(name):
+    python, compiled = _both(name, "ode15s")
+    assert python.stats.nsteps > 100 and python.stats.npds < python.stats.nsteps / 5  # Jacobians kept
+    assert python.stats.nfailed > 0  # failed steps and Newton failures are taken the same way
+    assert_same(python, compiled, 4)  # numpy's BLAS calls made with its arguments: equal to the bit here
+
+
+@pytest.mark.parametrize("options", [{"refine": 4}, {"max_order": 2}, {"bdf": True}, {"initial_step": 1e-6},
+                                     {"max_step": 20.0, "atol": [1e-7, 1e-5]}])
+def test_ode15s_options_match(options):
+    python, compiled = _both("vdp", "ode15s", **options)
+    assert_same(python, compiled, 4)
+
+
+def test_ode15s_interpolates_the_tspan_grid_as_on_python():
+    states, equations, parameters, *_ = PROBLEMS["hires"]
+    tspan = list(np.linspace(0, 321.8122, 400))  # several output times inside one step
+    system = CompiledSystem.from_equations(states, equations, parameters)
+    F = compile_vector(equations, args=["t", *states], constants=parameters)
+    J = complex_step_jacobian(equations, states, parameters)
+    y0, options = PROBLEMS["hires"][4], PROBLEMS["hires"][5]
+    python = odelab.solve(lambda t, x: F(t, *x), tspan, y0, method="ode15s", jacobian=J, **options)
+    compiled = solve_compiled(system, tspan, y0, "ode15s", jacobian=J, **options)
+    assert python.t.size == 400 and python.stats.nsteps < 400
+    assert_same(python, compiled, 4)
+
+
+def test_the_blas_fallback_multiplies():
+    """Where numpy's BLAS is not its bundled OpenBLAS, loops with cblas's row-major semantics stand in."""
+    import ctypes
+
+    from odelab.solvers.compiled.cache import load_kernels
+
+    loops = load_kernels()._blas_loops()
+    L, D, P = ctypes.c_int64, ctypes.c_double, ctypes.c_void_p
+    gemv = ctypes.CFUNCTYPE(None, ctypes.c_int32, ctypes.c_int32, L, L, D, P, L, P, L, D, P, L)(loops["dgemv"])
+    gemm = ctypes.CFUNCTYPE(None, *[ctypes.c_int32] * 3, L, L, L, D, P, L, P, L, D, P, L)(loops["dgemm"])
+    rng = np.random.default_rng(3)
+    A, B, x = rng.standard_normal((3, 5)), rng.standard_normal((5, 4)), rng.standard_normal(5)
+    y = np.empty(3)
+    gemv(101, 111, 3, 5, 1.0, A.ctypes.data, 5, x.ctypes.data, 1, 0.0, y.ctypes.data, 1)
+    np.testing.assert_allclose(y, A @ x, rtol=1e-14)
+    z = np.empty(5)
+    gemv(101, 112, 3, 5, 1.0, A.ctypes.data, 5, y.ctypes.data, 1, 0.0, z.ctypes.data, 1)
+    np.testing.assert_allclose(z, A.T @ y, rtol=1e-14)
+    C = np.empty((3, 4))
+    gemm(101, 111, 111, 3, 4, 5, 1.0, A.ctypes.data, 5, B.ctypes.data, 4, 0.0, C.ctypes.data, 4)
+    np.testing.assert_allclose(C, A @ B, rtol=1e-14)
+    E = np.empty((5, 4))
+    G = rng.standard_normal((3, 4))
+    gemm(101, 112, 111, 5, 4, 3, 1.0, A.ctypes.data, 5, G.ctypes.data, 4, 0.0, E.ctypes.data, 4)
+    np.testing.assert_allclose(E, A.T @ G, rtol=1e-14)
+
+
 @pytest.mark.parametrize("options", [{"refine": 4}, {"initial_step": 1e-6, "max_step": 50.0},
                                      {"atol": [1e-7, 1e-5]}])
 def test_ode23s_options_match(options):

@@ -19,6 +19,7 @@ runs on the Python path, which has no compile cost, and moves long ones here.
 from __future__ import annotations
 
 import functools
+import weakref
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
@@ -248,9 +249,19 @@ class CompiledSystem:
     def module(self, jacobian: bool = False):
         """The module holding the compiled ``rhs`` (and ``jac`` with ``jacobian``), compiled or
         loaded from the cache on first use."""
+        built = _MODULES.get(self)
+        if built is not None and jacobian in built:
+            return built[jacobian]
         from odelab.solvers.compiled import cache
 
-        return cache.load_module(self.source(jacobian))
+        module = cache.load_module(self.source(jacobian))
+        _MODULES.setdefault(self, {})[jacobian] = module
+        return module
+
+
+#: Each system's loaded modules (by ``jacobian``): generating the text to find its build costs
+#: milliseconds (the equations parsed and checked again), more than a short compiled run.
+_MODULES: "weakref.WeakKeyDictionary[CompiledSystem, dict]" = weakref.WeakKeyDictionary()
 
 
 def expected_compile_seconds(system: CompiledSystem, loop: str = "adaptive") -> float:
@@ -266,7 +277,9 @@ def expected_compile_seconds(system: CompiledSystem, loop: str = "adaptive") -> 
         if not cache.is_built(cache.kernels_text(), "odelab_kernels", function):
             seconds += COMPILE_SECONDS[loop]
         if not cache.is_built(system.source(jacobian=stiff)):
-            seconds += COMPILE_SECONDS["rhs"] + (COMPILE_SECONDS["jacobian"] if stiff else 0.0)
+            seconds += COMPILE_SECONDS["rhs"]
+            if stiff:  # complex arithmetic compiles slowly: 74 s for the 100-mass chain (size 325), loaded machine
+                seconds += COMPILE_SECONDS["jacobian"] * (1.0 + 0.25 * system.size())
         return seconds
     except ImportError:  # pragma: no cover - numba missing: why_not_compiled says so first
         return float("inf")

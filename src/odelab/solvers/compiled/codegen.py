@@ -357,18 +357,19 @@ assert set(_LINEARISED) | set(_ON_REAL_PART) | set(_CS_HELPERS) == set(FUNCTIONS
 
 
 def _cs_node(node: ast.AST, parts: list[tuple[str, bool]], perturbed: frozenset[str], free: frozenset[str],
-             lines: list[str]) -> tuple[str, bool]:
+             lines: list[str], rename: dict[str, str]) -> tuple[str, bool]:
     """One node of the complex-step evaluation: (source, complex?). A value is complex where
-    numpy's would be (it involves t or a state); `lines` receives helper statements."""
+    numpy's would be (it involves t or a state); `lines` receives helper statements; `rename`
+    maps the states to their complex values."""
     texts = [p[0] for p in parts]
     cplx = any(p[1] for p in parts)
     if isinstance(node, ast.Name) and not (node.id in CONSTANTS and node.id not in free):
         _check_argument_name(node.id, "an argument")
-        return node.id, node.id in perturbed
+        return rename.get(node.id, node.id), node.id in perturbed
     if isinstance(node, ast.Attribute):
         name = f"{node.value.id}.{node.attr}"
         _check_argument_name(name, "an argument")
-        return python_name(name), name in perturbed
+        return rename.get(name, python_name(name)), name in perturbed
     if isinstance(node, (ast.Constant, ast.Name)):
         return _node(node, [], None, free), False
     if isinstance(node, ast.BinOp):
@@ -390,10 +391,10 @@ def _cs_node(node: ast.AST, parts: list[tuple[str, bool]], perturbed: frozenset[
                 return _node(node, texts, None, free), False
             k = len(lines)
             f, df = _LINEARISED[name]
-            lines.append(f"    _z{k} = {texts[0]}")
-            lines.append(f"    _x = _z{k}.real")
-            lines.append(f"    _z{k} = _lin({f}, {df}, _z{k}.imag)")
-            return f"_z{k}", True
+            lines.append(f"_w{k} = {texts[0]}")
+            lines.append(f"_x = _w{k}.real")
+            lines.append(f"_w{k} = _lin({f}, {df}, _w{k}.imag)")
+            return f"_w{k}", True
         if name in _ON_REAL_PART:
             return f"{_ON_REAL_PART[name]}({', '.join(f'({t}).real' for t in texts)})", False
         helper = _CS_HELPERS[name]
@@ -406,7 +407,8 @@ def _cs_node(node: ast.AST, parts: list[tuple[str, bool]], perturbed: frozenset[
     raise AssertionError(f"unvalidated node {type(node).__name__}")  # pragma: no cover
 
 
-def complex_step_source(parsed: ParsedExpression, perturbed: frozenset[str], lines: list[str]) -> str:
+def complex_step_source(parsed: ParsedExpression, perturbed: frozenset[str], lines: list[str],
+                        rename: dict[str, str]) -> str:
     """``parsed`` evaluated in complex-step arithmetic (post-order, no recursion); statements
     for linearised functions go to ``lines``, the expression's source is returned."""
     code: dict[int, tuple[str, bool]] = {}
@@ -417,26 +419,38 @@ def complex_step_source(parsed: ParsedExpression, perturbed: frozenset[str], lin
             stack.append((node, True))
             stack.extend((child, False) for child in _operands(node))
             continue
-        code[id(node)] = _cs_node(node, [code[id(c)] for c in _operands(node)], perturbed, parsed.names, lines)
+        code[id(node)] = _cs_node(node, [code[id(c)] for c in _operands(node)], perturbed, parsed.names, lines,
+                                  rename)
     return code[id(parsed.tree.body)][0]
 
 
 def jacobian_source(states: Sequence[str], parameters: Sequence[str], equations: Sequence[ParsedExpression]) -> str:
     """``jac(t, _y, _p, _J)``: ``_J[i, j] = d equations[i] / d states[j]`` by complex step,
-    column by column (as :func:`odelab.systems.jacobian.complex_step_jacobian`)."""
+    column by column, as :func:`odelab.systems.jacobian.complex_step_jacobian` (every state a
+    complex ``y + 0.0``, state j perturbed by ``i h``). Only the equations that name state j are
+    evaluated for column j: the others' imaginary part is exactly 0 (a chain of masses evaluates
+    3 equations a column, not all of them)."""
     for name in (*states, *parameters):
         _check_argument_name(name, "an argument")
     n = len(states)
     perturbed = frozenset({"t", *states})
+    rename = {name: f"_z[{i}]" for i, name in enumerate(states)}
     lines = ["@_njit(_JAC, cache=True, error_model=\"numpy\")", "def jac(t, _y, _p, _J):"]
     lines += [f"    {name} = _p[{i}]" for i, name in enumerate(parameters)]
-    lines += ["    t = complex(t, 0.0)", f"    for _j in range({n}):"]
-    body = [f"    {python_name(name)} = complex(_y[{i}], {CS_STEP!r} if _j == {i} else 0.0)"
-            for i, name in enumerate(states)]
+    lines += ["    t = complex(t, 0.0)", f"    _z = _np.empty({n}, dtype=_np.complex128)", f"    for _i in range({n}):",
+              "        _z[_i] = complex(_y[_i] + 0.0, 0.0)", f"        for _k in range({n}):",
+              "            _J[_i, _k] = 0.0", f"    for _j in range({n}):",
+              f"        _z[_j] = complex(_y[_j] + 0.0, {CS_STEP!r})"]
     for i, p in enumerate(equations):
-        text = complex_step_source(p, perturbed, body)
-        body.append(f"    _J[{i}, _j] = complex({text}).imag / {CS_STEP!r}")
-    lines += ["    " + line for line in body]
+        columns = [j for j, name in enumerate(states) if name in p.names]
+        if not columns:
+            continue
+        helpers: list[str] = []
+        text = complex_step_source(p, perturbed, helpers, rename)
+        lines.append(f"        if {' or '.join(f'_j == {j}' for j in columns)}:")
+        lines += [f"            {line}" for line in helpers]
+        lines.append(f"            _J[{i}, _j] = complex({text}).imag / {CS_STEP!r}")
+    lines.append("        _z[_j] = complex(_y[_j] + 0.0, 0.0)")
     return "\n".join(lines) + "\n"
 
 

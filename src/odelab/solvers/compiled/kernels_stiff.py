@@ -11,9 +11,11 @@ exact Jacobian to the bit), and the LU factorisations and solves call the LAPACK
 SciPy's ``lu_factor`` and ``lu_solve`` call (``dgetrf``/``dgetrs`` of ``scipy.linalg.cython_lapack``,
 bound by name with :func:`_bind_lapack`, so numba's cache keeps the machine code), on the
 matrix in the same (column-major) layout: the same factors and solutions bit for bit.
-What the Python path hands to BLAS (``J @ y'`` of ode15s's first step, its difference
-rescaling and predictor sums ``GAMMA @ D``, its interpolant) is summed here in index order,
-which can differ from BLAS by a rounding: the solutions agree to a few eps of their scale.
+What the Python path hands to BLAS through numpy's ``@`` (``J @ y'`` of ode15s's first step,
+its difference rescaling ``RU.T @ D`` and predictor sums ``GAMMA @ D``, its interpolant) calls
+numpy's own ``cblas_dgemv``/``cblas_dgemm`` here with the arguments numpy's matmul passes
+(:func:`_matmul`), so those sums come out in BLAS's order too; everything else is elementwise
+and written in numpy's order of operations.
 """
 
 import numpy as _np
@@ -32,13 +34,103 @@ _D23 = 1.0 / (2.0 + _np.sqrt(2.0))  # ode23s.D
 _E32 = 6.0 + _np.sqrt(2.0)  # ode23s.E32
 
 
+_I4 = _types.int32
+_dgemv = _types.ExternalFunction("odelab_dgemv", _types.void(_I4, _I4, _I8, _I8, _F8, _P, _I8, _P, _I8, _F8, _P,  # noqa: F821
+                                                              _I8))  # noqa: F821
+_dgemm = _types.ExternalFunction("odelab_dgemm", _types.void(_I4, _I4, _I4, _I8, _I8, _I8, _F8, _P, _I8, _P,  # noqa: F821
+                                                              _I8, _F8, _P, _I8))  # noqa: F821
+_ROW, _N, _T = 101, 111, 112  # CblasRowMajor, CblasNoTrans, CblasTrans
+
+
 def _bind_lapack():
-    """Make SciPy's LAPACK ``dgetrf``/``dgetrs`` known to numba's linker by name (once per process)."""
+    """Make SciPy's LAPACK ``dgetrf``/``dgetrs`` and numpy's BLAS ``cblas_dgemv``/``cblas_dgemm``
+    known to numba's linker by name (once per process): the routines ``lu_factor``/``lu_solve``
+    and numpy's ``@`` call, so the compiled loops get their results bit for bit. A numpy whose
+    BLAS is not the bundled OpenBLAS gets loops in index order instead (values to a few eps)."""
     import llvmlite.binding as ll
     from numba.extending import get_cython_function_address
 
     for name in ("dgetrf", "dgetrs"):
         ll.add_symbol("odelab_" + name, get_cython_function_address("scipy.linalg.cython_lapack", name))
+    for name, address in _numpy_blas().items():
+        ll.add_symbol("odelab_" + name, address)
+
+
+def _numpy_blas():
+    """Addresses of numpy's cblas_dgemv and cblas_dgemm (its wheels' OpenBLAS, 64-bit ints), or of
+    loops with their row-major semantics where that library is not found."""
+    import ctypes
+    import glob
+    import os
+
+    import numpy
+
+    for path in sorted(glob.glob(os.path.join(os.path.dirname(numpy.__file__), os.pardir, "numpy.libs",
+                                              "libscipy_openblas64_*.so"))):
+        try:
+            lib = ctypes.CDLL(path)
+            return {"dgemv": ctypes.cast(lib.scipy_cblas_dgemv64_, ctypes.c_void_p).value,
+                    "dgemm": ctypes.cast(lib.scipy_cblas_dgemm64_, ctypes.c_void_p).value}
+        except (OSError, AttributeError):
+            continue
+    return _blas_loops()
+
+
+def _blas_loops():
+    from numba import carray, cfunc
+
+    ptr = _types.CPointer(_F8)  # noqa: F821
+
+    @cfunc(_types.void(_I4, _I4, _I8, _I8, _F8, ptr, _I8, ptr, _I8, _F8, ptr, _I8))  # noqa: F821
+    def gemv(order, trans, m, n, alpha, a, lda, x, incx, beta, y, incy):  # row-major, unit strides
+        A = carray(a, (m, lda))
+        rows, cols = (m, n) if trans == _N else (n, m)
+        for i in range(rows):
+            acc = 0.0
+            for j in range(cols):
+                acc += (A[i, j] if trans == _N else A[j, i]) * x[j]
+            y[i] = alpha * acc
+    @cfunc(_types.void(_I4, _I4, _I4, _I8, _I8, _I8, _F8, ptr, _I8, ptr, _I8, _F8, ptr, _I8))  # noqa: F821
+    def gemm(order, ta, tb, m, n, k, alpha, a, lda, b, ldb, beta, c, ldc):
+        for i in range(m):
+            for j in range(n):
+                acc = 0.0
+                for q in range(k):
+                    acc += (a[i * lda + q] if ta == _N else a[q * lda + i]) * (b[q * ldb + j] if tb == _N
+                                                                              else b[j * ldb + q])
+                c[i * ldc + j] = alpha * acc
+    return {"dgemv": gemv.address, "dgemm": gemm.address}
+
+
+@_njit(cache=True, error_model="numpy")
+def _vecmat(g, B, out):
+    """out = g @ B for g (k,) and B (k, n) C-contiguous: numpy's gemv call."""
+    _dgemv(_ROW, _T, B.shape[0], B.shape[1], 1.0, B.ctypes, B.shape[1], g.ctypes, 1, 0.0, out.ctypes, 1)
+
+
+@_njit(cache=True, error_model="numpy")
+def _matvec(A, x, out):
+    """out = A @ x for A (m, n) C-contiguous: numpy's gemv call."""
+    _dgemv(_ROW, _N, A.shape[0], A.shape[1], 1.0, A.ctypes, A.shape[1], x.ctypes, 1, 0.0, out.ctypes, 1)
+
+
+@_njit(cache=True, error_model="numpy")
+def _matmul(A, B, C, transpose_a=False):
+    """C = A @ B (or A.T @ B) for C-contiguous A (q, k) and B (k, n) (A (k, q) transposed), as
+    numpy's matmul calls BLAS: gemv when C is one row or one column, else gemm."""
+    q, n = C.shape[0], C.shape[1]
+    k = B.shape[0]
+    if transpose_a:
+        if n == 1:
+            _dgemv(_ROW, _T, k, q, 1.0, A.ctypes, q, B.ctypes, 1, 0.0, C.ctypes, 1)
+        else:
+            _dgemm(_ROW, _T, _N, q, n, k, 1.0, A.ctypes, q, B.ctypes, n, 0.0, C.ctypes, n)
+    elif q == 1:
+        _dgemv(_ROW, _T, k, n, 1.0, B.ctypes, n, A.ctypes, 1, 0.0, C.ctypes, 1)
+    elif n == 1:
+        _dgemv(_ROW, _N, q, k, 1.0, A.ctypes, k, B.ctypes, 1, 0.0, C.ctypes, 1)
+    else:
+        _dgemm(_ROW, _N, _N, q, n, k, 1.0, A.ctypes, k, B.ctypes, n, 0.0, C.ctypes, n)
 
 
 @_njit(cache=True, error_model="numpy")
@@ -80,54 +172,73 @@ def _npmax(a, b):
 
 
 @_njit(cache=True, error_model="numpy")
-def _interp(kind, tq, t, h, y, A1, A2, D, k, out):
-    """The step's interpolant at tq into out: ode23s's (kind 0; y, k1 = A1, k2 = A2) or
-    ode15s's backward differences (kind 1; D[0..k] at the step's end t, y unused)."""
-    n = out.shape[0]
+def _interp(kind, times, q, t, h, y, A1, A2, D, k, out):
+    """The step's interpolant at times[:q] into the rows of out: ode23s's (kind 0; y, k1 = A1,
+    k2 = A2), or ode15s's backward differences (kind 1; D[0..k] at the step's end t), whose
+    ``cumprod(x) @ D[1:]`` is numpy's BLAS call (_matmul)."""
+    n = out.shape[1]
     if kind == 0:
-        s = (tq - t) / h
-        a = s * (1.0 - s) / (1.0 - 2.0 * _D23)
-        b = s * (s - 2.0 * _D23) / (1.0 - 2.0 * _D23)
-        for j in range(n):
-            out[j] = y[j] + h * (a * A1[j] + b * A2[j])
+        for r in range(q):
+            s = (times[r] - t) / h
+            a = s * (1.0 - s) / (1.0 - 2.0 * _D23)
+            b = s * (s - 2.0 * _D23) / (1.0 - 2.0 * _D23)
+            for j in range(n):
+                out[r, j] = y[j] + h * (a * A1[j] + b * A2[j])
         return
-    for j in range(n):
-        out[j] = 0.0
-    prod = 1.0
-    for m in range(k):
-        prod *= (tq - (t - h * m)) / (h * (m + 1))
+    X = _np.empty((q, k))
+    for r in range(q):
+        prod = 1.0
+        for m in range(k):
+            prod *= (times[r] - (t - h * m)) / (h * (m + 1))
+            X[r, m] = prod
+    _matmul(X, D[1:k + 1], out[:q])
+    for r in range(q):
         for j in range(n):
-            out[j] += prod * D[m + 1, j]
-    for j in range(n):
-        out[j] = D[0, j] + out[j]
+            out[r, j] = D[0, j] + out[r, j]
 
 
 @_njit(cache=True, error_model="numpy")
 def _record(t_out, y_out, count, nxt, tspan, refine, t, tnew, ynew, kind, tk, h, y, A1, A2, D, k):
     """implicit.common.Output.step without events: Refine points and the step's end for a
-    two-element tspan, else the tspan times the step passed. Returns (t_out, y_out, count, nxt)."""
+    two-element tspan, else the tspan times the step passed (those inside it interpolated in one
+    call, as Output._record does). Returns (t_out, y_out, count, nxt)."""
     ntspan = tspan.shape[0]
+    n = ynew.shape[0]
     if ntspan == 2:
         if count + refine > t_out.shape[0]:
             t_out, y_out = _grow(t_out[:count], y_out[:count], count + refine)  # noqa: F821
-        for r in range(1, refine):
-            tq = t + (tnew - t) * r / refine  # Output._record's order
-            t_out[count] = tq
-            _interp(kind, tq, tk, h, y, A1, A2, D, k, y_out[count])
-            count += 1
+        if refine > 1:
+            times = _np.empty(refine - 1)
+            for r in range(1, refine):
+                times[r - 1] = t + (tnew - t) * r / refine  # Output._record's order
+            _interp(kind, times, refine - 1, tk, h, y, A1, A2, D, k, y_out[count:count + refine - 1])
+            t_out[count:count + refine - 1] = times
+            count += refine - 1
         t_out[count] = tnew
         y_out[count, :] = ynew
         return t_out, y_out, count + 1, nxt
     tdir = 1.0 if tspan[ntspan - 1] > tspan[0] else -1.0
+    start = nxt
     while nxt < ntspan and tdir * (tnew - tspan[nxt]) >= 0:
-        tq = tspan[nxt]
-        t_out[count] = tq
-        if tq == tnew:
+        nxt += 1
+    q = 0
+    inside = _np.empty(nxt - start)
+    for i in range(start, nxt):
+        if tspan[i] != tnew:
+            inside[q] = tspan[i]
+            q += 1
+    values = _np.empty((q, n))
+    if q:
+        _interp(kind, inside, q, tk, h, y, A1, A2, D, k, values)
+    r = 0
+    for i in range(start, nxt):
+        t_out[count] = tspan[i]
+        if tspan[i] == tnew:
             y_out[count, :] = ynew
         else:
-            _interp(kind, tq, tk, h, y, A1, A2, D, k, y_out[count])
+            y_out[count, :] = values[r]
+            r += 1
         count += 1
-        nxt += 1
     return t_out, y_out, count, nxt
 
 
@@ -257,27 +368,16 @@ def _rescale(order, factor, R):
 
 
 @_njit(cache=True, error_model="numpy")
-def _change_differences(D, order, factor, work):
-    """ode15s.change_differences: D[0..order] <- (R(factor) R(1))^T D[0..order]."""
+def _change_differences(D, order, factor):
+    """ode15s.change_differences: D[0..order] <- (R(factor) @ R(1))^T @ D[0..order] (numpy's BLAS calls)."""
     m = order + 1
-    R, U, RU, new = work[0], work[1], work[2], work[3]
+    R, U, RU = _np.empty((m, m)), _np.empty((m, m)), _np.empty((m, m))
     _rescale(order, factor, R)
     _rescale(order, 1.0, U)
-    for i in range(m):
-        for j in range(m):
-            acc = 0.0
-            for q in range(m):
-                acc += R[i, q] * U[q, j]
-            RU[i, j] = acc
-    n = D.shape[1]
-    for j in range(n):
-        for a in range(m):
-            acc = 0.0
-            for b in range(m):
-                acc += RU[b, a] * D[b, j]
-            new[a, 0] = acc
-        for a in range(m):
-            D[a, j] = new[a, 0]
+    _matmul(R, U, RU)
+    new = _np.empty((m, D.shape[1]))
+    _matmul(RU, D[:m], new, True)
+    D[:m] = new
 
 
 @_njit(cache=True, error_model="numpy")
@@ -291,11 +391,10 @@ def _first_step_15s(_rhs, J, t0, y0, f0, p, thr, rtol, hmax, htry, htspan, tdir,
         return given_step(htry, t0, hmax), 0  # noqa: F821
     absh = first_step(1.25 * _wmax(f0, wt) / _np.sqrt(rtol), htspan, hmax, t0)  # noqa: F821
     _slope_dt(_rhs, t0, y0, f0, p, tdir * absh, absh, tdir, ypp)
+    Jf = _np.empty(n)
+    _matvec(J, f0, Jf)
     for i in range(n):
-        acc = 0.0
-        for j in range(n):
-            acc += J[i, j] * f0[j]
-        ypp[i] = ypp[i] + acc
+        ypp[i] = ypp[i] + Jf[i]
     return first_step(1.25 * _np.sqrt(0.5 * _wmax(ypp, wt) / rtol), htspan, hmax, t0), 1  # noqa: F821
 
 
@@ -347,15 +446,13 @@ def _newton_15s(_rhs, p, tnew, c, D, k, psi, ypred, ynew, d, dy, wt, minnrm, rto
 def _predict_15s(D, k, gamma, alpha, y, thr, ypred, psi, wt):
     """The predictor sum(D[0..k]), psi = (GAMMA[1..k] @ D[1..k]) / alpha[k], the weights and minnrm."""
     n = y.shape[0]
+    _vecmat(gamma[1:k + 1], D[1:k + 1], psi)
     for j in range(n):
         acc = D[0, j]
         for i in range(1, k + 1):
             acc += D[i, j]
         ypred[j] = acc
-        acc = 0.0
-        for i in range(1, k + 1):
-            acc += gamma[i] * D[i, j]
-        psi[j] = acc / alpha[k]
+        psi[j] = psi[j] / alpha[k]
         wt[j] = _npmax(abs(y[j]), thr[j])
     return (100 * _EPS) * _wmax(y, wt)
 
@@ -417,7 +514,6 @@ def _ode15s(_rhs, _jac, tspan, y0, f0, p, rtol, atol, hmax, htry, refine, max_st
     ypred, psi, wt, scale, d, dy, ynew, tmp = (_np.empty(n), _np.empty(n), _np.empty(n), _np.empty(n),
                                                _np.empty(n), _np.empty(n), _np.empty(n), _np.empty(n))
     zero = _np.zeros(n)
-    work = _np.empty((4, max_order + 1, max_order + 1))
     memory = _np.zeros(2)  # the Newton rate, and whether it is known
     _jac(t0, y0, p, J)
     npds, jcurrent = 1, True
@@ -440,7 +536,7 @@ def _ode15s(_rhs, _jac, tspan, y0, f0, p, rtol, atol, hmax, htry, refine, max_st
     while True:
         hmin, absh, done = clamp_step(t, tf, absh, hmax)  # noqa: F821
         if absh != absh_D:
-            _change_differences(D, k, absh / absh_D, work)
+            _change_differences(D, k, absh / absh_D)
             absh_D, nconhk = absh, 0
         nofailed, nfails = True, 0
         tnew = t
@@ -470,7 +566,7 @@ def _ode15s(_rhs, _jac, tspan, y0, f0, p, rtol, atol, hmax, htry, refine, max_st
                     break
                 absh_old = absh
                 absh = shrink_after_newton(absh, hmin)  # noqa: F821
-                _change_differences(D, k, absh / absh_old, work)
+                _change_differences(D, k, absh / absh_old)
                 absh_D, done, nofailed, nconhk = absh, False, False, 0
                 continue
             for j in range(n):
@@ -484,7 +580,7 @@ def _ode15s(_rhs, _jac, tspan, y0, f0, p, rtol, atol, hmax, htry, refine, max_st
                     break
                 absh_old = absh
                 absh, k = _after_error_15s(D, k, absh, hmin, err, rtol, erconst, d, scale, nfails, tmp)
-                _change_differences(D, k, absh / absh_old, work)
+                _change_differences(D, k, absh / absh_old)
                 absh_D, done, nofailed, nconhk = absh, False, False, 0
                 continue
             if err != err:

@@ -23,7 +23,7 @@ from odelab.solvers.status import Status
 __all__ = ["STIFF_METHODS", "why_not_stiff", "solve_stiff"]
 
 #: The stiff solvers the compiled backend runs.
-STIFF_METHODS = ("ode23s",)
+STIFF_METHODS = ("ode23s", "ode15s")
 
 #: The stiff solvers' options the compiled loops take (others: the Python path).
 _EXTRAS_TAKEN = ("jacobian", "vectorized", "max_order", "bdf")
