@@ -77,15 +77,15 @@ def _varied(k: int) -> FigureSpec:
 
 
 def test_a_kept_figure_draws_the_bytes_of_a_new_one(monkeypatch):
-    """A figure drawn on a kept figure of its shape (cleared of the last one's lines, legends, texts,
-    log scales and limits) is byte for byte the PNG a new figure gives, in any order."""
+    """A figure drawn on the kept figure (resized, axes added or hidden, cleared of the last one's
+    lines, legends, texts, log scales and limits) is byte for byte the PNG a new figure gives, in any order."""
     specs = [_varied(k) for k in range(3)] + [spec(0), spec(1)]
     fresh = []
     for s in specs:
         plots._REUSABLE.clear()
         fresh.append(plots._draw_png(s))
     assert len(set(fresh)) == len(specs)
-    for order in ([0, 1, 2, 3, 4], [2, 1, 0, 4, 3], [1, 1, 0, 2, 2]):
+    for order in ([0, 1, 2, 3, 4], [2, 1, 0, 4, 3], [1, 1, 0, 2, 2], [3, 0, 4, 1]):  # axes hidden, then added
         plots._REUSABLE.clear()
         for i in order:
             assert plots._draw_png(specs[i]) == fresh[i], (order, i)

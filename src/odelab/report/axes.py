@@ -31,6 +31,14 @@ def plot_settings(runs: list[StoredRun]) -> dict:
     return {}
 
 
+def _median(x: np.ndarray) -> float:
+    """``np.median(x)`` of a 1-D array without NaN, to the bit, without importing numpy.ma as np.median does
+    (45 ms of a report's start-up)."""
+    s = np.sort(x)
+    n = s.size
+    return float(s[n // 2]) if n % 2 else float((s[n // 2 - 1] + s[n // 2]) / 2)
+
+
 def time_scale(runs: list[StoredRun], plot: dict) -> str:
     """"log" or "linear" for the section's time axes."""
     asked = plot.get("t_scale", "auto")
@@ -43,7 +51,7 @@ def time_scale(runs: list[StoredRun], plot: dict) -> str:
     for r in runs:
         t = r.t[r.t > 0]
         if t.size >= 3:
-            crowded.append(float(np.median(t)) < LOG_TIME_CROWDING * float(t[-1]))
+            crowded.append(_median(t) < LOG_TIME_CROWDING * float(t[-1]))
     return "log" if crowded and all(crowded) else "linear"
 
 

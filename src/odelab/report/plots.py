@@ -270,10 +270,10 @@ def _draw_panel(ax, panel: Panel, columns: int = 1) -> None:
             ax.legend(fontsize=8, frameon=True, framealpha=0.85, loc="best")
 
 
-def _figure_legend(fig):
+def _figure_legend(fig, axes: list):
     """One legend above the panels holding every distinct label once (small multiples)."""
     handles: dict[str, object] = {}
-    for ax in fig.axes:
+    for ax in axes:
         for handle, label in zip(*ax.get_legend_handles_labels()):
             handles.setdefault(label, handle)
     if not handles:
@@ -397,7 +397,7 @@ def _lay_out(fig, axes: list, grid: _Grid, spec: FigureSpec, cols: int) -> None:
         ax.set_position(rect)
         _draw_panel(ax, panel, cols)
     if spec.legend:
-        legend = _figure_legend(fig)
+        legend = _figure_legend(fig, axes)
         if legend is not None:
             grid.top_band = legend.get_window_extent(fig.canvas.get_renderer()).height / fig.dpi + _PAD
     for ax, rect in zip(axes, grid.rects(*grid.measured(fig, axes))):
@@ -417,15 +417,15 @@ def _new_figure(height: float, n: int):
     return fig
 
 
-def _clear(fig) -> None:
-    """``fig``'s axes as a new figure's, keeping the axes and their tick artists: what a panel
+def _clear(fig, axes: list) -> None:
+    """``axes`` of ``fig`` as a new figure's, keeping the axes and their tick artists: what a panel
     drew (lines, texts, legends, log scales, limits, the minor grid) removed; the figure's legend too.
 
     Creating axes and their ticks is a third of a figure's time; the PNG drawn on a cleared
     figure is byte for byte the one a new figure gives (``tests/report/test_drawing.py``)."""
     for legend in list(fig.legends):
         legend.remove()
-    for ax in fig.axes:
+    for ax in axes:
         for artist in (*ax.lines, *ax.texts, *ax.collections, *ax.patches, *ax.images):
             artist.remove()
         if ax.get_legend() is not None:
@@ -438,30 +438,37 @@ def _clear(fig) -> None:
         ax.set_ylim(0.0, 1.0, auto=True)
 
 
-# Figures kept for reuse, by shape (height, panel cells): one per figure kind of a report.
-_REUSABLE: dict[tuple, object] = {}
-_REUSABLE_MAX = 8
+# The figure kept for the next one: its axes are the most any figure drawn so far had; a figure
+# of fewer panels uses the first ones and hides the rest, its height is set for each figure.
+_REUSABLE: dict[str, object] = {}
+_REUSABLE_MAX = 1
 
 
 def _reused_figure(spec: FigureSpec):
-    """A laid-out figure of ``spec`` drawn on a kept figure of its shape (or a new one, then kept).
+    """A laid-out figure of ``spec`` drawn on the kept figure (or a new one, then kept): resized,
+    its axes cleared, axes added if it has fewer than ``spec`` has panels, the others hidden.
 
-    The caller does not close it: it stays for the next figure of the same shape."""
+    The caller does not close it: it stays for the next figure."""
     grid, cols, height = _shape(spec)
-    key = (round(height, 9), tuple(grid.cells))
-    fig = _REUSABLE.pop(key, None)
+    n = len(spec.panels)
+    fig = _REUSABLE.pop("figure", None)
     with _rc_context():
         try:
             if fig is None:
-                fig = _new_figure(height, len(spec.panels))
+                fig = _new_figure(height, n)
             else:
-                _clear(fig)
-            _lay_out(fig, list(fig.axes), grid, spec, cols)
+                if fig.get_figheight() != height:
+                    fig.set_size_inches(FIGURE_WIDTH, height)
+                _clear(fig, fig.axes[:n])
+                while len(fig.axes) < n:
+                    fig.add_axes((0.1, 0.1, 0.8, 0.8))
+            axes = list(fig.axes[:n])
+            for i, ax in enumerate(fig.axes):
+                ax.set_visible(i < n)
+            _lay_out(fig, axes, grid, spec, cols)
         except BaseException:
             return None  # not kept: a half-drawn figure is never reused
-    _REUSABLE[key] = fig  # the most recently used last
-    while len(_REUSABLE) > _REUSABLE_MAX:
-        _REUSABLE.pop(next(iter(_REUSABLE)))
+    _REUSABLE["figure"] = fig
     return fig
 
 
@@ -534,7 +541,7 @@ def render_png(spec: FigureSpec) -> bytes:
 
 def _draw_png(spec: FigureSpec) -> bytes:
     """Laid out once (text extents only, no pixels) and rasterised once, by savefig, on a
-    figure of the same shape kept from an earlier figure when there is one (:func:`_clear`)."""
+    figure kept from the figure before when there is one (:func:`_reused_figure`)."""
     fig = _reused_figure(spec)
     fresh = fig is None
     if fresh:  # it failed on a kept figure: drawn on a new one (which raises the error, if it is the spec's)
