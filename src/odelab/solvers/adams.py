@@ -287,7 +287,8 @@ class _Adams:
             self.g_arr = np.array(self.g[1:k + 1])
             self.g_order = k
         p = y + h * (self.g_arr @ phi[1:k + 1])
-        phi[1:k + 1] = _accumulate(phi[k:0:-1], axis=0)[::-1]  # numpy.cumsum's sums, without its wrapper
+        backwards_rows = phi[k:0:-1]  # phi_i <- phi_i + ... + phi_k: numpy.cumsum's sums, in place
+        _accumulate(backwards_rows, axis=0, out=backwards_rows)
         return p
 
     def errors(self, yp: np.ndarray, p: np.ndarray, h: float, absh: float, invwt, norm_control: bool):
