@@ -26,7 +26,7 @@ import numpy as np
 
 from odelab.solvers.controller import first_step, given_step
 
-__all__ = ["Work", "Output", "NonNegative", "rms_or_max", "initial_step", "newton", "rate_test", "Newton",
+__all__ = ["Work", "Output", "rms_or_max", "initial_step", "newton", "rate_test", "Newton",
            "QuadraticSteps", "quadratic_through"]
 
 EPS = float(np.finfo(float).eps)
@@ -248,50 +248,6 @@ def consistent_slope(work: "Work", t: float, y: np.ndarray, f0: np.ndarray, J) -
     return np.linalg.lstsq(A, b, rcond=None)[0]
 
 
-class NonNegative:
-    """MATLAB's ``NonNegative`` in the stiff solvers (Shampine, Thompson, Kierzenka & Byrne,
-    *Non-negative solutions of ODEs*, Appl. Math. Comput. 170, 2005; the odeset documentation).
-
-    The right-hand side is already wrapped (``max(f_i, 0)`` where ``y_i <= 0``, MATLAB's
-    ``odenonnegative``), so numjac's Jacobians are those of the wrapped function, as MATLAB's.
-    Here: the error test of a step that passed but has a negative listed component (the
-    largest ``-y_i / threshold_i`` replaces the error when above ``RelTol``, so the step fails
-    and is shrunk by the solver's own rule, as ode15s does), the projection of an accepted
-    step onto ``y_i >= 0``, and interpolated values clipped at 0.
-    """
-
-    __slots__ = ("idx", "threshold")
-
-    def __init__(self, idx: np.ndarray, threshold: np.ndarray):
-        self.idx = idx
-        self.threshold = threshold[idx]  # AbsTol/RelTol of the listed components
-
-    def error(self, err: float, ynew: np.ndarray, rtol: float) -> float:
-        """The step's error with the non-negativity test: ``err``, or the negative part's when it fails."""
-        if err <= rtol:
-            part = ynew[self.idx]
-            if (part < 0).any():
-                err_nn = float(np.max(np.maximum(0.0, -part) / self.threshold))
-                if err_nn > rtol:
-                    return err_nn
-        return err
-
-    def clip(self, y: np.ndarray) -> np.ndarray:
-        """``y`` with its negative listed components set to 0 (a copy when any is)."""
-        part = y[self.idx]
-        if (part < 0).any():
-            y = y.copy()
-            y[self.idx] = np.maximum(part, 0.0)
-        return y
-
-    def clipped(self, interp):
-        """``interp`` with its values' listed components clipped at 0 (Refine, tspan, events)."""
-        from odelab.solvers.dense import clip_nonnegative
-
-        idx = self.idx
-        return lambda times: clip_nonnegative(np.array(interp(times), dtype=float), idx)
-
-
 class Output:
     """Collect MATLAB's output points from accepted steps and a per-step interpolant, and locate
     events (MATLAB's ``Events``) on that interpolant with :func:`odelab.solvers.events.locate_events`.
@@ -303,7 +259,7 @@ class Output:
     """
 
     def __init__(self, tspan: np.ndarray, y0: np.ndarray, refine: int, events=None, nonnegative=None):
-        self.nonnegative = nonnegative  # a NonNegative: interpolated values are clipped at 0
+        self.nonnegative = nonnegative  # odelab.solvers.output.NonNegative: interpolated values clipped at 0
         self.tspan = tspan
         self.every_step = tspan.size == 2
         self.refine = refine
@@ -323,7 +279,7 @@ class Output:
 
         Returns True when a terminal event stopped the integration inside the step."""
         if self.nonnegative is not None:
-            interp = self.nonnegative.clipped(interp)
+            interp = _clipped(interp, self.nonnegative.idx)
         stop = False
         if self.events is not None:
             from odelab.solvers.events import locate_events
@@ -372,6 +328,13 @@ class Output:
     def found(self) -> tuple[list[float], list[np.ndarray], list[int]]:
         """The events located: ``(te, ye, ie)`` in the order found (0-based indices)."""
         return self.te, self.ye, self.ie
+
+
+def _clipped(interp, idx):
+    """``interp`` with its values' listed components clipped at 0 (MATLAB's NonNegative output)."""
+    from odelab.solvers.dense import clip_nonnegative
+
+    return lambda times: clip_nonnegative(np.array(interp(times), dtype=float), idx)
 
 
 class QuadraticSteps:

@@ -19,7 +19,8 @@ import warnings
 import numpy as np
 
 from odelab.solvers.controller import clamp_step
-from odelab.solvers.implicit.common import NonNegative, Output, Work
+from odelab.solvers.implicit.common import Output, Work
+from odelab.solvers.output import NonNegative
 from odelab.solvers.status import Status
 
 __all__ = ["Stepper", "integrate"]
@@ -47,7 +48,7 @@ class Stepper:
         self.t0, self.tf = float(tspan[0]), float(tspan[-1])
         self.htspan = abs(float(tspan[1]) - self.t0)
         self.tdir = 1.0 if self.tf > self.t0 else -1.0
-        self.nn = None if nonnegative is None else NonNegative(nonnegative, self.threshold)
+        self.nn = None if nonnegative is None else NonNegative(nonnegative, self.threshold, False)
         self.J = None
         self.jcurrent = False
 
@@ -136,8 +137,13 @@ def integrate(stepper: Stepper, tspan, y0, f0, hmax, htry, refine, max_steps, ev
                         done, nofailed = False, False
                         continue
                     ynew, err = trial
-                    if nn is not None:
-                        err = nn.error(err, ynew, rtol)
+                    if nn is not None and err <= rtol and nn.negative(ynew):
+                        # MATLAB's NonNegative test (Shampine, Thompson, Kierzenka & Byrne 2005): the
+                        # negative part becomes the error when larger than the tolerance, so the
+                        # method's own failure rule shrinks the step (ode15s's with its order drop)
+                        err_nn = nn.error(ynew)
+                        if err_nn > rtol:
+                            err = err_nn
                     if err > rtol:
                         nfailed += 1
                         nfails += 1
@@ -154,8 +160,9 @@ def integrate(stepper: Stepper, tspan, y0, f0, hmax, htry, refine, max_steps, ev
                     break
 
                 nsteps += 1
-                if nn is not None:
-                    ynew = nn.clip(ynew)
+                if nn is not None and nn.negative(ynew):  # project onto y_i >= 0 (a copy: ode15s compares)
+                    ynew = ynew.copy()
+                    nn.clip(ynew)
                 tnew, ynew, interp = stepper.accept(t, y, ynew)
                 if out.step(t, tnew, ynew, interp):
                     t, y = out.t[-1], out.y[-1]

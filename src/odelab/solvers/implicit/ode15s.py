@@ -172,7 +172,7 @@ class NDFStep(Stepper):
         for i in range(k, -1, -1):
             D[i] += D[i + 1]
         if self.nn is not None:
-            D[0] = self.nn.clip(D[0])  # (the differences summed again may leave -1 ulp)
+            self.nn.clip(D[0])  # in place (the differences summed again may leave -1 ulp)
         h, tnew = self.h, self.tnew
 
         def interp(times, _D=D[: k + 1].copy()):
