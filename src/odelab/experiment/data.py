@@ -287,9 +287,10 @@ def model_at_times(problem, times: np.ndarray, integrate, result=None) -> tuple[
         series = result.series()
         return {name: np.interp(times, result.t, series[name]) for name in (*problem.states, *problem.outputs)}, None
     grid = np.unique(np.concatenate([[t0], times, [tf]]))
-    rt, rx, ru, _, status, message, _, _ = integrate(problem, grid, problem.method, dict(problem.options))
-    if status != "success" or rt.size != grid.size:
-        return {}, message
+    ran = integrate(problem, grid, problem.method, dict(problem.options))  # an experiment.result.Integration
+    rt, rx, ru = ran.t, ran.x, ran.u
+    if ran.status != "success" or rt.size != grid.size:
+        return {}, ran.message
     rows = np.searchsorted(rt, times)
     out = {name: rx[rows, i] for i, name in enumerate(problem.states)}
     if problem.output_fn is not None:

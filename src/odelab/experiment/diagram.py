@@ -285,11 +285,12 @@ def build_diagram(model: schema.Experiment, params: dict[str, float], path: Path
                  x0=compiled.x0, signals=compiled.signals, diagram=compiled, compiled=fast)
 
 
-def run_hybrid(problem, tspan, method: str, options: dict, backend: str):
+def run_hybrid(problem, tspan, method: str, options: dict, backend: str):  # -> Integration
     """Run a diagram with switching or discrete blocks on the hybrid driver
-    (:func:`odelab.systems.diagram.hybrid.simulate_hybrid`, the Python engine); returns the
-    runner's ``(t, x, u, stats, status, message, warnings, backend)``. With ``backend = "auto"``
-    the message says which block kept the compiled engine out."""
+    (:func:`odelab.systems.diagram.hybrid.simulate_hybrid`, the Python engine); returns its
+    :class:`~odelab.experiment.result.Integration`. With ``backend = "auto"`` the message says
+    which block kept the compiled engine out."""
+    from odelab.experiment.result import Integration
     from odelab.systems.diagram.hybrid import simulate_hybrid
 
     d = problem.diagram
@@ -308,7 +309,7 @@ def run_hybrid(problem, tspan, method: str, options: dict, backend: str):
 
         t, x, stats, status, message, warns, records, marks = solve_with_events(
             None, tspan, problem.x0, method, options, problem.events, problem.states, solve_piece=piece)
-        return t, x, stats, status, message, [*warns, *seen], records, marks, "python"
+        return Integration(t, x, None, stats, status, message, [*warns, *seen], records, marks)
     r = simulate_hybrid(d, tspan, problem.x0, method=method, zero_crossing=d.zero_crossing, **options)
     from odelab.solvers.compiled import AUTO_STEPS
 
@@ -318,4 +319,4 @@ def run_hybrid(problem, tspan, method: str, options: dict, backend: str):
         notes.append(f"ran on the Python engine, not the compiled one: {d.hybrid_reason()}")
         message += f" Ran on the Python engine: {d.hybrid_reason()}."
     u = r.u if d.inputs else None
-    return r.t, r.x, u, r.stats, r.status, message, (*r.warnings, *notes), "python"
+    return Integration(r.t, r.x, u, r.stats, r.status, message, (*r.warnings, *notes))

@@ -11,7 +11,24 @@ from odelab.analysis.errors import ErrorSummary
 from odelab.experiment.cases import Case
 from odelab.solution import Stats
 
-__all__ = ["CaseResult"]
+__all__ = ["CaseResult", "Integration"]
+
+
+@dataclass(eq=False)
+class Integration:
+    """What one solve of a case gave, whichever driver ran it (a solve, a simulation through its inputs'
+    discontinuities, a hybrid diagram, a run with [events]); :class:`CaseResult` is built from it."""
+
+    t: np.ndarray
+    x: np.ndarray
+    u: np.ndarray | None
+    stats: Stats
+    status: str
+    message: str
+    warnings: tuple | list = ()
+    events: list = field(default_factory=list)  # located events: name, t, state, ...
+    marks: np.ndarray | None = None  # per output row: 1-based number of its event, 0 for none
+    backend: str = "python"  # the engine that ran: "python" or "compiled"
 
 
 @dataclass(eq=False)

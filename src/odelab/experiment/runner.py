@@ -10,20 +10,17 @@ import numpy as np
 from odelab.analysis.errors import summarize
 from odelab.experiment.cases import Case, LoadedExperiment
 from odelab.experiment.loader import load_experiment
-from odelab.experiment.result import CaseResult
+from odelab.experiment.result import CaseResult, Integration
 from odelab.solution import Stats
 
 __all__ = ["CaseResult", "run_case", "run_experiment"]
 
 
-def _integrate(problem, tspan, method, options, backend="python"):
-    """Solve (no inputs) or simulate (inputs, restarting at their discontinuities).
-
-    Returns ``(t, x, u, stats, status, message, warnings, backend)``, the last being the
-    engine that ran, "python" or "compiled" (see :mod:`odelab.experiment.backend`); with
-    [events], ``solve_with_events``'s tuple and the backend. A failed
-    integration is reported in the case's result, so the solvers' SolverWarning is not
-    repeated here.
+def _integrate(problem, tspan, method, options, backend="python") -> Integration:
+    """Solve (no inputs) or simulate (inputs, restarting at their discontinuities), a hybrid diagram or a run
+    with [events]: one :class:`~odelab.experiment.result.Integration` whichever ran (its ``backend``: the engine,
+    "python" or "compiled", see :mod:`odelab.experiment.backend`). A failed integration is reported in the
+    case's result, so the solvers' SolverWarning is not repeated here.
     """
     import warnings
 
@@ -38,8 +35,9 @@ def _integrate(problem, tspan, method, options, backend="python"):
         if problem.events is not None:
             from odelab.experiment.backend import solve_events_problem
 
-            found, ran = solve_events_problem(problem, tspan, method, options, backend)
-            return (*found, ran)
+            (t, x, stats, status, message, warns, events, marks), ran = solve_events_problem(
+                problem, tspan, method, options, backend)
+            return Integration(t, x, None, stats, status, message, warns, events, marks, ran)
         return _integrate_quietly(problem, tspan, method, options, backend)
 
 
@@ -48,7 +46,7 @@ def _integrate_quietly(problem, tspan, method, options, backend="python"):
         from odelab.experiment.backend import simulate_problem
 
         r, ran = simulate_problem(problem, tspan, method, options, backend)
-        return r.t, r.x, r.u, r.stats, r.status, r.message, (), ran
+        return Integration(r.t, r.x, r.u, r.stats, r.status, r.message, (), backend=ran)
     from odelab.exceptions import InputError
     from odelab.experiment.backend import solve_problem
 
@@ -60,8 +58,8 @@ def _integrate_quietly(problem, tspan, method, options, backend="python"):
         # The user's function returned something unusable (wrong shape, complex): a failed
         # case with the reason, like any other fault of the right-hand side.
         message = f"{method} could not start: {exc.message.replace('`fun`', 'the system function')}"
-        return (tspan[:1].copy(), problem.x0.reshape(1, -1), None, Stats(0, 0, 1), "failed", message, (), "python")
-    return sol.t, sol.y, None, sol.stats, sol.status, sol.message, sol.warnings, ran
+        return Integration(tspan[:1].copy(), problem.x0.reshape(1, -1), None, Stats(0, 0, 1), "failed", message)
+    return Integration(sol.t, sol.y, None, sol.stats, sol.status, sol.message, sol.warnings, backend=ran)
 
 
 def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = None) -> CaseResult:
@@ -81,15 +79,8 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
 
         options["max_steps"], capped = capped_max_steps(options.get("max_steps"), max_steps)
     start = time.perf_counter()
-    events, marks = [], None
-    ran = "python"
-    if p.events is not None:
-        t, x, stats, status, message, warnings, events, marks, ran = _integrate(p, p.tspan, p.method, options,
-                                                                                backend or p.backend)
-        u = None
-    else:
-        t, x, u, stats, status, message, warnings, ran = _integrate(p, p.tspan, p.method, options,
-                                                                    backend or p.backend)
+    run = _integrate(p, p.tspan, p.method, options, backend or p.backend)
+    t, x, u, stats, status, message, warnings = run.t, run.x, run.u, run.stats, run.status, run.message, run.warnings
     elapsed = time.perf_counter() - start
     if (status != "success" and max_steps and ("max_steps" not in p.options or capped) and "h" not in p.options
             and stats.nsteps >= max_steps):
@@ -110,7 +101,7 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
 
     warnings += shadowing_note(p.parameters)  # "parameter e shadows the constant e (2.718...)"
     result = CaseResult(case=case, status=status, message=message, stats=stats, elapsed=elapsed, t=t, x=x, u=u,
-                        y=y, warnings=list(warnings), events=events, event_marks=marks, backend=ran)
+                        y=y, warnings=list(warnings), events=run.events, event_marks=run.marks, backend=run.backend)
     result.record_input_jumps()
     if p.fit is not None:  # the experiment's [fit], estimated before its cases ran (experiment/fit.py)
         result.extra["fit"] = p.fit
@@ -225,9 +216,10 @@ def _reference(result: CaseResult, max_steps: int | None = None) -> None:
         else:
             options = {"rtol": rtol, "atol": atol, **({"max_steps": max_steps} if max_steps else {})}
             solver = "DOP853" if solver == "auto" else solver
-            rt, rx, ru, _, status, message, _, _ = _integrate(p, t, solver, options)
-            if status != "success" or rt.size != t.size:
-                result.warnings.append(f"the high-accuracy reference ({solver}, rtol {rtol:g}) failed: {message}")
+            ran = _integrate(p, t, solver, options)
+            rt, rx, ru = ran.t, ran.x, ran.u
+            if ran.status != "success" or rt.size != t.size:
+                result.warnings.append(f"the high-accuracy reference ({solver}, rtol {rtol:g}) failed: {ran.message}")
                 return
         ref = {name: rx[:, i] for i, name in enumerate(p.states)}
         if p.output_fn is not None:
