@@ -23,25 +23,20 @@ __all__ = ["check_backend", "why_not_compiled", "solve_problem", "simulate_probl
 
 def why_not_compiled(method, compiled, options=None) -> str | None:
     """Why the compiled backend cannot run this method, system and options (None if it can)."""
-    from odelab.solvers.compiled import PYTHON_ONLY_OPTIONS, unavailable
+    from odelab.solvers.compiled import PYTHON_ONLY_OPTIONS, method_refusal, unavailable
 
-    if method.kind == "delay":
-        return "it solves ordinary differential equations, and dde23 (delay equations) runs on the Python path"
+    reason = method_refusal(method)
+    if reason:
+        return reason
     if compiled is None:
         return ("it compiles systems written as expressions (equations, a state-space model, a diagram of linear "
                 "blocks); this system is a Python function or a diagram with nonlinear blocks")
-    if method.kind == "implicit":
+    if method.stiff:
         from odelab.solvers.compiled.stiff import why_not_stiff
 
         reason = why_not_stiff(method.name, compiled, options)
         if reason:
             return reason
-    elif method.kind not in ("adaptive", "fixed"):
-        return (f"it runs odelab's explicit Runge-Kutta methods (ode23, ode45, fixed-step), and {method.name} is "
-                + ("SciPy's" if method.kind == "scipy" else "not one of them"))
-    if method.kind == "adaptive" and not method.tableau.fsal:
-        return (f"its kernels run FSAL pairs and fixed-step methods, and {method.name} is Verner's non-FSAL "
-                "pair whose interpolation stages are evaluated on demand (the Python path runs it)")
     python_only = [name for name in PYTHON_ONLY_OPTIONS if (options or {}).get(name) is not None]
     if python_only:
         return f"`{python_only[0]}` calls back into Python"
@@ -188,7 +183,7 @@ def _choose(problem, tspan, method_name, options, backend, python, compiled, pil
     if backend == "python" or reason:
         return python(options), "python"
     if backend == "auto":
-        if method.kind == "fixed":
+        if not method.adaptive:
             from odelab.solvers.api import fixed_grid
             from odelab.solvers.options import as_tspan, normalize_options, resolve_options
 
@@ -213,7 +208,7 @@ def _choose(problem, tspan, method_name, options, backend, python, compiled, pil
             if limit:  # max_steps (or odelab run's budget) caps the work: stiff.toml's ode45 stops at 20 000
                 steps = min(steps, limit)
             loop = "events" if getattr(problem, "events", None) is not None else "adaptive"
-            if method.kind == "implicit":
+            if method.stiff:
                 loop = method.name
             if elapsed * steps / AUTO_STEPS < expected_compile_seconds(problem.compiled, loop):
                 return python(options), "python"

@@ -198,11 +198,11 @@ def _adaptive(name, tableau, shrink_min, refine, description, dense="", compiled
 
 
 def _implicit(name, order, orders, problem, description, dae=False, dense_output=False, dense="", extra=(),
-              nonnegative=True):
+              nonnegative=True, compiled=False):
     own = IMPLICIT_OPTIONS + (("nonnegative",) if nonnegative else ()) + extra
     return Method(name=name, kind="implicit", order=order, orders=orders, description=description, stiff=True,
                   problem=problem, options=own, events=True, dense_output=dense_output,
-                  dense=dense, mass="constant", dae=dae, matlab_defaults=True)
+                  dense=dense, mass="constant", dae=dae, compiled=compiled, matlab_defaults=True)
 
 
 def _fixed(name, tableau, description):
@@ -223,10 +223,10 @@ METHODS: dict[str, Method] = {
                   dense="their ntrp23/ntrp45 interpolants", compiled=True),
         _implicit("ode15s", 5, "1-5", "stiff, DAE",
                   "MATLAB's ode15s: variable-order NDF/BDF (orders 1-5), for stiff problems and index-1 DAEs",
-                  dae=True, extra=("max_order", "bdf")),
+                  dae=True, extra=("max_order", "bdf"), compiled=True),
         _implicit("ode23s", 2, "2(3)", "stiff",
                   "MATLAB's ode23s: modified Rosenbrock (2,3) W-method, for stiff problems at crude tolerances",
-                  nonnegative=False),  # MATLAB's ode23s has no NonNegative
+                  nonnegative=False, compiled=True),  # MATLAB's ode23s has no NonNegative
         _implicit("ode23t", 2, "2", "stiff, DAE",
                   "MATLAB's ode23t: trapezoidal rule with its free interpolant, for moderately stiff problems "
                   "and index-1 DAEs", dae=True, dense_output=True, dense="their quadratics"),

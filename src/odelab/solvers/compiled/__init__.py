@@ -27,10 +27,11 @@ import numpy as np
 
 from odelab.exceptions import InputError
 from odelab.solution import Solution, Stats
+from odelab.solvers.compiled.methods import method_refusal
 from odelab.solvers.status import Status
 
 __all__ = ["BACKENDS", "AUTO_STEPS", "COMPILE_SECONDS", "CompiledSystem", "expected_compile_seconds", "unavailable",
-           "solve_compiled"]
+           "method_refusal", "solve_compiled"]
 
 BACKENDS = ("auto", "python", "compiled")
 
@@ -335,16 +336,12 @@ def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dic
     from odelab.solvers.registry import get_method
 
     m = get_method(method)
-    if m.kind == "implicit":
-        return _solve_stiff(system, m, tspan, y0, options)
-    if m.kind not in ("adaptive", "fixed"):
-        raise InputError(f"the compiled backend runs odelab's explicit Runge-Kutta methods (ode23, ode45, "
-                         f"fixed-step) and the stiff ode23s and ode15s; {m.name} is {'SciPy' + chr(39) + 's' if m.kind == 'scipy' else 'not one'}: use backend "
-                         "\"python\".", key="backend")
-    if m.kind == "adaptive" and not m.tableau.fsal:
-        raise InputError(f"the compiled backend runs FSAL pairs (ode23, ode45) and fixed-step methods; {m.name} is "
-                         "Verner's non-FSAL pair, which runs on the Python path: use backend \"python\" (or "
+    refusal = method_refusal(m)
+    if refusal:
+        raise InputError(f"the compiled backend cannot run {m.name}: {refusal}: use backend \"python\" (or "
                          "\"auto\").", key="backend")
+    if m.stiff:
+        return _solve_stiff(system, m, tspan, y0, options)
     reason = unavailable()
     if reason:
         raise InputError(f"the compiled backend needs numba: {reason}.", key="backend")
@@ -374,11 +371,15 @@ def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dic
     if not np.all(np.isfinite(f0)):
         return api._failed_at_start(m, tspan_arr, y0_arr, opts, f"the derivative at t = {t0:g} is not finite "
                                     f"({api._fmt_vec(f0)}): check the right-hand side at the initial state")
-    if system.events and m.kind != "adaptive":
-        raise InputError(f"the compiled backend locates [events] with ode23 and ode45 only; the method is {m.name} "
-                         "(backend \"python\" locates them with ode78, ode89, ode113 and the stiff solvers too).",
+    if system.events and not m.compiled_events:
+        from odelab.solvers.registry import join_names, methods_with
+
+        raise InputError(f"the compiled backend locates [events] with "
+                         f"{join_names(methods_with(lambda k: k.compiled_events))} only; the method is {m.name} "
+                         f"(backend \"python\" locates them with "
+                         f"{join_names(methods_with(lambda k: k.events and not k.compiled_events))} too).",
                          key="method")
-    if m.kind == "fixed":
+    if not m.adaptive:
         grid, keep = api.fixed_grid(tspan_arr, opts.h)
         ys, nsteps, nfevals, status, t_stop = kernels.loop("fixed")(rhs, _c(grid), y0_arr, p, _c(tab.A), _c(tab.b), _c(tab.c))
         done = nsteps + 1

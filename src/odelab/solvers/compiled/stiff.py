@@ -18,12 +18,11 @@ import numpy as np
 
 from odelab.exceptions import InputError
 from odelab.solution import Solution, Stats
+from odelab.solvers.compiled.methods import STIFF_METHODS, method_refusal
+from odelab.solvers.registry import METHODS
 from odelab.solvers.status import Status
 
 __all__ = ["STIFF_METHODS", "why_not_stiff", "solve_stiff"]
-
-#: The stiff solvers the compiled backend runs.
-STIFF_METHODS = ("ode23s", "ode15s")
 
 #: The stiff solvers' options the compiled loops take (others: the Python path).
 _EXTRAS_TAKEN = ("jacobian", "vectorized", "max_order", "bdf")
@@ -33,7 +32,7 @@ def why_not_stiff(method_name: str, system, options=None) -> str | None:
     """Why the compiled backend cannot run the stiff solver ``method_name`` on ``system`` with
     these options (None if it can)."""
     if method_name not in STIFF_METHODS:
-        return f"the compiled stiff solvers are {', '.join(STIFF_METHODS)}: {method_name} runs on the Python path"
+        return method_refusal(METHODS[method_name]) or f"{method_name} is not a stiff solver"
     options = options or {}
     reason = system.why_no_jacobian()
     if reason:
