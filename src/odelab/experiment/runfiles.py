@@ -197,6 +197,7 @@ class FileRun:
         self.total = 0
         self.finished = 0  # cases finished and stored
         self._stored_now: set[tuple] = set()
+        self._unsynced: set[Path] = set()  # experiment folders whose renames are not yet flushed (store.py)
 
     def __iter__(self) -> Iterator[Event]:
         return self._events()
@@ -207,7 +208,7 @@ class FileRun:
         from odelab.experiment.store import write_case
 
         try:
-            write_case(result, self.config.runs, mat=self.config.mat)
+            write_case(result, self.config.runs, mat=self.config.mat, unsynced=self._unsynced)
         except OSError as exc:
             raise _StoreFailed(f"cannot write results to {self.config.runs}: {exc}") from None
 
@@ -279,6 +280,10 @@ class FileRun:
             yield from self._run(loaded, bad)
         except _StoreFailed as exc:
             yield Fatal(str(exc))
+        finally:  # the run's durable point: every case folder renamed in place stays after a power cut
+            from odelab.experiment.store import sync_folders
+
+            sync_folders(self._unsynced)
 
     def _run(self, loaded, bad: list[str]) -> Iterator[Event]:
         from odelab.experiment.executors import CaseError, run_cases

@@ -9,6 +9,20 @@ trajectory from one run with a result.json from another, and a file that the new
 not write (an old ``result.mat``) cannot survive next to the new ones. The commit is one
 rename per case (two when a previous run is replaced), and no lock file is left behind: the
 lock is taken on the experiment folder itself.
+
+Flushing to disk (against a power cut or an OS crash; a killed process loses nothing the
+kernel has). Each case's files are flushed (one fsync each) before the rename that makes the
+case visible, so no name ever points at data that is not on disk: after a power cut a case is
+its previous state or its new one, never half. The rename itself is made durable by flushing
+the folder that holds it. ``write_case`` does that at once (one folder fsync per
+case) unless it is given ``unsynced``, a set the caller flushes with
+:func:`sync_folders` when it is done: ``odelab run`` passes one for the whole run (so a case
+costs its file fsyncs and no folder fsync, and each experiment folder is flushed once, at the
+end of the run or when it is interrupted). Until then a power cut can only undo the latest
+new cases whole (they are not there, as before the run); a folder fsync never makes a swap
+less atomic, only durable. A case that replaces a previous one flushes its folder at once all
+the same, before the previous one is removed: on a filesystem that does not keep renames in
+order, removing it first could lose both.
 """
 
 from __future__ import annotations
@@ -33,7 +47,8 @@ from odelab.fileio import atomic_write
 from odelab.experiment.naming import slug
 from odelab.experiment.result import CaseResult
 
-__all__ = ["RESULT_FORMAT", "Pace", "atomic_write", "case_dir", "json_safe", "summary", "write_case", "read_run", "list_runs"]
+__all__ = ["RESULT_FORMAT", "Pace", "atomic_write", "case_dir", "json_safe", "summary", "sync_folders", "write_case",
+           "read_run", "list_runs"]
 
 RESULT_FORMAT = "odelab-result/1"
 _TMP_SUFFIX = ".tmp"
@@ -213,11 +228,14 @@ def trajectory_file(result: CaseResult) -> str:
     return "trajectory.npz" if np.size(result.t) > LONG_RUN_ROWS else "trajectory.csv"
 
 
-def write_case(result: CaseResult, runs: Path, *, mat: bool = False, durable: bool = True) -> Path:
+def write_case(result: CaseResult, runs: Path, *, mat: bool = False, durable: bool = True,
+               unsynced: set[Path] | None = None) -> Path:
     """Store one case's results, all at once or not at all; returns its folder.
 
     ``durable=False`` skips flushing the files to disk before the swap (the swap stays atomic
     for readers, but a power cut may lose the case): for throw-away results folders.
+    ``unsynced``: the case's experiment folder is added to it instead of being flushed now;
+    the caller flushes the set with :func:`sync_folders` (see the module's docstring).
     """
     import tomli_w
 
@@ -240,11 +258,11 @@ def write_case(result: CaseResult, runs: Path, *, mat: bool = False, durable: bo
     if mat:
         files["result.mat"] = _mat_bytes(result)
     files["result.json"] = json.dumps(record, indent=2, allow_nan=False) + "\n"
-    commit_folder(folder, files, durable=durable)
+    commit_folder(folder, files, durable=durable, unsynced=unsynced)
     return folder
 
 
-def commit_folder(folder: Path, files: dict, *, durable: bool = True) -> None:
+def commit_folder(folder: Path, files: dict, *, durable: bool = True, unsynced: set[Path] | None = None) -> None:
     """Replace ``folder`` by a folder holding exactly ``files``, atomically for readers.
 
     ``files`` maps each file's name to its text, its bytes, or a function that writes it to
@@ -253,7 +271,9 @@ def commit_folder(folder: Path, files: dict, *, durable: bool = True) -> None:
     The files go into a hidden temporary sibling folder; once all are written (and, if
     ``durable``, flushed to disk), the old folder is renamed away, the new one renamed into its
     place and the old one removed, under the exclusive lock of the parent folder. Any failure
-    before the swap removes the temporary folder and leaves the old folder untouched.
+    before the swap removes the temporary folder and leaves the old folder untouched. If
+    ``durable``, the parent folder is then flushed too, or, given ``unsynced`` and no old folder
+    to remove, added to it for the caller to flush later (:func:`sync_folders`).
     """
     folder = Path(folder)
     parent = folder.parent
@@ -276,8 +296,10 @@ def commit_folder(folder: Path, files: dict, *, durable: bool = True) -> None:
                     old = None
                 raise
             tmp = None
-            if durable:
+            if durable and (unsynced is None or old is not None):  # the new name is durable before the old goes
                 _fsync_folder(parent, parent_fd)
+            elif durable:
+                unsynced.add(parent)
     finally:
         for leftover in (tmp, old):  # the replaced case (a hidden name: no reader looks for it) or a failed write
             if leftover is not None:
@@ -332,6 +354,15 @@ def _remove(path: Path) -> None:
             path.unlink()
     else:
         shutil.rmtree(path, ignore_errors=True)
+
+
+def sync_folders(folders: set[Path]) -> None:
+    """Flush the renames made in ``folders`` (those ``write_case`` left unsynced) to disk, and empty the set.
+
+    Every folder is flushed, whatever the filesystem (on ext4 the first flush commits the
+    journal and the others find little left to do)."""
+    while folders:
+        _fsync_folder(folders.pop())
 
 
 def _fsync_folder(folder: Path, fd: int | None = None) -> None:
