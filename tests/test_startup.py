@@ -42,3 +42,42 @@ def test_odelab_run_pins_blas_to_one_thread_before_numpy_loads(tmp_path, extra):
     seen = _blas_at_numpy_import(tmp_path, extra, "run", str(EXPERIMENTS / "exercise1.toml"), "--runs", "runs")
     # the user's own setting is kept; otherwise one thread, as `odelab grade` does
     assert seen == [extra.get("OPENBLAS_NUM_THREADS", "1"), "1", "1"]
+
+
+# The modules a command imported, printed when it returns (its own output goes to a pipe).
+MODULES = """
+import sys
+from odelab.cli import app
+try:
+    app(sys.argv[1:])
+except SystemExit:
+    pass
+print("MODULES", *sorted(sys.modules))
+"""
+
+# Packages a plain explicit experiment never needs: the reference solvers and .mat files (scipy), the report
+# (matplotlib, jinja2), the compiled backend (numba), control and symbolic analysis, Dask, the progress bar.
+NOT_FOR_A_PLAIN_RUN = ("scipy", "matplotlib", "jinja2", "numba", "llvmlite", "control", "sympy", "dask",
+                       "distributed", "rich.progress", "rich.table", "odelab.report", "odelab.analysis.reference",
+                       "odelab.solvers.compiled.kernels")
+
+
+def _imported(tmp_path, *args) -> set[str]:
+    out = subprocess.run([sys.executable, "-c", MODULES, *args], capture_output=True, text=True, cwd=tmp_path,
+                         check=True).stdout
+    return set(next(line for line in out.splitlines() if line.startswith("MODULES")).split()[1:])
+
+
+def test_a_plain_run_imports_only_what_it_needs(tmp_path):
+    modules = _imported(tmp_path, "run", str(EXPERIMENTS / "exercise1.toml"), "--runs", "runs")
+    assert (tmp_path / "runs" / "exercise1" / "ode45" / "result.json").is_file()  # it ran and stored
+    assert {"numpy", "pydantic", "odelab.experiment.store"} <= modules
+    loaded = sorted(m for m in modules if m.split(".")[0] in {n.split(".")[0] for n in NOT_FOR_A_PLAIN_RUN}
+                    and any(m == n or m.startswith(n + ".") for n in NOT_FOR_A_PLAIN_RUN))
+    assert loaded == []
+
+
+@pytest.mark.parametrize("args", [["--help"], ["--version"]])
+def test_help_and_version_import_neither_numpy_nor_pydantic_nor_rich(tmp_path, args):
+    modules = _imported(tmp_path, *args)
+    assert not {m.split(".")[0] for m in modules} & {"numpy", "pydantic", "pydantic_core", "rich", "scipy"}

@@ -160,6 +160,15 @@ def test_version_lookups_happen_once_per_process(tmp_path, monkeypatch):
     assert calls == []
 
 
+def test_the_stored_odelab_version_is_the_installed_one(tmp_path):
+    from importlib import metadata
+
+    first, _ = _two_runs(tmp_path)
+    record = read_run(write_case(first, tmp_path / "runs"))
+    assert record["versions"]["odelab"] == metadata.version("odelab")
+    assert record["versions"]["scipy"] == metadata.version("scipy")
+
+
 def test_infinity_in_result_json_is_a_broken_record(tmp_path):
     first, _ = _two_runs(tmp_path)
     folder = write_case(first, tmp_path / "runs")

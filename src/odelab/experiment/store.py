@@ -135,7 +135,10 @@ def versions() -> dict[str, str | None]:
         except metadata.PackageNotFoundError:
             return None
 
-    return {"odelab": version("odelab"), "numpy": np.__version__, "scipy": version("scipy"),
+    from odelab import __version__  # the one `odelab --version` prints (tests/experiment/test_store.py: the same
+    # as the installed metadata's): a metadata lookup fewer at every start
+
+    return {"odelab": __version__, "numpy": np.__version__, "scipy": version("scipy"),
             "python": platform.python_version()}
 
 
