@@ -9,7 +9,7 @@ and a terminal event cuts the step; ``OutputFcn`` sees each step's new rows and 
 run; ``NonNegative`` components count a negative value as error and are clipped when accepted.
 A driver keeps only its own step and interpolant and feeds this module's collector.
 
-How a driver uses it (the explicit engine, ode113; the implicit solvers the same way)::
+How a driver uses it (the explicit engine, ode113, the stiff solvers' ``implicit/driver.py``)::
 
     out = StepOutput(tspan, y0, refine, fields=[((s, n), dtype)], events=events, v0=v0,
                      output_fcn=output_fcn, refine_after=None)
@@ -33,6 +33,13 @@ A driver that interpolates the interior Refine points of all steps at once after
 ``refine_after(store, fractions) -> (t_out, y_out)``; then ``interior`` is called only for an
 output function. :class:`NonNegative` holds the constraint's test and clip, and
 :class:`DriverResult` is what every driver returns.
+
+Two choices of rounding differ between the drivers and are the collector's ``rules``
+(:class:`OutputRules`): the explicit engine and ode113 write MATLAB's (``ode45.m``,
+``ode15s.m``: ``tref = t + (tnew-t)*S`` with ``S = (1:Refine-1)/Refine``, and a terminal event
+output after its step's ``tspan`` entries whenever entries remain), the stiff solvers
+:data:`STIFF_RULES`, which their results were written with (each choice keeps its drivers'
+results to the bit).
 """
 
 from __future__ import annotations
@@ -43,7 +50,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["DriverResult", "NonNegative", "StepOutput", "StepStore"]
+__all__ = ["DriverResult", "NonNegative", "OutputRules", "MATLAB_RULES", "STIFF_RULES", "StepOutput", "StepStore"]
 
 #: Steps the step arrays hold at first; they grow by a quarter (at least this many) when full.
 FIRST_CAPACITY = 64
@@ -218,6 +225,28 @@ class StepStore:
         self.capacity = k
 
 
+@dataclass(frozen=True)
+class OutputRules:
+    """Where drivers' output rules differ in rounding only (each keeps its drivers' results).
+
+    ``refine_fractions``: True, a step's Refine times are ``t + (tnew - t) * (j / refine)``
+    (MATLAB's ``t + (tnew-t)*S``); False, ``t + ((tnew - t) * j) / refine`` (the last bit may
+    differ). ``terminal_repeats``: True, a terminal event's point is output after its step's
+    ``tspan`` entries whenever entries remain, even when the event falls exactly on the entry
+    just output (MATLAB's ``RequestedPoints`` loop outputs that time twice); False, only when it
+    is not already the last output time.
+    """
+
+    refine_fractions: bool = True
+    terminal_repeats: bool = True
+
+
+#: MATLAB's rules (the explicit engine, ode113).
+MATLAB_RULES = OutputRules()
+#: The stiff solvers' (ode15s, ode23s, ode23t, ode23tb; and the compiled stiff kernels' ``_record``).
+STIFF_RULES = OutputRules(refine_fractions=False, terminal_repeats=False)
+
+
 class StepOutput:
     """The output, the step records and the events of one integration, fed step by step.
 
@@ -236,16 +265,21 @@ class StepOutput:
         ``refine_after(store, fractions) -> (t_out, y_out)``: the driver computes the Refine
         output from the step records after the loop (then :meth:`emit` is needed only with an
         output function, :attr:`per_step`); None: the rows are interpolated step by step.
+    rules
+        :class:`OutputRules`: MATLAB's by default, :data:`STIFF_RULES` for the stiff solvers.
     """
 
     def __init__(self, tspan: np.ndarray, y0: np.ndarray, refine: int, fields=(), events=None, v0=None,
-                 output_fcn=None, refine_after=None):
+                 output_fcn=None, refine_after=None, rules: OutputRules = MATLAB_RULES):
         self.tspan = tspan
         self.t0 = t0 = float(tspan[0])
         self.tdir = 1.0 if float(tspan[-1]) > t0 else -1.0
         self.refine_mode = tspan.size == 2
         self.refine = refine
         self.fractions = np.arange(1, refine) / refine if self.refine_mode and refine > 1 else None
+        # the stiff solvers' Refine times: t + ((t_end - t) * j) / refine
+        self.multiples = None if rules.refine_fractions else np.arange(1, refine)
+        self.terminal_repeats = rules.terminal_repeats
         self.store = StepStore(t0, y0, fields)
         self.events = events
         self.v = v0
@@ -302,7 +336,10 @@ class StepOutput:
                 return False  # no tspan entry in this step
             return self._at_tspan(t_end, y_end, stop, values)
         if self.fractions is not None:
-            t_new = np.append(t + (t_end - t) * self.fractions, t_end)
+            if self.multiples is None:
+                t_new = np.append(t + (t_end - t) * self.fractions, t_end)
+            else:
+                t_new = np.append(t + (t_end - t) * self.multiples / self.refine, t_end)
             y_new = np.vstack([interior(t_new[:-1]), y_end])
             if self.refine_after is None:
                 self.t_rows.extend(t_new.tolist())
@@ -327,7 +364,8 @@ class StepOutput:
                     rows[j] = y_end
             self.t_out.extend(wanted)
             self.nout += len(wanted)
-        if stop and nxt < len(times):  # MATLAB outputs the terminal event's point too
+        if stop and (nxt < len(times) if self.terminal_repeats else self.t_out[-1] != t_end):
+            # MATLAB outputs the terminal event's point too
             self.t_out.append(t_end)
             self.y_out[self.nout] = y_end
             self.nout += 1

@@ -183,3 +183,42 @@ def test_deval_names_the_methods_with_dense_output():
         "this solution has no dense output: ode15s does not provide one. Solve with ode23, ode45 (their "
         "ntrp23/ntrp45 interpolants), ode78 or ode89 (Verner's), ode113 (Adams), ode23t or ode23tb (their "
         "quadratics), or with a vector tspan of the times you need.")
+
+
+def at_half(t, y):
+    return [t - 0.5], [1], [0]
+
+
+@pytest.mark.parametrize("method", STIFF)
+def test_a_terminal_event_on_a_tspan_entry_is_output_once(method):
+    # the stiff solvers' rule (output.STIFF_RULES): the event's point is not repeated after the
+    # entry it falls on; MATLAB's (the explicit engine's) outputs that time twice
+    sol = odelab.solve(stiff, np.linspace(0, 2, 9), [0.0], method, events=at_half)
+    assert sol.te.tolist() == [0.5]
+    assert sol.t.tolist() == [0.0, 0.25, 0.5]
+    assert sol.y[-1, 0] == sol.ye[0, 0]
+
+
+def test_the_collector_rules_for_a_terminal_event_and_refine_times():
+    from odelab.solvers.output import MATLAB_RULES, STIFF_RULES, StepOutput
+
+    def run(rules, tspan, refine=1):
+        out = StepOutput(np.array(tspan), np.zeros(1), refine, rules=rules)
+        out.emit(0.0, 0.5, np.ones(1), True, lambda times, rows: rows.fill(2.0),
+                 lambda times: np.zeros((times.size, 1)))
+        return out.finish()[0].tolist()
+
+    assert run(MATLAB_RULES, [0.0, 0.25, 0.5, 1.0]) == [0.0, 0.25, 0.5, 0.5]
+    assert run(STIFF_RULES, [0.0, 0.25, 0.5, 1.0]) == [0.0, 0.25, 0.5]
+    assert run(STIFF_RULES, [0.0, 0.25, 0.75, 1.0]) == [0.0, 0.25, 0.5]  # a point between entries: both
+    assert run(MATLAB_RULES, [0.0, 0.25, 0.75, 1.0]) == [0.0, 0.25, 0.5]
+    # Refine times: MATLAB's t + h*(j/refine) against the stiff solvers' t + (h*j)/refine, a step of 0.3 from 0.1
+    out = {}
+    for name, rules in (("matlab", MATLAB_RULES), ("stiff", STIFF_RULES)):
+        o = StepOutput(np.array([0.1, 1.0]), np.zeros(1), 10, rules=rules)
+        o.emit(0.1, 0.4, np.ones(1), False, None, lambda times: np.zeros((times.size, 1)))
+        out[name] = o.finish()[0][1:-1]
+    j = np.arange(1, 10)
+    assert out["matlab"].tolist() == (0.1 + 0.30000000000000004 * (j / 10)).tolist()
+    assert out["stiff"].tolist() == (0.1 + (0.30000000000000004 * j) / 10).tolist()
+    assert (out["matlab"] != out["stiff"]).any()  # the two differ in the last bit somewhere

@@ -199,9 +199,10 @@ def _interp(kind, times, q, t, h, y, A1, A2, D, k, out):
 
 @_njit(cache=True, error_model="numpy")
 def _record(t_out, y_out, count, nxt, tspan, refine, t, tnew, ynew, kind, tk, h, y, A1, A2, D, k):
-    """implicit.common.Output.step without events: Refine points and the step's end for a
-    two-element tspan, else the tspan times the step passed (those inside it interpolated in one
-    call, as Output._record does). Returns (t_out, y_out, count, nxt)."""
+    """output.StepOutput's rows with the stiff solvers' rules (output.STIFF_RULES), without
+    events: Refine points and the step's end for a two-element tspan, else the tspan times the
+    step passed (those inside it interpolated in one call, as implicit.driver's values does).
+    Returns (t_out, y_out, count, nxt)."""
     ntspan = tspan.shape[0]
     n = ynew.shape[0]
     if ntspan == 2:
@@ -210,7 +211,7 @@ def _record(t_out, y_out, count, nxt, tspan, refine, t, tnew, ynew, kind, tk, h,
         if refine > 1:
             times = _np.empty(refine - 1)
             for r in range(1, refine):
-                times[r - 1] = t + (tnew - t) * r / refine  # Output._record's order
+                times[r - 1] = t + (tnew - t) * r / refine  # STIFF_RULES' order
             _interp(kind, times, refine - 1, tk, h, y, A1, A2, D, k, y_out[count:count + refine - 1])
             t_out[count:count + refine - 1] = times
             count += refine - 1

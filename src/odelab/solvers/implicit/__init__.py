@@ -10,19 +10,12 @@ from __future__ import annotations
 import numpy as np
 
 from odelab.exceptions import InputError
+from odelab.solvers.optionset import as_bool
 
 __all__ = ["resolve_extras", "solve_implicit", "EXTRA_DEFAULTS"]
 
 EXTRA_DEFAULTS = {"jacobian": None, "jpattern": None, "vectorized": False, "mass": None, "max_order": 5,
                   "bdf": False}
-
-
-def _as_bool(name, value) -> bool:
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, str) and value.lower() in ("on", "off"):
-        return value.lower() == "on"
-    raise InputError(f"`{name}` must be true/false (or MATLAB's 'on'/'off'); got {value!r}.", key=name)
 
 
 def _square(name, value, n, what):
@@ -54,9 +47,9 @@ def resolve_extras(method, opts, n: int) -> dict:
             raise InputError(f"`max_order` must be 1, 2, 3, 4 or 5 (ode15s's MaxOrder); got {k!r}.", key="max_order")
         out["max_order"] = int(k)
     if "bdf" in opts:
-        out["bdf"] = _as_bool("bdf", opts["bdf"])
+        out["bdf"] = as_bool("bdf", opts["bdf"])
     if "vectorized" in opts:
-        out["vectorized"] = _as_bool("vectorized", opts["vectorized"])
+        out["vectorized"] = as_bool("vectorized", opts["vectorized"])
     jac = opts.get("jacobian")
     if jac is not None:
         out["jacobian"] = jac if callable(jac) else _square("jacobian", jac, n, "df/dy (constant) or a callable J(t, y)")

@@ -13,9 +13,8 @@ holds those counters and the three operations that produce them:
   sparsity pattern makes the matrix sparse);
 * :meth:`Work.solve` — one solve with that factorisation.
 
-:class:`Output` turns accepted steps into MATLAB's output points (``Refine`` points per step
-for a two-element ``tspan``, exactly the ``tspan`` times otherwise) from each solver's own
-interpolant.
+The output points, events and step records are the collector's every driver shares
+(:class:`odelab.solvers.output.StepOutput`, fed by :mod:`odelab.solvers.implicit.driver`).
 """
 
 from __future__ import annotations
@@ -26,8 +25,8 @@ import numpy as np
 
 from odelab.solvers.controller import first_step, given_step
 
-__all__ = ["Work", "Output", "rms_or_max", "initial_step", "newton", "rate_test", "Newton",
-           "QuadraticSteps", "quadratic_through"]
+__all__ = ["Work", "rms_or_max", "initial_step", "newton", "rate_test", "Newton",
+           "QuadraticSteps", "QuadraticRecords", "quadratic_through"]
 
 EPS = float(np.finfo(float).eps)
 SQRT_EPS = math.sqrt(EPS)
@@ -248,114 +247,24 @@ def consistent_slope(work: "Work", t: float, y: np.ndarray, f0: np.ndarray, J) -
     return np.linalg.lstsq(A, b, rcond=None)[0]
 
 
-class Output:
-    """Collect MATLAB's output points from accepted steps and a per-step interpolant, and locate
-    events (MATLAB's ``Events``) on that interpolant with :func:`odelab.solvers.events.locate_events`.
-
-    ``events`` is ``(ev, v0)`` from :func:`~odelab.solvers.events.as_event_function` (or None).
-    A terminal event cuts the step at the event: the output ends there (``Refine`` points spread
-    over the cut step, the event's point appended, as MATLAB outputs it) and :meth:`step`
-    returns True; the solver then stops with ``t, y = out.t[-1], out.y[-1]``.
-    """
-
-    def __init__(self, tspan: np.ndarray, y0: np.ndarray, refine: int, events=None, nonnegative=None):
-        self.nonnegative = nonnegative  # odelab.solvers.output.NonNegative: interpolated values clipped at 0
-        self.tspan = tspan
-        self.every_step = tspan.size == 2
-        self.refine = refine
-        self.tdir = 1.0 if tspan[-1] > tspan[0] else -1.0
-        self.t = [float(tspan[0])]
-        self.y = [y0.copy()]
-        self.next = 1
-        self.events, self.v = events if events is not None else (None, None)
-        self.t0 = float(tspan[0])
-        self.y_left = y0.copy()  # the state at the start of the next step (event brackets)
-        self.te: list[float] = []
-        self.ye: list[np.ndarray] = []
-        self.ie: list[int] = []
-
-    def step(self, t: float, tnew: float, ynew: np.ndarray, interp) -> bool:
-        """Record the step ``t -> tnew``; ``interp(times)`` returns states (len(times), n).
-
-        Returns True when a terminal event stopped the integration inside the step."""
-        if self.nonnegative is not None:
-            interp = _clipped(interp, self.nonnegative.idx)
-        stop = False
-        if self.events is not None:
-            from odelab.solvers.events import locate_events
-
-            found_t, found_y, found_i, self.v, stop = locate_events(
-                lambda tq: interp(np.array([tq]))[0], self.events, self.v, t, self.y_left, tnew, ynew, self.t0)
-            self.y_left = ynew.copy()
-            if found_t:
-                self.te.extend(found_t)
-                self.ye.extend(np.array(v, dtype=float) for v in found_y)
-                self.ie.extend(found_i)
-                if stop:
-                    tnew, ynew = found_t[-1], np.asarray(found_y[-1], dtype=float)
-        self._record(t, tnew, ynew, interp)
-        if stop and self.t[-1] != tnew:  # MATLAB outputs the terminal event's point
-            self.t.append(tnew)
-            self.y.append(ynew.copy())
-        return stop
-
-    def _record(self, t: float, tnew: float, ynew: np.ndarray, interp) -> None:
-        if self.every_step:
-            if self.refine > 1:
-                times = t + (tnew - t) * np.arange(1, self.refine) / self.refine
-                self.t.extend(times.tolist())
-                self.y.extend(interp(times))
-            self.t.append(tnew)
-            self.y.append(ynew.copy())
-            return
-        start = self.next
-        while self.next < self.tspan.size and self.tdir * (tnew - self.tspan[self.next]) >= 0:
-            self.next += 1
-        if self.next == start:
-            return
-        times = self.tspan[start:self.next]
-        inside = times != tnew
-        values = np.empty((times.size, ynew.size))
-        values[~inside] = ynew
-        if inside.any():
-            values[inside] = interp(times[inside])
-        self.t.extend(times.tolist())
-        self.y.extend(values)
-
-    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
-        return np.array(self.t), np.vstack(self.y)
-
-    def found(self) -> tuple[list[float], list[np.ndarray], list[int]]:
-        """The events located: ``(te, ye, ie)`` in the order found (0-based indices)."""
-        return self.te, self.ye, self.ie
-
-
-def _clipped(interp, idx):
-    """``interp`` with its values' listed components clipped at 0 (MATLAB's NonNegative output)."""
-    from odelab.solvers.dense import clip_nonnegative
-
-    return lambda times: clip_nonnegative(np.array(interp(times), dtype=float), idx)
-
-
 class QuadraticSteps:
     """Accepted steps whose interpolant is a quadratic in ``s = (t - t_n)/h``:
-    ``y_n + s a1 + s^2 a2`` (ode23t, ode23tb). Serves :class:`Output` step by step and, at the
-    end, ``deval``/``sol(t)`` as a :class:`~odelab.solvers.dense.DenseOutput` (coefficients the
-    identity on ``K = (a1/h, a2/h)``).
+    ``y_n + s a1 + s^2 a2`` (ode23t, ode23tb). Each step's record is ``K = (a1/h, a2/h)``, one row
+    of the collector's :class:`~odelab.solvers.output.StepStore` (field :attr:`fields`); at the
+    end the store serves ``deval``/``sol(t)`` as a :class:`~odelab.solvers.dense.DenseOutput`
+    (coefficients the identity on ``K``).
     """
 
-    def __init__(self):
-        self.t: list[float] = []
-        self.h: list[float] = []
-        self.y: list[np.ndarray] = []
-        self.K: list[np.ndarray] = []
+    def __init__(self, n: int):
+        self.fields = (((2, n), float),)
+        self.rows = ()
+        self._t = self._h = None
 
     def add(self, t: float, h: float, y: np.ndarray, a1: np.ndarray, a2: np.ndarray):
-        """Record the step and return its interpolant ``times -> states`` (len(times), n)."""
-        self.t.append(t)
-        self.h.append(h)
-        self.y.append(y)
-        self.K.append(np.stack([a1 / h, a2 / h]))
+        """Make the step's record (:attr:`rows`) and return its interpolant ``times -> states``
+        (len(times), n)."""
+        self._t, self._h = t, h
+        self.rows = (np.stack([a1 / h, a2 / h]),)
 
         def interp(times):
             s = (np.asarray(times, dtype=float)[:, None] - t) / h
@@ -365,18 +274,40 @@ class QuadraticSteps:
 
     def cut(self, tend: float) -> None:
         """End the last step at ``tend`` (a terminal event): the same quadratic on ``[t_n, tend]``."""
-        r = (tend - self.t[-1]) / self.h[-1]
-        self.h[-1] = tend - self.t[-1]
-        self.K[-1] = np.stack([self.K[-1][0], self.K[-1][1] * r])
+        r = (tend - self._t) / self._h
+        K = self.rows[0]
+        self.rows = (np.stack([K[0], K[1] * r]),)
 
-    def dense(self, y_final: np.ndarray, nonnegative=None):
-        if not self.t:
+    @staticmethod
+    def dense(store, y_final: np.ndarray, nonnegative=None):
+        """The steps' dense output from the collector's store (its steps' starts, sizes and ``K``)."""
+        if not store.count:
             return None
         from odelab.solvers.dense import DenseOutput
 
-        return DenseOutput(t=np.array(self.t), h=np.array(self.h), y=np.vstack(self.y), K=np.stack(self.K),
+        return DenseOutput(t=store.t[:-1].copy(), h=np.diff(store.t), y=store.y[:-1].copy(), K=store.fields[0].copy(),
                            coefficients=np.eye(2), y_final=y_final.copy(),
                            nonnegative=None if nonnegative is None else nonnegative.idx)
+
+
+class QuadraticRecords:
+    """A :class:`~odelab.solvers.implicit.driver.Stepper` mixin for methods whose steps are
+    :class:`QuadraticSteps` (``self.steps``): the records the collector stores, the cut at a
+    terminal event and ``deval``."""
+
+    @property
+    def fields(self):
+        return self.steps.fields
+
+    @property
+    def rows(self):
+        return self.steps.rows
+
+    def cut(self, t):
+        self.steps.cut(t)
+
+    def dense(self, y_final, store):
+        return self.steps.dense(store, y_final, self.nn)
 
 
 def quadratic_through(rho: float, y: np.ndarray, y_rho: np.ndarray, ynew: np.ndarray):

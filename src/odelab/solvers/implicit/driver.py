@@ -7,9 +7,12 @@ attempt either fails in its Newton iteration (the Jacobian is refreshed if it is
 the step is cut), fails its error test (the step is cut by the method's rule), or is
 accepted; a failure at ``|h| <= hmin`` stops the run; an accepted step is output (``Refine``
 points or ``tspan`` times from the method's interpolant, events located on it, MATLAB's
-NonNegative projection), and the next step size is chosen by the method. :func:`integrate`
-is that loop, once; a :class:`Stepper` is one method's own part: its start, its attempt, its
-reactions to a failure, what it keeps from an accepted step and how it chooses the next one.
+NonNegative projection) by the collector every driver shares
+(:class:`odelab.solvers.output.StepOutput`, with the stiff solvers' rounding
+:data:`~odelab.solvers.output.STIFF_RULES`), and the next step size is chosen by the method.
+:func:`integrate` is that loop, once; a :class:`Stepper` is one method's own part: its start,
+its attempt, its reactions to a failure, what it keeps from an accepted step and how it chooses
+the next one.
 """
 
 from __future__ import annotations
@@ -19,8 +22,9 @@ import warnings
 import numpy as np
 
 from odelab.solvers.controller import clamp_step
-from odelab.solvers.implicit.common import Output, Work
-from odelab.solvers.output import NonNegative
+from odelab.solvers.dense import clip_nonnegative
+from odelab.solvers.implicit.common import Work
+from odelab.solvers.output import STIFF_RULES, NonNegative, StepOutput
 from odelab.solvers.status import Status
 
 __all__ = ["Stepper", "integrate"]
@@ -39,6 +43,11 @@ class Stepper:
     #: A Newton failure that only refreshes a stale Jacobian still counts as a failed attempt
     #: of the step (no growth after it): ode23t's rule; ode15s and ode23tb do not count it.
     refresh_clears_nofailed = False
+    #: The per-step record the collector's :class:`~odelab.solvers.output.StepStore` keeps for
+    #: ``deval`` besides each step's end (``(shape, dtype)`` of each field), and its rows for
+    #: the last accepted step (:meth:`accept` sets them).
+    fields: tuple = ()
+    rows: tuple = ()
 
     def __init__(self, work: Work, tspan, rtol: float, atol: np.ndarray, nonnegative=None):
         self.work = work
@@ -85,19 +94,49 @@ class Stepper:
 
     def accept(self, t: float, y: np.ndarray, ynew: np.ndarray):
         """Keep the accepted step; return ``(tnew, ynew, interp)``, ``interp(times)`` the step's
-        interpolant as states (len(times), n)."""
+        interpolant as states (len(times), n); the step's record goes in :attr:`rows`."""
         raise NotImplementedError
 
     def cut(self, t: float) -> None:
-        """A terminal event ended the last accepted step at ``t``."""
+        """A terminal event ended the last accepted step at ``t`` (before its record is stored)."""
 
     def next_step(self, absh: float, err: float, nofailed: bool) -> float:
         """The size of the next step after an accepted one."""
         raise NotImplementedError
 
-    def dense(self, y_final: np.ndarray):
-        """The solution's dense output for ``deval`` (or None)."""
+    def dense(self, y_final: np.ndarray, store):
+        """The solution's dense output for ``deval`` from the steps' records (or None)."""
         return None
+
+
+class _Interpolant:
+    """The last accepted step's interpolant as the collector calls it (NonNegative: clipped)."""
+
+    __slots__ = ("interp", "tnew", "idx")
+
+    def __init__(self, nn):
+        self.idx = None if nn is None else nn.idx
+        self.interp = self.tnew = None
+
+    def set(self, tnew: float, interp) -> None:
+        self.tnew = tnew
+        if self.idx is None:
+            self.interp = interp
+        else:
+            idx = self.idx
+            self.interp = lambda times: clip_nonnegative(np.array(interp(times), dtype=float), idx)
+
+    def value_at(self, tq: float) -> np.ndarray:
+        return self.interp(np.array([tq]))[0]
+
+    def values(self, times, rows) -> None:
+        times = np.array(times)
+        inside = times != self.tnew  # the collector writes ynew on an entry equal to tnew
+        if inside.any():
+            rows[inside] = self.interp(times[inside])
+
+    def interior(self, times) -> np.ndarray:
+        return self.interp(times)
 
 
 def integrate(stepper: Stepper, tspan, y0, f0, hmax, htry, refine, max_steps, events=None):
@@ -108,7 +147,9 @@ def integrate(stepper: Stepper, tspan, y0, f0, hmax, htry, refine, max_steps, ev
     events found and the dense output are left in ``stepper.work`` (``found``, ``dense``)."""
     work, rtol, nn = stepper.work, stepper.rtol, stepper.nn
     tf = stepper.tf
-    out = Output(tspan, y0, refine, events, nn)
+    ev, v0 = events if events is not None else (None, None)
+    out = StepOutput(tspan, y0, refine, stepper.fields, ev, v0, rules=STIFF_RULES)
+    add, per_step, step = out.store.add, out.per_step, _Interpolant(nn)
     nsteps = nfailed = 0
     status, exception = Status.SUCCESS, None
     t, y = stepper.t0, y0.copy()
@@ -164,9 +205,18 @@ def integrate(stepper: Stepper, tspan, y0, f0, hmax, htry, refine, max_steps, ev
                     ynew = ynew.copy()
                     nn.clip(ynew)
                 tnew, ynew, interp = stepper.accept(t, y, ynew)
-                if out.step(t, tnew, ynew, interp):
-                    t, y = out.t[-1], out.y[-1]
-                    stepper.cut(t)
+                step.set(tnew, interp)
+                stop = False
+                if ev is not None:
+                    cut = out.locate(step.value_at, t, y, tnew, ynew)
+                    if cut is not None:  # a terminal event: the step (and its record) ends there
+                        tnew, ynew, stop = cut[0], np.asarray(cut[1], dtype=float), True
+                        stepper.cut(tnew)
+                add(tnew, ynew, *stepper.rows)
+                if per_step:
+                    out.emit(t, tnew, ynew, stop, step.values, step.interior)
+                if stop:
+                    t, y = tnew, ynew
                     status = Status.TERMINAL_EVENT
                     break
                 t, y = tnew, ynew
@@ -179,7 +229,7 @@ def integrate(stepper: Stepper, tspan, y0, f0, hmax, htry, refine, max_steps, ev
                 absh = stepper.next_step(absh, err, nofailed)
         except Exception as exc:  # the user's right-hand side (or Jacobian) failed
             status, exception = Status.FUN_RAISED, exc
-    t_out, y_out = out.arrays()
-    work.found = out.found()
-    work.dense = stepper.dense(y)
+    t_out, y_out = out.finish()
+    work.found = out.found
+    work.dense = stepper.dense(y, out.store)
     return t_out, y_out, nsteps, nfailed, status, t, absh, exception

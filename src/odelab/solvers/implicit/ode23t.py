@@ -50,8 +50,8 @@ import math
 import numpy as np
 
 from odelab.solvers.controller import first_step, given_step, shrink, shrink_after_newton
-from odelab.solvers.implicit.common import (EPS, SQRT_EPS, Newton, QuadraticSteps, Work, consistent_slope,
-                                           quadratic_through, rate_test)
+from odelab.solvers.implicit.common import (EPS, SQRT_EPS, Newton, QuadraticRecords, QuadraticSteps, Work,
+                                           consistent_slope, quadratic_through, rate_test)
 from odelab.solvers.implicit.driver import Stepper, integrate
 
 __all__ = ["integrate_ode23t", "TrapezoidalStep", "predict", "local_error", "rings", "interpolant", "solve_z",
@@ -145,7 +145,7 @@ def solve_z(work: Work, lu, tnew: float, ynew: np.ndarray, znew: np.ndarray, gam
     return y, z, False
 
 
-class TrapezoidalStep(Stepper):
+class TrapezoidalStep(QuadraticRecords, Stepper):
     """ode23t's own part of the step: ``z = h y'``, the last three accepted points (``history``:
     prediction, error estimate, interpolant), whether the step is BDF1 (``bdf1``: the first
     step, a restart, or damping a ringing component) or TR, and the LU of ``M - gamma h J``."""
@@ -154,7 +154,7 @@ class TrapezoidalStep(Stepper):
 
     def __init__(self, work: Work, tspan, rtol, atol, nonnegative=None):
         super().__init__(work, tspan, rtol, atol, nonnegative)
-        self.steps = QuadraticSteps()
+        self.steps = QuadraticSteps(work.n)
         self.memory = Newton()
         self.dae = False
         if work.mass is not None:
@@ -276,9 +276,6 @@ class TrapezoidalStep(Stepper):
         self.z = znew
         return tnew, ynew, interp
 
-    def cut(self, t):
-        self.steps.cut(t)
-
     def next_step(self, absh, err, nofailed):
         if self.bdf1 and self.damping > 1:
             self.damping -= 1
@@ -301,9 +298,6 @@ class TrapezoidalStep(Stepper):
                 self.z = ratio * self.z
                 self.need_lu = True
         return absh
-
-    def dense(self, y_final):
-        return self.steps.dense(y_final, self.nn)
 
 
 def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, max_steps, events=None,

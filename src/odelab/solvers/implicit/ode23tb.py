@@ -36,7 +36,8 @@ import math
 import numpy as np
 
 from odelab.solvers.controller import grow, shrink, shrink_after_newton
-from odelab.solvers.implicit.common import Newton, QuadraticSteps, Work, initial_step, newton, quadratic_through
+from odelab.solvers.implicit.common import (Newton, QuadraticRecords, QuadraticSteps, Work, initial_step, newton,
+                                           quadratic_through)
 from odelab.solvers.implicit.driver import Stepper, integrate
 
 __all__ = ["integrate_ode23tb", "TRBDF2Step", "trbdf2_attempt", "GAMMA", "D", "W", "B", "BHAT"]
@@ -81,14 +82,14 @@ def trbdf2_attempt(work: Work, lu, t: float, y: np.ndarray, z: np.ndarray, zslop
     return ynew, yg, znew, est, True
 
 
-class TRBDF2Step(Stepper):
+class TRBDF2Step(QuadraticRecords, Stepper):
     """ode23tb's own part of the step: ``y'`` and ``y''`` at the step's start (FSAL; the first
     stage's starting guess), the LU of ``M - d h J`` keyed on ``h``, and the accepted steps'
     quadratics (output and ``deval``)."""
 
     def __init__(self, work: Work, tspan, rtol, atol, nonnegative=None):
         super().__init__(work, tspan, rtol, atol, nonnegative)
-        self.steps = QuadraticSteps()  # the quadratic through y_n, y_g, y_n+1: Refine, tspan output and deval
+        self.steps = QuadraticSteps(work.n)  # the quadratic through y_n, y_g, y_n+1: Refine, tspan output and deval
         self.memory = Newton()
         self.lu, self.lu_h = None, None
 
@@ -135,14 +136,8 @@ class TRBDF2Step(Stepper):
         self.yp = ypnew
         return self.tnew, ynew, interp
 
-    def cut(self, t):
-        self.steps.cut(t)
-
     def next_step(self, absh, err, nofailed):
         return grow(absh, err, self.rtol, POWER, 1.25, 5.0) if nofailed else absh
-
-    def dense(self, y_final):
-        return self.steps.dense(y_final, self.nn)
 
 
 def integrate_ode23tb(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, max_steps, events=None,
