@@ -30,6 +30,7 @@ __all__ = ["Work", "rms_or_max", "initial_step", "newton", "rate_test", "Newton"
 
 EPS = float(np.finfo(float).eps)
 SQRT_EPS = math.sqrt(EPS)
+_max = np.maximum.reduce  # ndarray.max() without its Python layer (the same reduction)
 
 
 class Work:
@@ -126,6 +127,12 @@ class Work:
         kind, fac = lu
         if kind == "sparse":
             return fac.solve(rhs)
+        if rhs.dtype == np.float64:  # scipy's lu_solve without its per-call wrappers: the same dgetrs call
+            from scipy.linalg.lapack import dgetrs
+
+            x, info = dgetrs(*fac, rhs)
+            if info == 0:
+                return x
         from scipy.linalg import lu_solve
 
         return lu_solve(fac, rhs, check_finite=False)
@@ -181,12 +188,13 @@ def newton(work: "Work", lu, residual, z: np.ndarray, scale: float, wt: np.ndarr
     starting guess's weighted size; ode15s measures it on the step's starting state).
     """
     if minnrm is None:
-        minnrm = 100 * EPS * float(np.max(np.abs(z) * abs(scale) / wt)) if z.size else 0.0
+        minnrm = 100 * EPS * float((np.abs(z) * abs(scale) / wt).max()) if z.size else 0.0
     oldnrm = 0.0
+    solve, scale = work.solve, abs(scale)
     for it in range(1, MAX_NEWTON + 1):
-        dz = work.solve(lu, residual(z))
+        dz = solve(lu, residual(z))
         z = z + dz
-        newnrm = abs(scale) * float(np.max(np.abs(dz) / wt))
+        newnrm = scale * float(_max(np.abs(dz) / wt))
         verdict = rate_test(it, newnrm, oldnrm, minnrm, memory, rtol, MAX_NEWTON)
         if verdict is not None:
             return z, verdict

@@ -33,21 +33,27 @@ __all__ = ["integrate_ode15s", "NDFStep", "KAPPA"]
 # MATLAB's ode15s: alpha = [-37/200, -1/9, -0.0823, -0.0415, 0] for orders 1..5 (index 0 unused).
 KAPPA = np.array([0.0, -37 / 200, -1 / 9, -0.0823, -0.0415, 0.0])
 GAMMA = np.concatenate([[0.0], np.cumsum(1.0 / np.arange(1, 6))])  # 1, 3/2, 11/6, 25/12, 137/60
+# ndarray.max() and .sum() without their Python layers (the same reductions: bit for bit)
+_max, _sum = np.maximum.reduce, np.add.reduce
 
 
 def _rescale(order: int, factor: float) -> np.ndarray:
     """The paper's R(factor) as an (order+1) x (order+1) matrix (Section 2.3)."""
-    i = np.arange(1, order + 1)[:, None]
-    j = np.arange(1, order + 1)
+    i, j = _IJ[order]
     m = np.zeros((order + 1, order + 1))
     m[1:, 1:] = (i - 1 - factor * j) / i
     m[0] = 1.0
     return np.cumprod(m, axis=0)
 
 
+# per order: the index columns and rows of R, and U = R(1) (constant: formed once)
+_IJ = {order: (np.arange(1, order + 1)[:, None], np.arange(1, order + 1)) for order in range(1, 6)}
+_U = {order: _rescale(order, 1.0) for order in range(1, 6)}
+
+
 def change_differences(D: np.ndarray, order: int, factor: float) -> None:
     """Rescale the backward differences ``D[0..order]`` to a step ``factor`` times the old one."""
-    RU = _rescale(order, factor) @ _rescale(order, 1.0)
+    RU = _rescale(order, factor) @ _U[order]
     D[: order + 1] = RU.T @ D[: order + 1]
 
 
@@ -126,21 +132,28 @@ class NDFStep(Stepper):
             self.lu_key = (absh, k)
             self.memory.havrate = False
         c = self.c
-        ypred = D[: k + 1].sum(axis=0)
+        ypred = _sum(D[: k + 1], axis=0)
         psi = (GAMMA[1 : k + 1] @ D[1 : k + 1]) / self.alpha[k]
-        wt = np.maximum(np.abs(y), self.threshold)
+        absy = np.abs(y)
+        wt = np.maximum(absy, self.threshold)
+        f = work.f
+        if work.mass is None:  # (mass_times is the identity)
+            def residual(d):
+                return c * f(tnew, ypred + d) - (psi + d)
+        else:
+            mass_times = work.mass_times
 
-        def residual(d):
-            return c * work.f(tnew, ypred + d) - work.mass_times(psi + d)
+            def residual(d):
+                return c * f(tnew, ypred + d) - mass_times(psi + d)
 
-        minnrm = 100 * EPS * float(np.max(np.abs(y) / wt))
+        minnrm = 100 * EPS * float(_max(absy / wt))
         d, converged = newton(work, self.lu, residual, np.zeros(y.size), 1.0, wt, self.rtol, self.memory, minnrm=minnrm)
         if not converged:
             return None
         ynew = ypred + d
-        self.scale = np.maximum(np.maximum(np.abs(y), np.abs(ynew)), self.threshold)
+        self.scale = scale = np.maximum(np.maximum(absy, np.abs(ynew)), self.threshold)
         self.h, self.tnew, self.ypred, self.ynew, self.d = h, tnew, ypred, ynew, d
-        return ynew, self.erconst[k] * float(np.max(np.abs(d) / self.scale))
+        return ynew, self.erconst[k] * float(_max(np.abs(d) / scale))
 
     def after_newton_failure(self, absh, hmin):
         absh_new = shrink_after_newton(absh, hmin)
@@ -152,7 +165,7 @@ class NDFStep(Stepper):
         if nfails == 1:
             hopt = shrink(absh, 0.0, err, rtol, 1 / (k + 1), 0.1, 0.833, True)  # 1/1.2
             if k > 1:
-                errkm1 = self.erconst[k - 1] * float(np.max(np.abs(self.D[k] + self.d) / self.scale))
+                errkm1 = self.erconst[k - 1] * float((np.abs(self.D[k] + self.d) / self.scale).max())
                 hkm1 = shrink(absh, 0.0, errkm1, rtol, 1 / k, 0.1, 0.769, True)  # 1/1.3
                 if hkm1 > hopt:
                     hopt = min(absh, hkm1)
@@ -189,12 +202,12 @@ class NDFStep(Stepper):
         hopt = grow(absh, err, rtol, 1 / (k + 1), 1.2, 10.0)
         kopt = k
         if k > 1:
-            errkm1 = erconst[k - 1] * float(np.max(np.abs(D[k]) / self.scale))
+            errkm1 = erconst[k - 1] * float((np.abs(D[k]) / self.scale).max())
             hkm1 = absh / max(0.1, 1.3 * (errkm1 / rtol) ** (1 / k))
             if hkm1 > hopt:
                 hopt, kopt = hkm1, k - 1
         if k < self.max_order:
-            errkp1 = erconst[k + 1] * float(np.max(np.abs(D[k + 2]) / self.scale))
+            errkp1 = erconst[k + 1] * float((np.abs(D[k + 2]) / self.scale).max())
             hkp1 = absh / max(0.1, 1.4 * (errkp1 / rtol) ** (1 / (k + 2)))
             if hkp1 > hopt:
                 hopt, kopt = hkp1, k + 1
