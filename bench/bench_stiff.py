@@ -203,8 +203,7 @@ def main():
             sol, best = run_odelab(name, method, args.repeat)
             err, what = error(name, sol.t, sol.y, ref)
             s = sol.stats
-            ran = f" (ran {odelab.METHODS[method].runs_as})" if odelab.METHODS[method].runs_as else ""
-            rows.append((name, method + ran, sol.status, s.nsteps, s.nfailed, s.nfevals, s.npds, s.ndecomps,
+            rows.append((name, method, sol.status, s.nsteps, s.nfailed, s.nfevals, s.npds, s.ndecomps,
                          f"{err:.2g} ({what})", f"{best:.3f}"))
             if method == "BDF":
                 from scipy.integrate import solve_ivp
