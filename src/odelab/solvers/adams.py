@@ -55,8 +55,11 @@ GSTAR = np.array([np.nan, 0.5, 0.0833, 0.0417, 0.0264, 0.0188, 0.0143, 0.0114, 0
                   0.00592, 0.00524, 0.00468])  # 1-based
 _accumulate = np.add.accumulate
 _max = np.maximum.reduce  # ndarray.max without its Python wrapper (the same value, NaN included)
+_POW2 = [2.0 ** i for i in range(MAX_ORDER + 2)]
 _GSTAR = GSTAR.tolist()  # the same numbers as Python floats (the loop's scalar arithmetic)
 _NCOL = MAX_ORDER + 3  # phi columns 1 .. k+2 (1-based; column 0 unused, always zero)
+_SMALL = 16  # up to this many components, the error norms' maxima are taken by Python (cheaper than numpy's)
+_V0 = [0.0] + [1.0 / (iq * (iq + 1)) for iq in range(1, MAX_ORDER + 2)]  # v_iq of a constant step (1-based)
 
 
 def _inv_weight(y, threshold, norm_control):
@@ -203,24 +206,30 @@ class AdamsDenseOutput:
 class _Adams:
     """Shampine & Gordon's method state, 1-based as in the book: the modified divided differences
     ``phi[1..k+2]`` (rows of an array), the spacings ``psi``, the coefficients ``alpha, beta,
-    sigma``, the integration coefficients ``g`` and their work vectors ``v, w`` (Python lists),
+    sigma``, the integration coefficients ``g`` and their work vector ``v`` (Python lists),
     the order ``k`` and the bookkeeping of which coefficients are still valid (``ns``)."""
 
-    __slots__ = ("phi", "psi", "alpha", "beta", "sig", "v", "w", "g", "k", "klast", "hlast", "ns", "phase1",
-                 "g_order", "g_arr", "anchor", "nonnegative")
+    __slots__ = ("phi", "psi", "alpha", "beta", "sig", "v", "g", "k", "klast", "hlast", "ns", "phase1",
+                 "g_order", "g_arr", "anchor", "nonnegative", "zero", "small", "row", "lead", "back", "trio")
 
     def __init__(self, f0: np.ndarray, dtype, nonnegative=None):
         self.nonnegative = nonnegative
         self.anchor = (0.0, f0, 1)  # (t, y, k+1) of the last accepted step's interpolant
         self.phi = np.zeros((_NCOL, f0.size), dtype=dtype)
         self.phi[1] = f0
+        phi = self.phi  # views of its rows, made once (indexing an array costs more than a list):
+        self.row = list(phi)  # phi_i
+        self.lead = [phi[1:j + 1] for j in range(_NCOL)]  # phi_1 .. phi_j
+        self.back = [phi[j:0:-1] for j in range(_NCOL)]  # phi_j .. phi_1
+        self.trio = [phi[max(j - 1, 0):j + 2] for j in range(_NCOL)]  # phi_{j-1} .. phi_{j+1}
+        self.zero = np.zeros_like(f0, dtype=dtype)  # a row of phi set to zero (a copy: cheaper than a fill)
+        self.small = f0.size <= _SMALL
         self.psi = [0.0] * 14
         self.alpha = [0.0] * 14
         self.beta = [0.0] * 14
         self.sig = [0.0] * 15
         self.sig[1] = 1.0
         self.v = [0.0] * 15
-        self.w = [0.0] * 15
         self.g = [0.0] * 15
         self.g[1], self.g[2] = 1.0, 0.5
         self.k = 1
@@ -231,71 +240,68 @@ class _Adams:
         self.ns = 0
         self.phase1 = True
 
-    def coefficients(self, h: float) -> None:
-        """The coefficients of a step of size ``h`` (book, Sec. 5): only those changed since the
-        step size changed."""
-        k, psi, alpha, beta, sig, v, w, g = self.k, self.psi, self.alpha, self.beta, self.sig, self.v, self.w, self.g
-        if h != self.hlast:
-            self.ns = 0
-        if self.ns <= self.klast:
-            self.ns += 1
-        ns = self.ns
-        if k < ns:
-            return
+    def coefficients(self, h: float, ns: int, k: int) -> None:
+        """The coefficients of a step of size ``h`` at order ``k`` (book, Sec. 5): those from ``ns``
+        on (``ns - 1``: the steps of this size so far; the others are still valid)."""
+        psi, alpha, beta, sig, v, g = self.psi, self.alpha, self.beta, self.sig, self.v, self.g
         self.g_order = 0  # g changes: the array copy is stale
-        beta[ns] = 1.0
+        b = beta[ns] = 1.0
         alpha[ns] = 1.0 / ns
         temp1 = h * ns
-        sig[ns + 1] = 1.0
+        s = sig[ns + 1] = 1.0
         for i in range(ns + 1, k + 1):
             temp2 = psi[i - 1]
             psi[i - 1] = temp1
+            b = beta[i] = b * temp1 / temp2
             temp1 = temp2 + h
-            beta[i] = beta[i - 1] * psi[i - 1] / temp2
-            alpha[i] = h / temp1
-            sig[i + 1] = i * alpha[i] * sig[i]
+            a = alpha[i] = h / temp1
+            s = sig[i + 1] = i * a * s
         psi[k] = temp1
         if ns == 1:  # constant-step values of the integration coefficients
-            for iq in range(1, k + 1):
-                v[iq] = 1.0 / (iq * (iq + 1))
-                w[iq] = v[iq]
+            v[1:k + 1] = w = _V0[1:k + 1]  # w: the work vector 0-based, w[iq - 1] = w_iq
         else:
             if k > self.klast:  # the order went up: the new diagonal entry of v
-                v[k] = 1.0 / (k * (k + 1))
+                v[k] = _V0[k]
                 for j in range(1, ns - 1):
                     v[k - j] -= alpha[j + 1] * v[k - j + 1]
             a = alpha[ns]
             for iq in range(1, k + 2 - ns):
                 v[iq] -= a * v[iq + 1]
-                w[iq] = v[iq]
-            g[ns + 1] = w[1]
+            w = v[1:k + 2 - ns]
+            g[ns + 1] = w[0]
         for i in range(ns + 2, k + 2):
             a = alpha[i - 1]
-            for iq in range(1, k + 3 - i):
+            for iq in range(k + 2 - i):
                 w[iq] -= a * w[iq + 1]
-            g[i] = w[1]
+            g[i] = w[0]
 
     def predict(self, y: np.ndarray, h: float) -> np.ndarray:
-        """phi -> phi*, and the prediction ``p = y + h sum g_i phi*_i``; phi becomes the
-        differences at ``t + h``."""
-        k, ns, phi = self.k, self.ns, self.phi
-        if k > ns:
-            phi[ns + 1:k + 1] *= np.array(self.beta[ns + 1:k + 1])[:, None]
-        phi[k + 2] = phi[k + 1]
-        phi[k + 1] = 0.0
+        """The coefficients of a step ``h``, phi -> phi*, and the prediction ``p = y + h sum g_i
+        phi*_i``; phi becomes the differences at ``t + h``."""
+        ns = 0 if h != self.hlast else self.ns
+        if ns <= self.klast:
+            ns += 1
+        self.ns = ns
+        k, row = self.k, self.row
+        if k >= ns:  # the step size changed within the last k steps
+            self.coefficients(h, ns, k)
+            if k > ns:
+                self.phi[ns + 1:k + 1] *= np.array(self.beta[ns + 1:k + 1])[:, None]
+        row[k + 2][...] = row[k + 1]
+        row[k + 1][...] = self.zero
         if self.g_order != k:
             self.g_arr = np.array(self.g[1:k + 1])
             self.g_order = k
-        p = y + h * (self.g_arr @ phi[1:k + 1])
-        backwards_rows = phi[k:0:-1]  # phi_i <- phi_i + ... + phi_k: numpy.cumsum's sums, in place
-        _accumulate(backwards_rows, axis=0, out=backwards_rows)
+        p = y + h * self.g_arr.dot(self.lead[k])  # numpy.dot: the same BLAS gemv as matmul (@), half its cost
+        backwards_rows = self.back[k]  # phi_i <- phi_i + ... + phi_k: numpy.cumsum's sums, in place
+        _accumulate(backwards_rows, 0, None, backwards_rows)
         return p
 
     def errors(self, yp: np.ndarray, p: np.ndarray, h: float, absh: float, invwt, norm_control: bool):
         """The local errors at orders k, k-1, k-2 as if the step had been constant, the order they
         suggest and the corrected solution: ``(err, erk, erkm1, knew, ynew)``."""
         k, phi, g, sig = self.k, self.phi, self.g, self.sig
-        phikp1 = yp - phi[1]
+        phikp1 = yp - self.row[1]
         if norm_control:
             temp3 = _wnorm(phikp1, invwt, True)
             nkm1 = _wnorm(phi[k] + phikp1, invwt, True) if k >= 2 else 0.0
@@ -303,7 +309,15 @@ class _Adams:
         else:
             # the three weighted max norms in one array operation: rows k-1, k and k+1 of phi
             # (row k+1 is zero after the prediction, row 0 always) plus phikp1
-            nkm2, nkm1, temp3 = _max(np.abs((phi[k - 1:k + 2] + phikp1) * invwt), axis=1).tolist()
+            rows = np.abs((self.trio[k] + phikp1) * invwt)
+            if self.small:
+                nkm2, nkm1, temp3 = rows.tolist()
+                if sum(nkm2) + sum(nkm1) + sum(temp3) < math.inf:  # no NaN (nor inf): Python's max is numpy's
+                    nkm2, nkm1, temp3 = max(nkm2), max(nkm1), max(temp3)
+                else:  # numpy's maximum: NaN wherever a component is NaN
+                    nkm2, nkm1, temp3 = _max(rows, axis=1).tolist()
+            else:
+                nkm2, nkm1, temp3 = _max(rows, axis=1).tolist()
             if k < 3:
                 nkm2 = 0.0
                 if k < 2:
@@ -329,37 +343,45 @@ class _Adams:
 
     def correct(self, yp: np.ndarray, h: float) -> None:
         """An accepted step: the differences after the corrected evaluation ``yp``."""
-        k, phi = self.k, self.phi
+        k, row = self.k, self.row
         self.klast = k
         self.hlast = h
-        np.subtract(yp, phi[1], out=phi[k + 1])
-        np.subtract(phi[k + 1], phi[k + 2], out=phi[k + 2])
-        phi[1:k + 1] += phi[k + 1]
+        new, last = row[k + 1], row[k + 2]
+        np.subtract(yp, row[1], out=new)
+        np.subtract(new, last, out=last)
+        lead = self.lead[k]
+        lead += new
 
-    def next_order(self, knew: int, erk: float, erkm1: float, absh: float, invwt, norm_control: bool) -> float:
-        """The order for the next step (book, block 4); returns the error estimate at it."""
+    def advance(self, knew: int, erk: float, erkm1: float, absh: float, invwt, norm_control: bool,
+                rtol: float) -> float:
+        """The order for the next step (book, block 4) and its size: doubled in phase 1 or when the
+        error at the new order is 2^-(k+1) of half the tolerance, shrunk when it exceeds half the
+        tolerance."""
         k = self.k
         if knew == k - 1 or k == MAX_ORDER:
             self.phase1 = False
         if self.phase1:
             self.k = k + 1
-            return 0.0
+            return 2.0 * absh
         if knew == k - 1:
-            self.k = k - 1
-            return erkm1
-        if k + 1 <= self.ns:
-            erkp1 = absh * _GSTAR[k + 1] * _wnorm(self.phi[k + 2], invwt, norm_control)
+            k, erk = k - 1, erkm1
+        elif k + 1 <= self.ns:
+            diff = self.row[k + 2]
+            erkp1 = absh * _GSTAR[k + 1] * (_wnorm(diff, invwt, True) if norm_control
+                                            else float(_max(np.abs(diff * invwt))))
             if k == 1:
                 if erkp1 < 0.5 * erk:
-                    self.k = k + 1
-                    return erkp1
+                    k, erk = 2, erkp1
             elif erkm1 <= min(erk, erkp1):
-                self.k = k - 1
-                return erkm1
+                k, erk = k - 1, erkm1
             elif erkp1 < erk and k < MAX_ORDER:
-                self.k = k + 1
-                return erkp1
-        return erk
+                k, erk = k + 1, erkp1
+        self.k = k
+        if 0.5 * rtol >= erk * _POW2[k + 1]:
+            return 2.0 * absh
+        if 0.5 * rtol < erk:
+            return absh * max(0.5, min(0.9, (0.5 * rtol / erk) ** (1.0 / (k + 1))))
+        return absh
 
     def value_at(self, tq: float) -> np.ndarray:
         """The last accepted step's interpolant at one time (events)."""
@@ -377,16 +399,6 @@ class _Adams:
         t, y, ki = self.anchor
         return ntrp113(times, t, y, self.phi[1:ki + 1], np.array(self.psi[1:ki]), ki, self.nonnegative)[0]
 
-    def next_step(self, absh: float, erk: float, rtol: float) -> float:
-        """The step size for the next step: doubled in phase 1 or when the error at the new order
-        is 2^-(k+1) of half the tolerance, shrunk when it exceeds half the tolerance."""
-        k = self.k
-        if self.phase1 or 0.5 * rtol >= erk * 2.0 ** (k + 1):
-            return 2.0 * absh
-        if 0.5 * rtol < erk:
-            return absh * max(0.5, min(0.9, (0.5 * rtol / erk) ** (1.0 / (k + 1))))
-        return absh
-
 
 def _shrink_after_failure(absh: float, hmin: float, failed: int, knew: int, erk: float, rtol: float):
     """ode113's step after its ``failed``-th consecutive rejection: halved, on the third failure
@@ -400,18 +412,22 @@ def _shrink_after_failure(absh: float, hmin: float, failed: int, knew: int, erk:
     return max(reduce * absh, hmin), knew
 
 
-def _dense_output(store, psi_rows, nonnegative, y_final) -> AdamsDenseOutput | None:
-    """The piecewise interpolant from the step records (t_ref, y_ref, order, phi) and each step's
-    spacings ``psi_rows``, returning ``y_final`` (the output's last row) at its end."""
+def _dense_output(store, orders, psi_rows, cut, nonnegative, y_final) -> AdamsDenseOutput | None:
+    """The piecewise interpolant from the step records (phi), each step's order ``k + 1`` and its
+    spacings ``psi_rows`` (``psi_1 .. psi_12``, those beyond the step's ``k`` unused); each step's
+    polynomial is anchored at its end, except a terminal event's step: ``cut`` holds its anchor
+    ``(t, y)`` (or None). Returns ``y_final`` (the output's last row) at its end."""
     if not store.count:
         return None
-    t_ref, y_ref, order, phi = store.fields
-    order = order.astype(np.intp)
-    psi = np.ones((order.size, MAX_ORDER))  # unused entries 1
-    for i, row in enumerate(psi_rows):
-        psi[i, :len(row)] = row
+    (phi,) = store.fields
+    order = np.array(orders, dtype=np.intp)
+    t_ref, y_ref = store.t[1:].copy(), store.y[1:].copy()
+    if cut is not None:
+        t_ref[-1], y_ref[-1] = cut
+    psi = np.array(psi_rows)
+    psi[np.arange(MAX_ORDER) >= order[:, None] - 1] = 1.0  # unused entries 1
     offsets = np.concatenate([[0], np.cumsum(order)[:-1]]).astype(np.intp)
-    flat = np.concatenate([phi[i, :order[i]] for i in range(order.size)])
+    flat = phi[np.arange(MAX_ORDER + 1) < order[:, None]]  # each step's first order[i] rows, in turn
     return AdamsDenseOutput(t=store.t[:-1].copy(), t_end=store.t[1:].copy(), t_ref=t_ref, y_ref=y_ref,
                             order=order, offsets=offsets, phi=flat, psi=psi, y_final=y_final.copy(),
                             nonnegative=nonnegative)
@@ -437,11 +453,12 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
     else:
         absh = given_step(htry, t0, hmax)
     state = _Adams(f0, y0.dtype, nonnegative)
-    # each step's record: its polynomial's anchor (t, y), its order k+1 and differences phi_1 ..
-    # phi_13 (those beyond k+1 unused), and its spacings psi_1 .. psi_k (a list a step)
-    fields = [((), float), ((n,), y0.dtype), ((), np.intp), ((MAX_ORDER + 1, n), y0.dtype)]
-    out = StepOutput(tspan, y0, refine, fields, events, v0, output_fcn)
-    add, psi_rows, per_step, phi_rows = out.store.add, [], out.per_step, state.phi[1:MAX_ORDER + 2]
+    # each step's record: its differences phi_1 .. phi_13 (those beyond k+1 unused), its order k+1
+    # and its spacings psi_1 .. psi_12 (lists); its polynomial is anchored at the step's end
+    out = StepOutput(tspan, y0, refine, [((MAX_ORDER + 1, n), y0.dtype)], events, v0, output_fcn)
+    add, per_step, phi_rows, psi = out.store.add, out.per_step, state.phi[1:MAX_ORDER + 2], state.psi
+    orders, psi_rows = [], []
+    cut_ref = None  # a terminal event's step: the anchor (t, y) of its polynomial, beyond the cut
     nsteps = nfailed = nfevals = 0
     status = success = Status.SUCCESS  # a local: the enum's attribute lookup costs more than a step's test
     exception = None
@@ -453,7 +470,6 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
             invwt = _inv_weight(y, threshold, norm_control)
             failed = 0
             while True:
-                state.coefficients(h)
                 p = state.predict(y, h)
                 tnew = tfinal if done else t + h
                 yp = fun(tnew, p)
@@ -490,22 +506,22 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
             nfevals += 1
             ki = state.k + 1  # this step's interpolant: phi_1 .. phi_{k+1} and psi_1 .. psi_k after it
             state.correct(yp, h)
-            erk = state.next_order(knew, erk, erkm1, absh, invwt, norm_control)
+            absh_next = state.advance(knew, erk, erkm1, absh, invwt, norm_control, rtol)
             state.anchor = (tnew, y, ki)
             t_end, y_end, stop = tnew, y, False
             if events is not None:
                 cut = out.locate(state.value_at, tlast, ylast, tnew, y)
                 if cut is not None:
-                    (t_end, y_end), done, stop = cut, True, True
+                    (t_end, y_end), done, stop, cut_ref = cut, True, True, (tnew, y)
                     status = Status.TERMINAL_EVENT
-            add(t_end, y_end, tnew, y, ki, phi_rows)
-            psi_rows.append(state.psi[1:ki])
+            add(t_end, y_end, phi_rows)
+            orders.append(ki)
+            psi_rows.append(psi[1:MAX_ORDER + 1])
             if per_step and out.emit(tlast, t_end, y_end, stop, state.values, state.interior):
                 status = Status.OUTPUT_STOP
                 t = t_end
                 break
-            absh = state.next_step(absh, erk, rtol)
-            t = t_end
+            absh, t = absh_next, t_end
             if done:
                 break
             if max_steps and nsteps >= max_steps:
@@ -516,4 +532,4 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
         exception = exc
     t_arr, y_arr = out.finish()
     return DriverResult(t_arr, y_arr, nsteps, nfailed, nfevals, status, t, abs(h), exception, out.found,
-                        _dense_output(out.store, psi_rows, nonnegative, y_arr[-1]))
+                        _dense_output(out.store, orders, psi_rows, cut_ref, nonnegative, y_arr[-1]))
