@@ -3,8 +3,8 @@
 The target is ode113 at <= 0.5x SciPy RK45's time per step on a cheap right-hand side: each
 ode113 step is two evaluations of ``fun`` and Shampine & Gordon's bookkeeping (the divided
 differences, the order and step rules), a RK45 step six evaluations and SciPy's Python loop.
-Both run the same problems at the same tolerances in this process, alternated, each timed as
-the best CPU time of ``--repeat`` runs (CPU time, so that other processes on a loaded machine
+Both run the same problems at the same tolerances in this process, alternated run by run, each
+timed as the best CPU time of ``--repeat`` runs (CPU time, so that other processes on a loaded machine
 count less). Not a test: run it and read the table.
 
     python bench/bench_ode113.py [--repeat 7]
@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import time
 
 import numpy as np
@@ -39,19 +40,23 @@ PROBLEMS = {  # name: (fun, tspan, y0, rtol, atol)
 }
 
 
-def per_step(run, repeat: int) -> tuple[float, int]:
-    best, steps = math.inf, 0
+def per_step(runs, repeat: int) -> list[tuple[float, int]]:
+    """Each run's best CPU time a step over ``repeat`` rounds, the runs alternated within a round
+    (so that a change in the machine's load falls on all of them); ``[(seconds, steps), ...]``."""
+    best, steps = [math.inf] * len(runs), [0] * len(runs)
     for _ in range(repeat):
-        start = time.process_time()
-        steps = run()
-        best = min(best, time.process_time() - start)
-    return best / steps, steps
+        for i, run in enumerate(runs):
+            start = time.process_time()
+            steps[i] = run()
+            best[i] = min(best[i], time.process_time() - start)
+    return [(b / n, n) for b, n in zip(best, steps)]
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=7)
     args = parser.parse_args()
+    print(f"load average {os.getloadavg()[0]:.1f} at the start")
     print(f"{'problem':34s} {'RK45 us/step':>13s} {'ode113 us/step':>15s} {'ratio':>6s}   steps (RK45, ode113)")
     for name, (fun, tspan, y0, rtol, atol) in PROBLEMS.items():
         def rk45():
@@ -61,9 +66,9 @@ def main() -> None:
             return odelab.ode113(fun, tspan, y0, rtol=rtol, atol=atol).stats.nsteps
 
         rk45(), ode113()  # warm up
-        rk, n_rk = per_step(rk45, args.repeat)
-        ab, n_ab = per_step(ode113, args.repeat)
+        (rk, n_rk), (ab, n_ab) = per_step([rk45, ode113], args.repeat)
         print(f"{name:34s} {rk * 1e6:13.1f} {ab * 1e6:15.1f} {ab / rk:6.2f}   {n_rk}, {n_ab}")
+    print(f"load average {os.getloadavg()[0]:.1f} at the end")
 
 
 if __name__ == "__main__":

@@ -341,23 +341,19 @@ class _Adams:
         for i in range(2, k + 1):
             psi[i - 1] = psi[i] - h
 
-    def correct(self, yp: np.ndarray, h: float) -> None:
-        """An accepted step: the differences after the corrected evaluation ``yp``."""
+    def accept(self, yp: np.ndarray, h: float, knew: int, erk: float, erkm1: float, absh: float, invwt,
+               norm_control: bool, rtol: float) -> float:
+        """An accepted step: the differences after the corrected evaluation ``yp``, the order for
+        the next step (book, block 4) and its size: doubled in phase 1 or when the error at the
+        new order is 2^-(k+1) of half the tolerance, shrunk when it exceeds half the tolerance."""
         k, row = self.k, self.row
         self.klast = k
         self.hlast = h
         new, last = row[k + 1], row[k + 2]
         np.subtract(yp, row[1], out=new)
-        np.subtract(new, last, out=last)
+        np.subtract(new, last, out=last)  # phi_{k+2}: the difference of order k+2 (for erkp1)
         lead = self.lead[k]
         lead += new
-
-    def advance(self, knew: int, erk: float, erkm1: float, absh: float, invwt, norm_control: bool,
-                rtol: float) -> float:
-        """The order for the next step (book, block 4) and its size: doubled in phase 1 or when the
-        error at the new order is 2^-(k+1) of half the tolerance, shrunk when it exceeds half the
-        tolerance."""
-        k = self.k
         if knew == k - 1 or k == MAX_ORDER:
             self.phase1 = False
         if self.phase1:
@@ -366,9 +362,8 @@ class _Adams:
         if knew == k - 1:
             k, erk = k - 1, erkm1
         elif k + 1 <= self.ns:
-            diff = self.row[k + 2]
-            erkp1 = absh * _GSTAR[k + 1] * (_wnorm(diff, invwt, True) if norm_control
-                                            else float(_max(np.abs(diff * invwt))))
+            erkp1 = absh * _GSTAR[k + 1] * (_wnorm(last, invwt, True) if norm_control
+                                            else float(_max(np.abs(last * invwt))))
             if k == 1:
                 if erkp1 < 0.5 * erk:
                     k, erk = 2, erkp1
@@ -467,7 +462,7 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
         while True:
             hmin, absh, done = clamp_step(t, tfinal, absh, hmax)  # stretched to land on tfinal
             h = tfinal - t if done else tdir * absh
-            invwt = _inv_weight(y, threshold, norm_control)
+            invwt = _inv_weight(y, threshold, True) if norm_control else 1.0 / np.maximum(np.abs(y), threshold)
             failed = 0
             while True:
                 p = state.predict(y, h)
@@ -505,8 +500,7 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
             yp = fun(tnew, y)
             nfevals += 1
             ki = state.k + 1  # this step's interpolant: phi_1 .. phi_{k+1} and psi_1 .. psi_k after it
-            state.correct(yp, h)
-            absh_next = state.advance(knew, erk, erkm1, absh, invwt, norm_control, rtol)
+            absh_next = state.accept(yp, h, knew, erk, erkm1, absh, invwt, norm_control, rtol)
             state.anchor = (tnew, y, ki)
             t_end, y_end, stop = tnew, y, False
             if events is not None:
