@@ -456,3 +456,31 @@ def test_auto_counts_only_the_steps_max_steps_allows(monkeypatch):
     monkeypatch.setattr(odelab.solvers.compiled, "expected_compile_seconds", lambda system, loop="adaptive": 10.0)
     result = run_case(case)
     assert result.backend == "python" and result.stats.nsteps == 20_000 and result.status == "failed"
+
+
+@pytest.mark.parametrize("rule, args, want", [
+    ("event_tolerance", (1.0, 1.5), 128 * 2.0 ** -52),  # 128 eps(1.5) = 128 eps(1): the bracket's width
+    ("event_tolerance", (1.0, 1.0 + 2.0 ** -46), 2.0 ** -46),  # a step narrower than that: its width
+    ("crosses", (1.0, -2.0, 0.0), True),
+    ("crosses", (1.0, -2.0, 1.0), False),  # falling, but only rising counts
+    ("crosses", (0.0, 0.0, 0.0), False),
+    ("crosses", (float("nan"), -1.0, 0.0), False),  # a NaN fails the direction test
+    ("root_fraction", (-1.0, 3.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0), 0.25),  # regula falsi
+    ("root_fraction", (0.0, 1.0, 5.0, 0.0, 1.0, 2.0, 1.0, 1.0), 0.75),  # the secant through the point tried
+    ("root_fraction", (0.0, 1.0, 0.5, 0.0, 1.0, 2.0, 1.0, 1.0), 0.5),  # its root outside [0, 1]: the midpoint
+    ("root_fraction", (2.0, 0.0, 1.0, 0.0, 1.0, 0.5, 1.0, 1.0), 0.5),  # the point tried inside: the midpoint
+    ("next_try", (0.01, 2.0, 1.0, 0.1, 1.0), 2.05),  # at least tol/2 from the left end
+    ("next_try", (0.99, 2.0, -1.0, 0.1, -1.0), 1.05),  # ... and from the right end, going down in t
+    ("halved", (4.5e-308,), 2.25e-308),
+    ("halved", (4.0e-308,), 4.0e-308),  # halving would leave realmin: kept
+    ("stops", (0.0, 0.0, 1e-15, 1e-15), False),  # still at the first step's search start
+    ("stops", (0.0, 0.0, 0.5, 1e-15), True),
+    ("stops", (2.0, 0.0, 2.0, 2.0), True),
+])
+def test_both_event_locators_take_odezeros_rule(rule, args, want):
+    """locate_events calls odelab.solvers.odezero, the compiled _locate the same text compiled."""
+    from odelab.solvers import odezero
+    from odelab.solvers.compiled.cache import load_kernels
+
+    assert getattr(odezero, rule)(*args) == want
+    assert getattr(load_kernels(), rule)(*args) == want

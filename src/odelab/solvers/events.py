@@ -28,17 +28,14 @@ This module is plain array code called by the driver between steps; it keeps no 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from odelab.exceptions import InputError
+from odelab.solvers.odezero import crosses, event_tolerance, halved, just_off, next_try, root_fraction, stops
 
 __all__ = ["locate_events", "as_event_function", "CallbackError"]
-
-_TINY = 2.2250738585072014e-308  # realmin: Illinois halving keeps values above it
-
 
 class CallbackError(Exception):
     """A user function other than ``fun`` raised during integration; carries what and the original."""
@@ -57,16 +54,12 @@ _NONE.setflags(write=False)
 _FEW_EVENTS = 8
 
 
-def _sign(x: float) -> int:
-    return (x > 0) - (x < 0)
-
-
 def _bracketed(vL: np.ndarray, vR: np.ndarray, direction: np.ndarray) -> np.ndarray:
     """Indices of the events whose value changes sign (zero is a sign of its own) between the two
-    ends in a direction they accept. (With a NaN value the direction test fails in both forms.)"""
+    ends in a direction they accept: :func:`odelab.solvers.odezero.crosses` for each, or its
+    vectorised form for many events. (With a NaN value the direction test fails in both forms.)"""
     if vL.size <= _FEW_EVENTS:
-        hits = [j for j, (a, b, d) in enumerate(zip(vL.tolist(), vR.tolist(), direction.tolist()))
-                if _sign(a) != _sign(b) and d * (b - a) >= 0]
+        hits = [j for j, (a, b, d) in enumerate(zip(vL.tolist(), vR.tolist(), direction.tolist())) if crosses(a, b, d)]
         return np.array(hits, dtype=np.intp) if hits else _NONE
     return np.flatnonzero((np.sign(vL) != np.sign(vR)) & (direction * (vR - vL) >= 0))
 
@@ -95,7 +88,7 @@ def locate_events(interpolate: Callable[[float], np.ndarray], events: Callable, 
         order found, the event values at ``tnew`` (for the next step) and whether a terminal
         event stops the integration.
     """
-    tol = min(128.0 * max(math.ulp(t), math.ulp(tnew)), abs(tnew - t))
+    tol = event_tolerance(t, tnew)
     tdir = 1.0 if tnew > t else -1.0
     te: list[float] = []
     ye: list[np.ndarray] = []
@@ -106,10 +99,10 @@ def locate_events(interpolate: Callable[[float], np.ndarray], events: Callable, 
     tL, yL, vL = t, y, v
     if t == t0 and np.any(v == 0):
         # MATLAB ignores a zero at the initial point: search from just off it
-        tL = t + tdir * 0.5 * tol
+        tL = just_off(t, tol, tdir)
         yL = interpolate(tL)
         vL = events(tL, yL)[0]
-    search_start = tL if t == t0 else None
+    search_start = tL
     tR, yR, vR = tnew, ynew, vnew
     # ttry/vtry remember the last point tried, for extrapolation when an end value is zero.
     ttry, vtry = tR, vR
@@ -127,27 +120,12 @@ def locate_events(interpolate: Callable[[float], np.ndarray], events: Callable, 
                 break
             if tL == t and np.any((vL[found] == 0) & (vR[found] != 0)):
                 # A zero at the step's left end: step just off it to see where the value goes.
-                ttry = tL + tdir * 0.5 * tol
+                ttry = just_off(tL, tol, tdir)
             else:
                 change = 1.0
                 for j in found:
-                    if vL[j] == 0:
-                        maybe = 0.5
-                        if tdir * ttry > tdir * tR and vtry[j] != vR[j]:
-                            maybe = 1.0 - vR[j] * (ttry - tR) / ((vtry[j] - vR[j]) * delta)
-                            if maybe < 0 or maybe > 1:
-                                maybe = 0.5
-                    elif vR[j] == 0:
-                        maybe = 0.5
-                        if tdir * ttry < tdir * tL and vtry[j] != vL[j]:
-                            maybe = vL[j] * (tL - ttry) / ((vtry[j] - vL[j]) * delta)
-                            if maybe < 0 or maybe > 1:
-                                maybe = 0.5
-                    else:
-                        maybe = -vL[j] / (vR[j] - vL[j])  # regula falsi; vR != vL here
-                    change = min(change, maybe)
-                change = max(0.5 * tol, min(change * abs(delta), abs(delta) - 0.5 * tol))
-                ttry = tL + tdir * change
+                    change = min(change, root_fraction(vL[j], vR[j], vtry[j], tL, tR, ttry, delta, tdir))
+                ttry = next_try(change, tL, delta, tol, tdir)
 
             ytry = interpolate(ttry)
             vtry = events(ttry, ytry)[0]
@@ -157,16 +135,14 @@ def locate_events(interpolate: Callable[[float], np.ndarray], events: Callable, 
                 yR, ytry = ytry, yR
                 vR, vtry = vtry, vR
                 if lastmoved == 2:  # Illinois: the left end stayed twice, halve its value
-                    half = 0.5 * vL
-                    vL = np.where(np.abs(half) >= _TINY, half, vL)
+                    vL = np.array([halved(x) for x in vL.tolist()])
                 lastmoved = 2
             else:
                 tL, ttry = ttry, tL
                 yL, ytry = ytry, yL
                 vL, vtry = vtry, vL
                 if lastmoved == 1:
-                    half = 0.5 * vR
-                    vR = np.where(np.abs(half) >= _TINY, half, vR)
+                    vR = np.array([halved(x) for x in vR.tolist()])
                 lastmoved = 1
 
         for j in found:
@@ -174,14 +150,14 @@ def locate_events(interpolate: Callable[[float], np.ndarray], events: Callable, 
             ye.append(yR)
             ie.append(int(j))
         if np.any(isterminal[found]):
-            if tL != search_start:
+            if stops(t, t0, tL, search_start):
                 stop = True
             break
         if abs(tnew - tR) <= tol:
             break  # no later event can be told apart from this one
         # Look for later events of the same step in [tR + tol/2, tnew].
         ttry, ytry, vtry = tR, yR, vR
-        tL = tR + tdir * 0.5 * tol
+        tL = just_off(tR, tol, tdir)
         yL = interpolate(tL)
         vL = events(tL, yL)[0]
         tR, yR, vR = tnew, ynew, vnew

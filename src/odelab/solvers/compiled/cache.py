@@ -34,9 +34,11 @@ from odelab import cachedir
 
 __all__ = ["cache_dir", "compiled_folder", "guard_numba_cache", "is_built", "kernels_text", "load_kernels", "load_module", "module_digest"]
 
-#: The shared loops' module, in this order: the step-size rules (compiled by kernels.py), the loops,
+#: The shared loops' module, in this order: the step-size rules (compiled by kernels.py), odezero's
+#: rule of event location (compiled by kernels_events.py), the loops,
 #: the loop with events and the stiff solvers' loops.
-_KERNELS = (Path(__file__).parent.parent / "controller.py", Path(__file__).with_name("kernels.py"),
+_KERNELS = (Path(__file__).parent.parent / "controller.py", Path(__file__).parent.parent / "odezero.py",
+            Path(__file__).with_name("kernels.py"),
             Path(__file__).with_name("kernels_events.py"), Path(__file__).with_name("kernels_stiff.py"))
 _LOADED: dict[str, ModuleType] = {}
 

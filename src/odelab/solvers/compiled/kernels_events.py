@@ -2,7 +2,8 @@
 
 This file is appended to ``kernels.py`` in one generated module (see
 :func:`odelab.solvers.compiled.cache.load_kernels`). :func:`_locate` is
-:func:`odelab.solvers.events.locate_events` statement for statement (regula falsi with the
+:func:`odelab.solvers.events.locate_events` statement for statement, each point's decision taken
+from :mod:`odelab.solvers.odezero` as locate_events takes it (regula falsi with the
 Illinois modification on the step's interpolant, the tolerance ``128 eps``, events at the left
 end, later events of the same step, terminal events), with arrays instead of lists; the
 adaptive loop (``kernels._adaptive``, compiled with an events function as
@@ -14,12 +15,10 @@ the Python engine do), so Refine's points on the shortened step follow the same 
 import numpy as _np
 from numba import njit as _njit
 
-_TINY = 2.2250738585072014e-308  # realmin: Illinois halving keeps values above it
-
-
-@_njit(cache=True, error_model="numpy")
-def _sgn(x):
-    return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else (0.0 if x == 0.0 else x))
+# The rule of each point of the bracket: this module follows odelab/solvers/odezero.py's text (see
+# cache._KERNELS), whose pure functions locate_events calls too; inlined (numba's IR), as controller.py's.
+for _rule in ("_sign", "crosses", "event_tolerance", "root_fraction", "next_try", "just_off", "halved", "stops"):
+    globals()[_rule] = _njit(inline="always", error_model="numpy")(globals()[_rule])
 
 
 @_njit(cache=True, error_model="numpy")
@@ -28,7 +27,7 @@ def _bracketed(V, a, b, direction, found):
     indices in found."""
     m = 0
     for j in range(V.shape[1]):
-        if _sgn(V[a, j]) != _sgn(V[b, j]) and direction[j] * (V[b, j] - V[a, j]) >= 0:
+        if crosses(V[a, j], V[b, j], direction[j]):
             found[m] = j
             m += 1
     return m
@@ -64,7 +63,7 @@ def _locate(_ev, p, isterminal, direction, v, t, y, tnew, ynew, h, K, dense, t0,
     the Python code swaps arrays, this swaps row numbers."""
     k = v.shape[0]
     n = y.shape[0]
-    tol = min(128.0 * max(_np.spacing(abs(t)), _np.spacing(abs(tnew))), abs(tnew - t))
+    tol = event_tolerance(t, tnew)
     tdir = 1.0 if tnew > t else -1.0
     stop = False
     _ev(tnew, ynew, p, vnew)
@@ -87,7 +86,7 @@ def _locate(_ev, p, isterminal, direction, v, t, y, tnew, ynew, h, K, dense, t0,
             if v[j] == 0:
                 any_zero = True
         if any_zero:  # MATLAB ignores a zero at the initial point: search from just off it
-            tL = t + tdir * 0.5 * tol
+            tL = just_off(t, tol, tdir)
             _interpolate(tL, t, y, h, K, dense, Y[L])
             _ev(tL, Y[L], p, V[L])
     search_start = tL
@@ -110,28 +109,13 @@ def _locate(_ev, p, isterminal, direction, v, t, y, tnew, ynew, h, K, dense, t0,
                     if V[L, j] == 0 and V[R, j] != 0:
                         at_zero = True
             if at_zero:  # a zero at the step's left end: step just off it
-                ttry = tL + tdir * 0.5 * tol
+                ttry = just_off(tL, tol, tdir)
             else:
                 change = 1.0
                 for q in range(nfound):
                     j = found[q]
-                    if V[L, j] == 0:
-                        maybe = 0.5
-                        if tdir * ttry > tdir * tR and V[T, j] != V[R, j]:
-                            maybe = 1.0 - V[R, j] * (ttry - tR) / ((V[T, j] - V[R, j]) * delta)
-                            if maybe < 0 or maybe > 1:
-                                maybe = 0.5
-                    elif V[R, j] == 0:
-                        maybe = 0.5
-                        if tdir * ttry < tdir * tL and V[T, j] != V[L, j]:
-                            maybe = V[L, j] * (tL - ttry) / ((V[T, j] - V[L, j]) * delta)
-                            if maybe < 0 or maybe > 1:
-                                maybe = 0.5
-                    else:
-                        maybe = -V[L, j] / (V[R, j] - V[L, j])
-                    change = min(change, maybe)
-                change = max(0.5 * tol, min(change * abs(delta), abs(delta) - 0.5 * tol))
-                ttry = tL + tdir * change
+                    change = min(change, root_fraction(V[L, j], V[R, j], V[T, j], tL, tR, ttry, delta, tdir))
+                ttry = next_try(change, tL, delta, tol, tdir)
             _interpolate(ttry, t, y, h, K, dense, Y[T])
             _ev(ttry, Y[T], p, V[T])
             if _bracketed(V, L, T, direction, found) > 0:  # a crossing in [tL, ttry]: R moves left
@@ -139,18 +123,14 @@ def _locate(_ev, p, isterminal, direction, v, t, y, tnew, ynew, h, K, dense, t0,
                 R, T = T, R
                 if lastmoved == 2:  # Illinois: the left end stayed twice, halve its value
                     for j in range(k):
-                        half = 0.5 * V[L, j]
-                        if abs(half) >= _TINY:
-                            V[L, j] = half
+                        V[L, j] = halved(V[L, j])
                 lastmoved = 2
             else:
                 tL, ttry = ttry, tL
                 L, T = T, L
                 if lastmoved == 1:
                     for j in range(k):
-                        half = 0.5 * V[R, j]
-                        if abs(half) >= _TINY:
-                            V[R, j] = half
+                        V[R, j] = halved(V[R, j])
                 lastmoved = 1
         terminal = False
         for q in range(nfound):
@@ -163,7 +143,7 @@ def _locate(_ev, p, isterminal, direction, v, t, y, tnew, ynew, h, K, dense, t0,
             if isterminal[j] != 0.0:
                 terminal = True
         if terminal:
-            if t != t0 or tL != search_start:
+            if stops(t, t0, tL, search_start):
                 stop = True
             break
         if abs(tnew - tR) <= tol:
@@ -171,7 +151,7 @@ def _locate(_ev, p, isterminal, direction, v, t, y, tnew, ynew, h, K, dense, t0,
         # later events of the same step, in [tR + tol/2, tnew]: the old R becomes the point tried
         ttry = tR
         L, R, T = T, L, R
-        tL = tR + tdir * 0.5 * tol
+        tL = just_off(tR, tol, tdir)
         _interpolate(tL, t, y, h, K, dense, Y[L])
         _ev(tL, Y[L], p, V[L])
         tR = tnew
