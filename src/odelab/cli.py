@@ -79,7 +79,9 @@ def _consoles():
     # through odelab.terminal.shown, which escapes markup and makes control characters visible)
     out = Console(highlight=False, emoji=False)
     if not out.is_terminal:  # piped or redirected: never truncate a table to 80 columns
-        out = Console(highlight=False, emoji=False, width=200)
+        # and settle it once (Rich's default height, 25, as it finds no terminal): otherwise Rich asks the
+        # environment and the terminal's size again at every print, a third of the cost of a short line
+        out = Console(highlight=False, emoji=False, width=200, height=25, force_terminal=False)
     return out, Console(stderr=True, highlight=False, soft_wrap=True, emoji=False)
 
 

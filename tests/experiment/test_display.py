@@ -55,6 +55,21 @@ def test_the_grid_lines_at_a_wide_console():
     assert lines[3].startswith("a long case name  x                 123456  [red]v[/]")  # a cell is never markup
 
 
+@pytest.mark.parametrize("width", [200, 80, 64])
+def test_a_console_without_colours_gets_the_styled_grids_characters(width):
+    """A pipe or a file (no colour system, nothing recorded): the grid goes out as plain lines, character for
+    character what the styled grid (a recording console takes that path) writes."""
+    def out(**kwargs) -> str:
+        console = Console(file=io.StringIO(), width=width, highlight=False, emoji=False, **kwargs)
+        assert console.color_system is None
+        print_grid(console, COLUMNS, ROWS, wrap=("pointwise max |f - y| / |f|",))
+        return console.file.getvalue()
+
+    plain = out()
+    assert plain == out(record=True) and plain.count("\n") >= len(ROWS) + 1
+    assert "FAILED" in plain and "\x1b" not in plain
+
+
 def test_a_narrow_console_keeps_names_whole_and_moves_free_text_below():
     console = Console(file=io.StringIO(), width=64, highlight=False, emoji=False)
     print_grid(console, COLUMNS, ROWS, wrap=("pointwise max |f - y| / |f|",))

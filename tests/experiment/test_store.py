@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from odelab.experiment.loader import load_experiment
+from odelab.experiment.loader import load_experiment, load_experiments
 from odelab.experiment.runner import run_case
 from odelab.experiment.store import atomic_write, list_runs, read_run, write_case
 
@@ -167,6 +167,44 @@ def test_the_stored_odelab_version_is_the_installed_one(tmp_path):
     record = read_run(write_case(first, tmp_path / "runs"))
     assert record["versions"]["odelab"] == metadata.version("odelab")
     assert record["versions"]["scipy"] == metadata.version("scipy")
+
+
+@pytest.mark.parametrize("name", ["exercise1.toml", "exercise2.toml", "damping.toml", "bouncing_ball.toml"])
+def test_result_json_is_the_standard_librarys_text(tmp_path, name):
+    import json
+
+    for exp in load_experiments(ROOT / "experiments" / name):
+        for case in exp.cases[:2]:
+            text = (write_case(run_case(case), tmp_path / "runs") / "result.json").read_text(encoding="utf-8")
+            assert text == json.dumps(json.loads(text), indent=2, allow_nan=False) + "\n"
+
+
+@pytest.mark.parametrize("record", [
+    {}, [], {"a": {}, "b": [], "c": [[]], "d": [{}]},
+    {"é中文\u2028\x00\"\\/": ["\x1b[31m", "tab\t", ""], "n": [0, -0.0, 1e-320, 1e22, 2 ** 70, -5, 0.1, True, False,
+                                                          None]},
+    {"tuple": (1, (2.5, "x")), "deep": [[[[{"k": [1]}]]]]},
+    {1: "int key", None: 2, 2.5: 3},  # not plain: left to json.dumps
+])
+def test_result_json_writes_what_json_dumps_writes(record):
+    import json
+
+    from odelab.experiment.store import result_json
+
+    assert result_json(record) == json.dumps(record, indent=2, allow_nan=False) + "\n"
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+def test_result_json_refuses_nan_and_infinity_as_json_does(bad):
+    import json
+
+    from odelab.experiment.store import result_json
+
+    with pytest.raises(ValueError) as ours:
+        result_json({"x": [1, {"y": bad}]})
+    with pytest.raises(ValueError) as theirs:
+        json.dumps({"x": [1, {"y": bad}]}, indent=2, allow_nan=False)
+    assert str(ours.value) == str(theirs.value)
 
 
 def test_infinity_in_result_json_is_a_broken_record(tmp_path):

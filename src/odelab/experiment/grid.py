@@ -25,19 +25,29 @@ def print_grid(console: Console, columns, rows, *, wrap=()) -> None:
     line and the table fits the console's width, the lines are laid out here, exactly as Rich
     lays them out (each column as wide as its widest cell, two spaces between columns, the last
     one padded too) and printed as one Text: a tenth of the cost of Rich's table layout, which
-    a batch of small files pays once per file. Otherwise (Rich would shrink or wrap columns)
-    the same cells go through Rich's Table.
+    a batch of small files pays once per file; to a console that shows no styles and records
+    none (a pipe, a file), as plain lines, the same characters without a style span per cell.
+    Otherwise (Rich would shrink or wrap columns) the same cells go through Rich's Table.
     """
     header = [name for name, _ in columns]
-    cells = [[c if isinstance(c, Text) else Text(c) for c in row] for row in rows]
+    plains = [[c.plain if isinstance(c, Text) else c for c in row] for row in rows]
     widths = [cell_len(name) for name in header]
     one_line = all("\n" not in name for name in header)
-    for row in cells:
-        for i, cell in enumerate(row):
-            plain = cell.plain
+    for row in plains:
+        for i, plain in enumerate(row):
             one_line = one_line and "\n" not in plain
             widths[i] = max(widths[i], cell_len(plain))
-    if one_line and sum(widths) + 2 * (len(widths) - 1) <= console.width:
+    fits_as_is = one_line and sum(widths) + 2 * (len(widths) - 1) <= console.width
+    if fits_as_is and console.color_system is None and not console.record:
+        # A console that shows no styles (a pipe, a file, NO_COLOR) and keeps none for export: the
+        # same lines as plain text, without building and rendering a style span per cell.
+        def line(texts) -> str:
+            return "  ".join(_padded(text, width, justify) for text, width, (_, justify) in zip(texts, widths, columns))
+
+        console.print(Text("\n".join([line(header), *map(line, plains)])), soft_wrap=True)
+        return
+    cells = [[c if isinstance(c, Text) else Text(c) for c in row] for row in rows]
+    if fits_as_is:
         text = Text()
         for i, ((name, justify), width) in enumerate(zip(columns, widths)):
             pad = " " * (width - cell_len(name))
@@ -111,6 +121,12 @@ def print_grid(console: Console, columns, rows, *, wrap=()) -> None:
             console.print(Text(f"{columns[i][0]}:", style="bold"))
             for line in lines:
                 console.print(Text("  " + line))
+
+
+def _padded(text: str, width: int, justify: str) -> str:
+    """``text`` padded with spaces to ``width`` terminal cells, on the left if ``justify`` is "right"."""
+    spaces = " " * (width - cell_len(text))
+    return spaces + text if justify == "right" else text + spaces
 
 
 # Numeric columns' titles when a table must fit a narrow terminal.

@@ -37,6 +37,7 @@ import secrets
 import shutil
 from datetime import datetime, timezone
 from importlib import metadata
+from json.encoder import encode_basestring_ascii
 from pathlib import Path
 from typing import Any
 
@@ -260,9 +261,53 @@ def write_case(result: CaseResult, runs: Path, *, mat: bool = False, durable: bo
     del data
     if mat:
         files["result.mat"] = _mat_bytes(result)
-    files["result.json"] = json.dumps(record, indent=2, allow_nan=False) + "\n"
+    files["result.json"] = result_json(record)
     commit_folder(folder, files, durable=durable, unsynced=unsynced)
     return folder
+
+
+def result_json(record: dict) -> str:
+    """``json.dumps(record, indent=2, allow_nan=False)`` and a newline, the same text at half the cost.
+
+    With ``indent`` the standard library encodes in Python, call by call; here the strings and
+    numbers go to its C functions and the nesting is joined once per container. Anything but
+    plain JSON types (or a NaN, which ``json`` refuses with its own message) is left to
+    ``json.dumps``."""
+    try:
+        return _json(record, "") + "\n"
+    except _NotPlain:
+        return json.dumps(record, indent=2, allow_nan=False) + "\n"
+
+
+class _NotPlain(Exception):
+    pass
+
+
+def _json(value, indent: str) -> str:
+    kind = type(value)
+    if kind is str:
+        return encode_basestring_ascii(value)
+    if value is None or kind is bool:
+        return "null" if value is None else "true" if value else "false"
+    if kind is int:
+        return int.__repr__(value)
+    if kind is float:
+        if not math.isfinite(value):
+            raise _NotPlain
+        return float.__repr__(value)
+    inner = indent + "  "
+    if kind is dict:
+        if not value:
+            return "{}"
+        if not all(type(k) is str for k in value):
+            raise _NotPlain
+        items = [f"{inner}{encode_basestring_ascii(k)}: {_json(v, inner)}" for k, v in value.items()]
+        return "{\n" + ",\n".join(items) + "\n" + indent + "}"
+    if kind is list or kind is tuple:
+        if not value:
+            return "[]"
+        return "[\n" + ",\n".join([inner + _json(v, inner) for v in value]) + "\n" + indent + "]"
+    raise _NotPlain
 
 
 def commit_folder(folder: Path, files: dict, *, durable: bool = True, unsynced: set[Path] | None = None) -> None:
