@@ -12,10 +12,12 @@ with the same statistics. LSODA gets hand-written numpy functions for f and its 
 the best of ``--repeat`` runs after a warm-up; the first compile is timed separately (the
 compiled column's time excludes it: the cache keeps it for later runs).
 
-OpenBLAS threads its LU of the chain's 200-by-200 matrices; on a shared 2-core machine those
-threads contend (a factorisation took 3-16 ms threaded under load, 0.7 ms on one thread), so
-the chain's figures are measured with ``OPENBLAS_NUM_THREADS=1`` (the header says which);
-LSODA's LINPACK does not thread.
+The chain's iteration matrices factor banded on both odelab paths (its equations' structure,
+permuted by reverse Cuthill-McKee, has kl = ku = 3: odelab.solvers.banded); LSODA gets the
+dense Jacobian a user would write and factors it dense (LINPACK, which does not thread). The
+chain's figures are measured with ``OPENBLAS_NUM_THREADS=1`` (the header says which): on a
+shared 2-core machine OpenBLAS's threads contend (a dense 200-by-200 factorisation took 3-16 ms
+threaded under load, 0.7 ms on one thread).
 
     python bench/bench_compiled_stiff.py [--repeat 5] [--problems robertson,hires,vdp,chain]
                                          [--methods ode23s,ode15s] [--masses 100]

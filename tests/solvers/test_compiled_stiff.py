@@ -196,7 +196,7 @@ def test_the_generated_jacobian_is_the_python_paths():
     rng = np.random.default_rng(7)
     for _ in range(20):
         y, t = rng.uniform(0.1, 2.0, 2), rng.uniform(0.0, 3.0)
-        J = np.empty((2, 2))
+        J = np.zeros((2, 2))
         jac(t, y, system.parameter_vector(), J)
         expected = reference(t, y)  # sums of terms of size ~1: a rounding of one term, against that size
         np.testing.assert_allclose(J, expected, rtol=4 * EPS, atol=8 * EPS * np.max(np.abs(expected)))
@@ -217,3 +217,66 @@ def test_what_stays_on_python_is_named():
     with pytest.raises(InputError, match="`events`"):
         solve_compiled(system, [0, 1], [1.0, 0.0], "ode23s", events=lambda t, y: y[0])
     assert all(why_not_stiff(m, system) is None for m in STIFF_METHODS)
+
+
+def _brusselator(points, alpha=0.02):
+    """Hairer & Wanner's 1-D Brusselator (u = 1, v = 3 at both ends), u before v: banded only once
+    the states are permuted."""
+    u = [f"u{i}" for i in range(points)]
+    v = [f"v{i}" for i in range(points)]
+
+    def around(names, i, wall):
+        return (names[i - 1] if i else wall), (names[i + 1] if i < points - 1 else wall)
+
+    equations = [f"1 + u{i}^2*v{i} - 4*u{i} + d*({around(u, i, '1')[0]} - 2*u{i} + {around(u, i, '1')[1]})"
+                 for i in range(points)]
+    equations += [f"3*u{i} - u{i}^2*v{i} + d*({around(v, i, '3')[0]} - 2*v{i} + {around(v, i, '3')[1]})"
+                  for i in range(points)]
+    y0 = [1 + np.sin(2 * np.pi * (i + 1) / (points + 1)) for i in range(points)] + [3.0] * points
+    return u + v, equations, {"d": alpha * (points + 1) ** 2}, y0
+
+
+PROBLEMS["brusselator"] = (*_brusselator(12)[:3], [0, 10], _brusselator(12)[3], dict(rtol=1e-6, atol=1e-6))
+
+
+@pytest.mark.parametrize("method", STIFF_METHODS)
+@pytest.mark.parametrize("name", ["chain", "brusselator"])
+def test_banded_systems_take_the_python_steps_to_the_bit(name, method):
+    """Both paths permute the iteration matrix to its band and call LAPACK's dgbtrf/dgbtrs."""
+    from odelab.solvers.compiled.stiff import _band_of
+
+    states, equations, parameters, *_ = PROBLEMS[name]
+    perm, kl, ku = _band_of(CompiledSystem.from_equations(states, equations, parameters))
+    assert perm.size == len(states) and kl + ku <= 6
+    python, compiled = _both(name, method)
+    assert python.stats.nsteps > 50 and python.stats.nfailed + python.stats.npds > 1
+    assert compiled.stats == python.stats
+    np.testing.assert_array_equal(compiled.t, python.t)
+    np.testing.assert_array_equal(compiled.y, python.y)
+
+
+def test_small_systems_factor_dense():
+    from odelab.solvers.compiled.stiff import _band_of
+
+    for name in ("robertson", "hires", "vdp"):
+        states, equations, parameters, *_ = PROBLEMS[name]
+        assert _band_of(CompiledSystem.from_equations(states, equations, parameters))[0].size == 0
+
+
+def test_the_grouped_jacobian_is_the_full_complex_step_to_the_bit():
+    """Structurally orthogonal columns perturbed together give each entry the same expression with
+    the same inputs as its own column's complex step; entries no equation names are not written."""
+    states, equations, parameters, _ = _brusselator(12)
+    system = CompiledSystem.from_equations(states, equations, parameters)
+    jac = system.module(jacobian=True).jac
+    reference = complex_step_jacobian(equations, states, parameters)
+    pattern = reference.pattern()
+    assert pattern.sum() == 12 * 4 + 2 * 10 * 2 + 2 * 2 and "_JAC_WHICH" in system.source(jacobian=True)
+    rng = np.random.default_rng(11)
+    for _ in range(10):
+        y, t = rng.uniform(0.5, 3.5, 24), rng.uniform(0.0, 10.0)
+        J = np.full((24, 24), np.nan)
+        jac(t, y, system.parameter_vector(), J)
+        expected = reference(t, y)
+        np.testing.assert_array_equal(J[pattern], expected[pattern])
+        assert np.all(np.isnan(J[~pattern])) and np.all(expected[~pattern] == 0)

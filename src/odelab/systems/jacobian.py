@@ -12,7 +12,8 @@ differences for them (n extra evaluations per Jacobian, and an error of sqrt(eps
 * :func:`expression_jacobian` compiles a user's analytic ``jacobian = [[...]]`` matrix of
   expressions.
 
-Both return ``J(t, y) -> (n, n) ndarray``, the form ``odelab.ode15s(..., jacobian=J)`` takes.
+Both return ``J(t, y) -> (n, n) ndarray``, the form ``odelab.ode15s(..., jacobian=J)`` takes;
+the complex-step one also carries ``J.pattern()``, its structure from the equations.
 """
 
 from __future__ import annotations
@@ -43,7 +44,23 @@ def complex_step_jacobian(equations: Sequence[str], states: Sequence[str], param
         out = np.asarray(compiled[0](complex(t), *Y), dtype=complex)
         return np.broadcast_to(out, (n, n)).imag / _H
 
+    structure = []
+
+    def pattern():
+        """Where ``J`` can be nonzero: entry (i, j) where equation i names state j (the stiff
+        solvers factor banded when it allows, :mod:`odelab.solvers.banded`)."""
+        if not structure:
+            from odelab.expressions import parse_expression
+            from odelab.solvers.banded import structural_pattern
+
+            known = {"t", *states, *parameters}
+            parsed = [parse_expression(text, key=keys[i] if keys else None, source=source, names=known)
+                      for i, text in enumerate(equations)]
+            structure.append(structural_pattern([p.names for p in parsed], states))
+        return structure[0]
+
     jacobian.source = "complex step on the equations"
+    jacobian.pattern = pattern
     return jacobian
 
 

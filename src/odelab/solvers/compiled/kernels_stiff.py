@@ -10,7 +10,11 @@ counters), without mass matrices or events. The Jacobian is the system's generat
 exact Jacobian to the bit), and the LU factorisations and solves call the LAPACK routines that
 SciPy's ``lu_factor`` and ``lu_solve`` call (``dgetrf``/``dgetrs`` of ``scipy.linalg.cython_lapack``,
 bound by name with :func:`_bind_lapack`, so numba's cache keeps the machine code), on the
-matrix in the same (column-major) layout: the same factors and solutions bit for bit.
+matrix in the same (column-major) layout: the same factors and solutions bit for bit. Where
+:func:`odelab.solvers.banded.plan_band` finds the Jacobian's structure banded after a
+permutation, both paths factor the permuted band with ``dgbtrf``/``dgbtrs`` instead
+(:class:`odelab.solvers.banded.Band`, :func:`_factor`): the loops take that plan as ``perm``
+(empty: dense), ``kl`` and ``ku``.
 What the Python path hands to BLAS through numpy's ``@`` (``J @ y'`` of ode15s's first step,
 its difference rescaling ``RU.T @ D`` and predictor sums ``GAMMA @ D``, its interpolant) calls
 numpy's own ``cblas_dgemv``/``cblas_dgemm`` here with the arguments numpy's matmul passes
@@ -28,6 +32,8 @@ _JAC_ARG = _types.FunctionType(JAC)
 _P = _types.voidptr
 _dgetrf = _types.ExternalFunction("odelab_dgetrf", _types.void(_P, _P, _P, _P, _P, _P))
 _dgetrs = _types.ExternalFunction("odelab_dgetrs", _types.void(_P, _P, _P, _P, _P, _P, _P, _P, _P))
+_dgbtrf = _types.ExternalFunction("odelab_dgbtrf", _types.void(_P, _P, _P, _P, _P, _P, _P, _P))
+_dgbtrs = _types.ExternalFunction("odelab_dgbtrs", _types.void(_P, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P))
 _SQRT_EPS = 1.4901161193847656e-08  # sqrt(eps), odelab.solvers.implicit.common.SQRT_EPS
 _EPS = 2.220446049250313e-16
 _D23 = 1.0 / (2.0 + _np.sqrt(2.0))  # ode23s.D
@@ -43,14 +49,14 @@ _ROW, _N, _T = 101, 111, 112  # CblasRowMajor, CblasNoTrans, CblasTrans
 
 
 def _bind_lapack():
-    """Make SciPy's LAPACK ``dgetrf``/``dgetrs`` and numpy's BLAS ``cblas_dgemv``/``cblas_dgemm``
+    """Make SciPy's LAPACK ``dgetrf``/``dgetrs`` (``dgbtrf``/``dgbtrs``: banded) and numpy's BLAS ``cblas_dgemv``/``cblas_dgemm``
     known to numba's linker by name (once per process): the routines ``lu_factor``/``lu_solve``
     and numpy's ``@`` call, so the compiled loops get their results bit for bit. A numpy whose
     BLAS is not the bundled OpenBLAS gets loops in index order instead (values to a few eps)."""
     import llvmlite.binding as ll
     from numba.extending import get_cython_function_address
 
-    for name in ("dgetrf", "dgetrs"):
+    for name in ("dgetrf", "dgetrs", "dgbtrf", "dgbtrs"):
         ll.add_symbol("odelab_" + name, get_cython_function_address("scipy.linalg.cython_lapack", name))
     for name, address in _numpy_blas().items():
         ll.add_symbol("odelab_" + name, address)
@@ -134,20 +140,55 @@ def _matmul(A, B, C, transpose_a=False):
 
 
 @_njit(cache=True, error_model="numpy")
-def _factor(J, c, Wf, ipiv, ints):
-    """LU of I - c J (lu_factor's dgetrf on the column-major matrix: Wf[j, i] holds (i, j))."""
-    n = J.shape[0]
-    for i in range(n):
-        for j in range(n):
-            Wf[j, i] = (1.0 if i == j else 0.0) - c * J[i, j]
-    _dgetrf(ints[0:1].ctypes, ints[0:1].ctypes, Wf.ctypes, ints[0:1].ctypes, ipiv.ctypes, ints[1:2].ctypes)
+def _new_lu(n, perm, kl, ku):
+    """The LU workspace: (Wf, ipiv, ints, perm, tmp). Dense (perm empty): Wf (n, n) column-major
+    for dgetrf; banded (odelab.solvers.banded.Band: position k holds state perm[k]): Wf the
+    (ldab, n) band storage, ldab = 2 kl + ku + 1. ints = [n, info, nrhs, kl, ku, ldab]."""
+    ldab = 2 * kl + ku + 1
+    Wf = _np.empty((n, n)) if perm.shape[0] == 0 else _np.empty((n, ldab))
+    ints = _np.array([n, 0, 1, kl, ku, ldab], dtype=_np.int32)
+    return Wf, _np.empty(n, dtype=_np.int32), ints, perm, _np.empty(n)
 
 
 @_njit(cache=True, error_model="numpy")
-def _lsolve(Wf, ipiv, ints, trans, b):
-    """b <- (I - c J) \\ b with the factors of _factor (lu_solve's dgetrs)."""
-    _dgetrs(trans.ctypes, ints[0:1].ctypes, ints[2:3].ctypes, Wf.ctypes, ints[0:1].ctypes, ipiv.ctypes, b.ctypes,
-            ints[0:1].ctypes, ints[1:2].ctypes)
+def _factor(J, c, lu):
+    """LU of I - c J: lu_factor's dgetrf on the column-major matrix (Wf[j, i] holds (i, j)), or
+    Band.factor's dgbtrf on the permuted matrix's band (Wf[j', kl + ku + i' - j'] holds the
+    entry (perm[i'], perm[j'])): the same numbers as the Python path's ``M - c J``."""
+    Wf, ipiv, ints, perm = lu[0], lu[1], lu[2], lu[3]
+    n = J.shape[0]
+    if perm.shape[0] == 0:
+        for i in range(n):
+            for j in range(n):
+                Wf[j, i] = (1.0 if i == j else 0.0) - c * J[i, j]
+        _dgetrf(ints[0:1].ctypes, ints[0:1].ctypes, Wf.ctypes, ints[0:1].ctypes, ipiv.ctypes, ints[1:2].ctypes)
+        return
+    kl, ku = ints[3], ints[4]
+    for jp in range(n):
+        j = perm[jp]
+        for ip in range(max(0, jp - ku), min(n, jp + kl + 1)):
+            i = perm[ip]
+            Wf[jp, kl + ku + ip - jp] = (1.0 if i == j else 0.0) - c * J[i, j]
+    _dgbtrf(ints[0:1].ctypes, ints[0:1].ctypes, ints[3:4].ctypes, ints[4:5].ctypes, Wf.ctypes, ints[5:6].ctypes,
+            ipiv.ctypes, ints[1:2].ctypes)
+
+
+@_njit(cache=True, error_model="numpy")
+def _lsolve(lu, trans, b):
+    """b <- (I - c J) \\ b with the factors of _factor (lu_solve's dgetrs, or Band.solve's dgbtrs
+    on b permuted)."""
+    Wf, ipiv, ints, perm, tmp = lu
+    if perm.shape[0] == 0:
+        _dgetrs(trans.ctypes, ints[0:1].ctypes, ints[2:3].ctypes, Wf.ctypes, ints[0:1].ctypes, ipiv.ctypes, b.ctypes,
+                ints[0:1].ctypes, ints[1:2].ctypes)
+        return
+    n = b.shape[0]
+    for k in range(n):
+        tmp[k] = b[perm[k]]
+    _dgbtrs(trans.ctypes, ints[0:1].ctypes, ints[3:4].ctypes, ints[4:5].ctypes, ints[2:3].ctypes, Wf.ctypes,
+            ints[5:6].ctypes, ipiv.ctypes, tmp.ctypes, ints[0:1].ctypes, ints[1:2].ctypes)
+    for k in range(n):
+        b[perm[k]] = tmp[k]
 
 
 @_njit(cache=True, error_model="numpy")
@@ -252,7 +293,7 @@ def _slope_dt(_rhs, t, y, F0, p, h, absh, tdir, out):
         out[j] = (out[j] - F0[j]) / tdel
 
 
-def _ode23s(_rhs, _jac, tspan, y0, f0, p, rtol, atol, hmax, htry, refine, max_steps, capacity):
+def _ode23s(_rhs, _jac, tspan, y0, f0, p, rtol, atol, hmax, htry, refine, max_steps, capacity, perm, kl, ku):
     """integrate_ode23s (no mass, no events); returns (t_out, y_out, count, nsteps, nfailed,
     nfevals, npds, ndecomps, nsolves, status, t, absh)."""
     n = y0.shape[0]
@@ -261,9 +302,8 @@ def _ode23s(_rhs, _jac, tspan, y0, f0, p, rtol, atol, hmax, htry, refine, max_st
     tdir = 1.0 if tf > t0 else -1.0
     power = 1.0 / 3.0
     thr = atol / rtol
-    J, Wf = _np.empty((n, n)), _np.empty((n, n))
-    ipiv = _np.empty(n, dtype=_np.int32)
-    ints = _np.array([n, 0, 1], dtype=_np.int32)
+    J = _np.zeros((n, n))  # jac writes the structural nonzeros only
+    lu = _new_lu(n, perm, kl, ku)
     trans = _np.array([78], dtype=_np.uint8)  # "N"
     T, k1, k2, k3 = _np.empty(n), _np.empty(n), _np.empty(n), _np.empty(n)
     F0, F1, F2, stage, ynew, scale = f0.copy(), _np.empty(n), _np.empty(n), _np.empty(n), _np.empty(n), _np.empty(n)
@@ -294,18 +334,18 @@ def _ode23s(_rhs, _jac, tspan, y0, f0, p, rtol, atol, hmax, htry, refine, max_st
         tnew = t
         while True:
             hd = h * _D23
-            _factor(J, hd, Wf, ipiv, ints)
+            _factor(J, hd, lu)
             ndecomps += 1
             for j in range(n):
                 k1[j] = F0[j] + hd * T[j]
-            _lsolve(Wf, ipiv, ints, trans, k1)
+            _lsolve(lu, trans, k1)
             hh = 0.5 * h
             for j in range(n):
                 stage[j] = y[j] + hh * k1[j]
             _rhs(t + 0.5 * h, stage, p, F1)
             for j in range(n):
                 k2[j] = F1[j] - k1[j]
-            _lsolve(Wf, ipiv, ints, trans, k2)
+            _lsolve(lu, trans, k2)
             for j in range(n):
                 k2[j] = k2[j] + k1[j]
             tnew = tf if done else t + h
@@ -316,7 +356,7 @@ def _ode23s(_rhs, _jac, tspan, y0, f0, p, rtol, atol, hmax, htry, refine, max_st
             nfevals += 2
             for j in range(n):
                 k3[j] = ((F2[j] - _E32 * (k2[j] - F1[j])) - 2.0 * (k1[j] - F0[j])) + hd * T[j]
-            _lsolve(Wf, ipiv, ints, trans, k3)
+            _lsolve(lu, trans, k3)
             nsolves += 3
             for j in range(n):
                 scale[j] = _npmax(_npmax(abs(y[j]), abs(ynew[j])), thr[j])
@@ -400,7 +440,7 @@ def _first_step_15s(_rhs, J, t0, y0, f0, p, thr, rtol, hmax, htry, htspan, tdir,
 
 
 @_njit(cache=True, error_model="numpy")
-def _newton_15s(_rhs, p, tnew, c, D, k, psi, ypred, ynew, d, dy, wt, minnrm, rtol, Wf, ipiv, ints, trans, memory):
+def _newton_15s(_rhs, p, tnew, c, D, k, psi, ypred, ynew, d, dy, wt, minnrm, rtol, lu, trans, memory):
     """ode15s's simplified Newton iteration (at most 4). memory = [rate, havrate]; returns
     (converged, evaluations = solves)."""
     n = ynew.shape[0]
@@ -412,7 +452,7 @@ def _newton_15s(_rhs, p, tnew, c, D, k, psi, ypred, ynew, d, dy, wt, minnrm, rto
         _rhs(tnew, ynew, p, dy)
         for j in range(n):
             dy[j] = c * dy[j] - (psi[j] + d[j])
-        _lsolve(Wf, ipiv, ints, trans, dy)
+        _lsolve(lu, trans, dy)
         newnrm = _wmax(dy, wt)
         for j in range(n):
             d[j] = d[j] + dy[j]
@@ -500,17 +540,16 @@ def _after_error_15s(D, k, absh, hmin, err, rtol, erconst, d, scale, nfails, tmp
     return shrink(absh, hmin, err, rtol, 0.0, 0.0, 0.0, False), k  # noqa: F821
 
 
-def _ode15s(_rhs, _jac, tspan, y0, f0, p, rtol, atol, hmax, htry, refine, max_steps, capacity, max_order, gamma,
-            alpha, erconst):
+def _ode15s(_rhs, _jac, tspan, y0, f0, p, rtol, atol, hmax, htry, refine, max_steps, capacity, perm, kl, ku,
+            max_order, gamma, alpha, erconst):
     """integrate_ode15s (no mass, no events; kappa in alpha and erconst); returns as _ode23s."""
     n = y0.shape[0]
     t0 = tspan[0]
     tf = tspan[tspan.shape[0] - 1]
     tdir = 1.0 if tf > t0 else -1.0
     thr = atol / rtol
-    J, Wf = _np.empty((n, n)), _np.empty((n, n))
-    ipiv = _np.empty(n, dtype=_np.int32)
-    ints = _np.array([n, 0, 1], dtype=_np.int32)
+    J = _np.zeros((n, n))  # jac writes the structural nonzeros only
+    lu = _new_lu(n, perm, kl, ku)
     trans = _np.array([78], dtype=_np.uint8)  # "N"
     ypred, psi, wt, scale, d, dy, ynew, tmp = (_np.empty(n), _np.empty(n), _np.empty(n), _np.empty(n),
                                                _np.empty(n), _np.empty(n), _np.empty(n), _np.empty(n))
@@ -546,13 +585,13 @@ def _ode15s(_rhs, _jac, tspan, y0, f0, p, rtol, atol, hmax, htry, refine, max_st
             tnew = tf if done else t + h
             if not lu_ok or key_absh != absh or key_k != k:
                 c = h / alpha[k]
-                _factor(J, c, Wf, ipiv, ints)
+                _factor(J, c, lu)
                 ndecomps += 1
                 lu_ok, key_absh, key_k = True, absh, k
                 memory[1] = 0.0
             minnrm = _predict_15s(D, k, gamma, alpha, y, thr, ypred, psi, wt)
-            converged, its = _newton_15s(_rhs, p, tnew, c, D, k, psi, ypred, ynew, d, dy, wt, minnrm, rtol, Wf, ipiv,
-                                         ints, trans, memory)
+            converged, its = _newton_15s(_rhs, p, tnew, c, D, k, psi, ypred, ynew, d, dy, wt, minnrm, rtol, lu, trans,
+                                         memory)
             nfevals += its
             nsolves += its
             if not converged:
@@ -616,7 +655,7 @@ def _ode15s(_rhs, _jac, tspan, y0, f0, p, rtol, atol, hmax, htry, refine, max_st
     return t_out, y_out, count, nsteps, nfailed, nfevals, npds, ndecomps, nsolves, status, t, absh
 
 
-_STIFF = (_RHS_ARG, _JAC_ARG, _V, _V, _V, _V, _F8, _V, _F8, _F8, _I8, _I8, _I8)  # noqa: F821
+_STIFF = (_RHS_ARG, _JAC_ARG, _V, _V, _V, _V, _F8, _V, _F8, _F8, _I8, _I8, _I8, _types.int64[::1], _I8, _I8)  # noqa: F821
 _SIGNATURES["ode23s"] = _STIFF  # noqa: F821 (kernels.py's registry of loops)
 _SIGNATURES["ode15s"] = (*_STIFF, _I8, _V, _V, _V)  # noqa: F821
 _LOOPS["ode23s"] = "_ode23s"  # noqa: F821

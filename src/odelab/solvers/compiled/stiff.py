@@ -8,11 +8,18 @@ given the same exact Jacobian, which is what an experiment's stiff case uses the
 (``[solver] jacobian`` is "complex step on the equations", or A), with the same statistics
 (steps, failures, evaluations, Jacobians, decompositions, solves).
 
+The iteration matrices factor as the Python path factors them: dense LU, or LAPACK's banded
+LU of the matrix permuted to a narrow band when the equations' structure allows
+(:func:`odelab.solvers.banded.plan_band` on the pattern of which equation names which state,
+the same plan the Python path's ``Work`` makes from the exact Jacobian's ``pattern``).
+
 What the compiled loops do not have stays on the Python path, with the reason:
 :func:`why_not_stiff` names it.
 """
 
 from __future__ import annotations
+
+import weakref
 
 import numpy as np
 
@@ -39,9 +46,11 @@ def why_not_stiff(method_name: str, system, options=None) -> str | None:
         return reason
     if system.events:
         return "the compiled stiff loops do not locate [events] (the Python path locates them)"
-    for name in ("mass", "jpattern"):
-        if options.get(name) is not None:
-            return f"`{name}` is not in the compiled stiff loops (the Python path runs it)"
+    if options.get("mass") is not None:
+        return "`mass` is not in the compiled stiff loops (the Python path runs it)"
+    if options.get("jpattern") is not None:
+        return ("`jpattern` is not in the compiled stiff loops (they take the pattern of the equations "
+                "themselves, and factor banded when it allows; the Python path runs a given one with sparse LU)")
     return _jacobian_refusal(system, options.get("jacobian"))
 
 
@@ -96,6 +105,8 @@ def solve_stiff(system, m, tspan_arr: np.ndarray, y0_arr: np.ndarray, options: d
     capacity = tspan_arr.size if tspan_arr.size > 2 else 1 + int(opts.refine) * 64
     args = (rhs, jac, np.array(tspan_arr, dtype=float), y0_arr, f0, p, float(opts.rtol), atol.copy(),
             float(opts.max_step), float(opts.initial_step), int(opts.refine), int(opts.max_steps), int(capacity))
+    perm, kl, ku = _band_of(system)
+    args = (*args, perm, kl, ku)
     if m.name == "ode15s":
         from odelab.solvers.implicit.ode15s import GAMMA, KAPPA
 
@@ -114,3 +125,22 @@ def solve_stiff(system, m, tspan_arr: np.ndarray, y0_arr: np.ndarray, options: d
                                           ndecomps=ndecomps, nsolves=nsolves),
                     status=Status(status).label, reason=Status(status), message=message, method=m.name,
                     warnings=opts.warnings)
+
+
+_BANDS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def _band_of(system) -> tuple[np.ndarray, int, int]:
+    """(perm, kl, ku) of the banded LU for ``system``'s iteration matrices ((empty, 0, 0): dense),
+    from its equations' structure as the Python path's Work plans it from ``jacobian.pattern``
+    (a linear system's Jacobian is its matrix A, which the Python path factors dense)."""
+    cached = _BANDS.get(system)
+    if cached is None:
+        from odelab.solvers.banded import MIN_STATES, plan_band, structural_pattern
+
+        band = None
+        if system.kind == "equations" and len(system.states) >= MIN_STATES:
+            band = plan_band(structural_pattern([p.names for p in system._parsed()], system.states))
+        cached = (np.zeros(0, dtype=np.int64), 0, 0) if band is None else (band.perm, band.kl, band.ku)
+        _BANDS[system] = cached
+    return cached

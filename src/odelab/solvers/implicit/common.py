@@ -9,8 +9,11 @@ holds those counters and the three operations that produce them:
   factors are kept from one Jacobian to the next; one evaluation per column, fewer with a
   ``JPattern`` sparsity pattern by grouping structurally orthogonal columns, one vectorised call
   with ``Vectorized``);
-* :meth:`Work.factor` — LU of an iteration matrix ``M - c J`` (dense LAPACK, or SuperLU when a
-  sparsity pattern makes the matrix sparse);
+* :meth:`Work.factor` — LU of an iteration matrix ``M - c J`` (dense LAPACK; SuperLU when a
+  ``JPattern`` makes the matrix sparse; LAPACK's banded LU of the matrix permuted to a narrow
+  band when the Jacobian is an expression system's exact one, whose structure is known from
+  its equations (``jacobian.pattern``), and :func:`odelab.solvers.banded.plan_band` finds that
+  band narrow enough: the compiled loops make the same choice, see :mod:`odelab.solvers.banded`);
 * :meth:`Work.solve` — one solve with that factorisation.
 
 The output points, events and step records are the collector's every driver shares
@@ -48,6 +51,12 @@ class Work:
         self._jac = jacobian
         self._groups = None
         self.fac = None  # numjac's increment factors, carried from one Jacobian to the next
+        self.band = None  # an odelab.solvers.banded.Band when the iteration matrices factor banded
+        structure = getattr(jacobian, "pattern", None)  # an expression system's exact Jacobian knows it
+        if structure is not None and jpattern is None and mass is None:
+            from odelab.solvers.banded import MIN_STATES, plan_band
+
+            self.band = plan_band(structure()) if n >= MIN_STATES else None
         if jpattern is not None:
             from scipy import sparse
 
@@ -113,6 +122,8 @@ class Work:
     def factor(self, matrix):
         """LU-factor an iteration matrix (counted as one decomposition)."""
         self.ndecomps += 1
+        if self.band is not None:
+            return ("banded", self.band.factor(matrix))
         if self.sparse:
             from scipy.sparse.linalg import splu
 
@@ -127,6 +138,8 @@ class Work:
         kind, fac = lu
         if kind == "sparse":
             return fac.solve(rhs)
+        if kind == "banded":
+            return self.band.solve(fac, rhs)
         if rhs.dtype == np.float64:  # scipy's lu_solve without its per-call wrappers: the same dgetrs call
             from scipy.linalg.lapack import dgetrs
 
