@@ -42,7 +42,7 @@ import numpy as np
 
 from odelab.solvers.controller import clamp_step, first_step, given_step
 from odelab.solvers.dense import clip_nonnegative, query_times
-from odelab.solvers.ordered import combine
+from odelab.solvers.ordered import backwards, combine, norm as _norm2
 from odelab.solvers.output import DriverResult, NonNegative, StepOutput
 from odelab.solvers.status import Status
 
@@ -64,13 +64,13 @@ _V0 = [0.0] + [1.0 / (iq * (iq + 1)) for iq in range(1, MAX_ORDER + 2)]  # v_iq 
 
 def _inv_weight(y, threshold, norm_control):
     if norm_control:
-        return 1.0 / max(float(np.linalg.norm(y)), float(threshold))
+        return 1.0 / max(_norm2(y), float(threshold))
     return 1.0 / np.maximum(np.abs(y), threshold)
 
 
 def _wnorm(v, invwt, norm_control) -> float:
     if norm_control:
-        return float(np.linalg.norm(v)) * invwt
+        return _norm2(v) * invwt
     return float(_max(np.abs(v * invwt)))
 
 
@@ -106,8 +106,8 @@ def ntrp113(tq, t, y, phi, psi, ki, nonnegative=None):
     """
     hi = np.asarray(tq, dtype=float).reshape(-1) - t
     g, rho = _interpolation_coefficients(hi, psi, ki)
-    values = y + hi[:, None] * (g @ phi)
-    slopes = rho @ phi
+    values = y + hi[:, None] * combine(g, phi)  # sums in index order (ordered.py): no BLAS
+    slopes = combine(rho, phi)
     if nonnegative is not None:
         part = values[:, nonnegative]
         neg = part < 0
@@ -290,9 +290,11 @@ class _Adams:
         row[k + 2][...] = row[k + 1]
         row[k + 1][...] = self.zero
         if self.g_order != k:
-            self.g_arr = np.array(self.g[1:k + 1])
+            self.g_arr = backwards(np.array(self.g[1:k + 1]))  # read backwards: numpy's own loop, not BLAS
             self.g_order = k
-        p = y + h * self.g_arr.dot(self.lead[k])  # numpy.dot: the same BLAS gemv as matmul (@), half its cost
+        # sum_i g_i phi_i in index order, whatever the BLAS (ordered.py: a negatively strided vector and a
+        # 3-D operand keep numpy.dot off gemv, whose kernels differ by CPU in their last bits)
+        p = y + h * self.g_arr.dot(self.lead[k][None])[0]
         backwards_rows = self.back[k]  # phi_i <- phi_i + ... + phi_k: numpy.cumsum's sums, in place
         _accumulate(backwards_rows, 0, None, backwards_rows)
         return p
@@ -472,7 +474,7 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
                 err, erk, erkm1, knew, ynew = state.errors(yp, p, h, absh, invwt, norm_control)
                 if nn is not None and err <= rtol and nn.negative(ynew):
                     # a negative value of a non-negative component counts as error
-                    err_nn = (float(np.linalg.norm(nn.excess(ynew))) * invwt if norm_control else nn.error(ynew))
+                    err_nn = (_norm2(nn.excess(ynew)) * invwt if norm_control else nn.error(ynew))
                     if err_nn > rtol:
                         err = err_nn
                 if err > rtol:  # failed: restore t, phi and psi, then halve (book, block 3)
