@@ -103,31 +103,29 @@ def test_ode15s_interpolates_the_tspan_grid_as_on_python():
     assert_same(python, compiled, 4)
 
 
-def test_the_blas_fallback_multiplies():
-    """Where numpy's BLAS is not its bundled OpenBLAS, loops with cblas's row-major semantics stand in."""
-    import ctypes
-
+def test_the_compiled_products_sum_as_the_python_path_does_bit_for_bit():
+    """The compiled loops' products are odelab.solvers.ordered's sums, no BLAS on either path."""
     from odelab.solvers.compiled.cache import load_kernels
+    from odelab.solvers.ordered import backwards, combine, matmul, matvec
 
-    loops = load_kernels()._blas_loops()
-    L, D, P = ctypes.c_int64, ctypes.c_double, ctypes.c_void_p
-    gemv = ctypes.CFUNCTYPE(None, ctypes.c_int32, ctypes.c_int32, L, L, D, P, L, P, L, D, P, L)(loops["dgemv"])
-    gemm = ctypes.CFUNCTYPE(None, *[ctypes.c_int32] * 3, L, L, L, D, P, L, P, L, D, P, L)(loops["dgemm"])
+    kernels = load_kernels()
     rng = np.random.default_rng(3)
-    A, B, x = rng.standard_normal((3, 5)), rng.standard_normal((5, 4)), rng.standard_normal(5)
-    y = np.empty(3)
-    gemv(101, 111, 3, 5, 1.0, A.ctypes.data, 5, x.ctypes.data, 1, 0.0, y.ctypes.data, 1)
-    np.testing.assert_allclose(y, A @ x, rtol=1e-14)
-    z = np.empty(5)
-    gemv(101, 112, 3, 5, 1.0, A.ctypes.data, 5, y.ctypes.data, 1, 0.0, z.ctypes.data, 1)
-    np.testing.assert_allclose(z, A.T @ y, rtol=1e-14)
-    C = np.empty((3, 4))
-    gemm(101, 111, 111, 3, 4, 5, 1.0, A.ctypes.data, 5, B.ctypes.data, 4, 0.0, C.ctypes.data, 4)
-    np.testing.assert_allclose(C, A @ B, rtol=1e-14)
-    E = np.empty((5, 4))
-    G = rng.standard_normal((3, 4))
-    gemm(101, 112, 111, 5, 4, 3, 1.0, A.ctypes.data, 5, G.ctypes.data, 4, 0.0, E.ctypes.data, 4)
-    np.testing.assert_allclose(E, A.T @ G, rtol=1e-14)
+    for k, n in [(1, 3), (3, 5), (5, 200), (6, 8)]:
+        A = rng.standard_normal((n, k)) * 10.0 ** rng.integers(-4, 4, (n, k))
+        B = rng.standard_normal((k, n)) * 10.0 ** rng.integers(-4, 4, (k, n))
+        g, x = rng.standard_normal(k), rng.standard_normal(k)
+        out = np.empty(n)
+        kernels._vecmat(g, B, out)
+        assert np.array_equal(out, backwards(g).dot(B[None])[0]) and np.array_equal(out, combine(g, B))
+        kernels._matvec(A, x, out)
+        assert np.array_equal(out, matvec(A, x))
+        C = np.empty((n, n))
+        kernels._matmul(A, B, C)
+        assert np.array_equal(C, matmul(A, B))
+        R = rng.standard_normal((k, k))
+        T = np.empty((k, n))
+        kernels._matmul(R, B, T, True)
+        assert np.array_equal(T, matmul(R.T, B))
 
 
 @pytest.mark.parametrize("options", [{"refine": 4}, {"initial_step": 1e-6, "max_step": 50.0},

@@ -1,4 +1,4 @@
-"""Numbers that travel: the explicit engine's results do not depend on the machine's BLAS kernel.
+"""Numbers that travel: the solvers' results do not depend on the machine's BLAS kernel.
 
 numpy hands ``w @ K`` and ``w.dot(K)`` to BLAS, whose kernels (OpenBLAS picks one per CPU:
 Nehalem, Sandybridge, Haswell, Zen, ...) sum in other orders and fuse multiply-adds or not, so
@@ -15,7 +15,7 @@ import sys
 import numpy as np
 import pytest
 
-from odelab.solvers.ordered import backwards, combine, norm, stage
+from odelab.solvers.ordered import backwards, combine, matmul, matvec, norm, stage
 
 SIZES = [(m, n) for m in (1, 2, 3, 4, 7, 8, 9, 13, 16, 21) for n in (1, 2, 3, 4, 8, 17, 50)]
 
@@ -44,6 +44,17 @@ def test_the_one_call_forms_sum_in_index_order_bit_for_bit(m, n):
     assert np.array_equal(stage(y, w, K), sequential(w[::-1], K[::-1]) + y)
     assert np.array_equal(coefficients.dot(rows[None])[0], stage(y, w, K))
     assert norm(K[:, 0]) == np.sqrt(sequential(K[:, 0], K[:, 0][:, None])[0])
+
+
+@pytest.mark.parametrize("m, n", SIZES)
+def test_the_stiff_solvers_products_sum_in_index_order_bit_for_bit(m, n):
+    rng = np.random.default_rng(m * 1000 + n)
+    A = rng.standard_normal((n, m)) * 10.0 ** rng.integers(-3, 3, (n, m))
+    x = rng.standard_normal(m) * 10.0 ** rng.integers(-3, 3, m)
+    assert np.array_equal(matvec(A, x), sequential(x, A.T))
+    B = rng.standard_normal((m, 5))
+    assert np.array_equal(matmul(A, B), np.array([sequential(row, B) for row in A]))
+    assert np.array_equal(matmul(A.T.copy().T, B), matmul(A, B))  # any layout of A
 
 
 _CASES = r"""
@@ -76,6 +87,20 @@ runs = {
     "rk4": odelab.solve(rigid, [0, 12], [0, 1, 1], method="rk4", h=0.01),
     "norm control": odelab.ode45(rigid, [0, 30], [0, 1, 1], NormControl="on", rtol=1e-7),
 }
+# the stiff solvers on systems of up to five states (LAPACK's LU is kernel-dependent from six
+# on: docs/portability.md): van der Pol mu = 1000, Robertson, a damped oscillator's mass matrix
+def vdp(t, y):
+    return [y[1], 1000 * (1 - y[0] ** 2) * y[1] - y[0]]
+
+def rober(t, y):
+    return [-0.04 * y[0] + 1e4 * y[1] * y[2], 0.04 * y[0] - 1e4 * y[1] * y[2] - 3e7 * y[1] ** 2, 3e7 * y[1] ** 2]
+
+for method in ("ode15s", "ode23s", "ode23t", "ode23tb"):
+    runs[method + " vdp"] = odelab.solve(vdp, [0, 3000], [2, 0], method=method)
+    runs[method + " robertson"] = odelab.solve(rober, [0, 0.4, 4, 40, 400, 4e3, 4e4, 4e5, 4e6, 4e8, 4e10],
+                                               [1, 0, 0], method=method, rtol=1e-4, atol=[1e-8, 1e-14, 1e-8])
+runs["ode15s mass"] = odelab.solve(lambda t, y: [y[1], -4 * y[0] - 0.5 * y[1]], np.linspace(0, 10, 41), [1, 0],
+                                   method="ode15s", mass=[[1, 0], [0, 2]], rtol=1e-6)
 for name, sol in runs.items():
     s = sol.stats
     out[name] = [digest(sol.t, sol.y, sol.te, sol.ye), s.nsteps, s.nfailed, s.nfevals]
@@ -90,7 +115,7 @@ def _run_under(kernel):
     return json.loads(done.stdout)
 
 
-def test_explicit_methods_give_the_same_bits_under_two_blas_kernels():
+def test_explicit_and_small_stiff_runs_give_the_same_bits_under_two_blas_kernels():
     nehalem, haswell = _run_under("Nehalem"), _run_under("Haswell")
     if nehalem.pop("blas") == haswell.pop("blas"):
         pytest.skip("this numpy's BLAS gives the same bits under both kernels (not OpenBLAS, or a CPU "

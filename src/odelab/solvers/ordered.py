@@ -17,6 +17,9 @@ Two ways to compute them, the same bits:
 
 * :func:`combine` and :func:`stage`: a loop of numpy ufuncs over the terms (vectorised over
   any leading axes), for everything outside the stepping loop;
+* :func:`matvec` and :func:`matmul`: the products of the stiff solvers (a Jacobian times a
+  slope, the backward differences' rescaling and predictor), in the same order (for m = 0, 1,
+  ...); ``matvec`` is numpy's matmul with the vector read backwards (its own loop, one call);
 * :func:`backwards`: a copy of a coefficient vector read through a negative stride. BLAS takes
   positive strides only, so numpy computes a product with such an operand in its own loop,
   ``op = 0; op += a[k] * b[k]`` in index order: ``backwards(w) @ K`` (numpy's ``matmul``) and
@@ -32,7 +35,7 @@ import math
 
 import numpy as np
 
-__all__ = ["backwards", "combine", "norm", "stage"]
+__all__ = ["backwards", "combine", "matmul", "matvec", "norm", "stage"]
 
 
 def backwards(w) -> np.ndarray:
@@ -79,3 +82,15 @@ def norm(v) -> float:
     if np.iscomplexobj(v):
         return math.sqrt(float(backwards(v.real) @ v.real) + float(backwards(v.imag) @ v.imag))
     return math.sqrt(float(backwards(v) @ v))
+
+
+def matvec(A, x) -> np.ndarray:
+    """``A @ x`` for a dense A (p, m), each entry ``sum_j A[i, j] x[j]`` for j = 0, 1, ...
+    starting at 0 (numpy's matmul with ``x`` read backwards runs its own loop: one call)."""
+    return np.asarray(A) @ backwards(np.asarray(x))
+
+
+def matmul(A, B) -> np.ndarray:
+    """``A @ B`` for dense A (p, m) and B (m, q), each entry ``sum_k A[i, k] B[k, j]`` for
+    k = 0, 1, ... starting at 0 (:func:`combine` with A's rows as the weights)."""
+    return combine(A, B)

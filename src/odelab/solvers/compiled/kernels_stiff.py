@@ -15,11 +15,10 @@ matrix in the same (column-major) layout: the same factors and solutions bit for
 permutation, both paths factor the permuted band with ``dgbtrf``/``dgbtrs`` instead
 (:class:`odelab.solvers.banded.Band`, :func:`_factor`): the loops take that plan as ``perm``
 (empty: dense), ``kl`` and ``ku``.
-What the Python path hands to BLAS through numpy's ``@`` (``J @ y'`` of ode15s's first step,
-its difference rescaling ``RU.T @ D`` and predictor sums ``GAMMA @ D``, its interpolant) calls
-numpy's own ``cblas_dgemv``/``cblas_dgemm`` here with the arguments numpy's matmul passes
-(:func:`_matmul`), so those sums come out in BLAS's order too; everything else is elementwise
-and written in numpy's order of operations.
+The products (``J @ y'`` of ode15s's first step, its difference rescaling ``RU.T @ D`` and
+predictor sums ``GAMMA @ D``, its interpolant) are loops in :mod:`odelab.solvers.ordered`'s
+order, as the Python path sums them (no BLAS in either: the same bits under every BLAS
+kernel); everything else is elementwise and written in numpy's order of operations.
 """
 
 import numpy as _np
@@ -40,103 +39,49 @@ _D23 = 1.0 / (2.0 + _np.sqrt(2.0))  # ode23s.D
 _E32 = 6.0 + _np.sqrt(2.0)  # ode23s.E32
 
 
-_I4 = _types.int32
-_dgemv = _types.ExternalFunction("odelab_dgemv", _types.void(_I4, _I4, _I8, _I8, _F8, _P, _I8, _P, _I8, _F8, _P,  # noqa: F821
-                                                              _I8))  # noqa: F821
-_dgemm = _types.ExternalFunction("odelab_dgemm", _types.void(_I4, _I4, _I4, _I8, _I8, _I8, _F8, _P, _I8, _P,  # noqa: F821
-                                                              _I8, _F8, _P, _I8))  # noqa: F821
-_ROW, _N, _T = 101, 111, 112  # CblasRowMajor, CblasNoTrans, CblasTrans
-
-
 def _bind_lapack():
-    """Make SciPy's LAPACK ``dgetrf``/``dgetrs`` (``dgbtrf``/``dgbtrs``: banded) and numpy's BLAS ``cblas_dgemv``/``cblas_dgemm``
-    known to numba's linker by name (once per process): the routines ``lu_factor``/``lu_solve``
-    and numpy's ``@`` call, so the compiled loops get their results bit for bit. A numpy whose
-    BLAS is not the bundled OpenBLAS gets loops in index order instead (values to a few eps)."""
+    """Make SciPy's LAPACK ``dgetrf``/``dgetrs`` (``dgbtrf``/``dgbtrs``: banded) known to numba's
+    linker by name (once per process): the routines ``lu_factor``/``lu_solve`` (and the Python
+    path's ``getrf``/``getrs``) call, so the compiled loops get their results bit for bit."""
     import llvmlite.binding as ll
     from numba.extending import get_cython_function_address
 
     for name in ("dgetrf", "dgetrs", "dgbtrf", "dgbtrs"):
         ll.add_symbol("odelab_" + name, get_cython_function_address("scipy.linalg.cython_lapack", name))
-    for name, address in _numpy_blas().items():
-        ll.add_symbol("odelab_" + name, address)
-
-
-def _numpy_blas():
-    """Addresses of numpy's cblas_dgemv and cblas_dgemm (its wheels' OpenBLAS, 64-bit ints), or of
-    loops with their row-major semantics where that library is not found."""
-    import ctypes
-    import glob
-    import os
-
-    import numpy
-
-    for path in sorted(glob.glob(os.path.join(os.path.dirname(numpy.__file__), os.pardir, "numpy.libs",
-                                              "libscipy_openblas64_*.so"))):
-        try:
-            lib = ctypes.CDLL(path)
-            return {"dgemv": ctypes.cast(lib.scipy_cblas_dgemv64_, ctypes.c_void_p).value,
-                    "dgemm": ctypes.cast(lib.scipy_cblas_dgemm64_, ctypes.c_void_p).value}
-        except (OSError, AttributeError):
-            continue
-    return _blas_loops()
-
-
-def _blas_loops():
-    from numba import carray, cfunc
-
-    ptr = _types.CPointer(_F8)  # noqa: F821
-
-    @cfunc(_types.void(_I4, _I4, _I8, _I8, _F8, ptr, _I8, ptr, _I8, _F8, ptr, _I8))  # noqa: F821
-    def gemv(order, trans, m, n, alpha, a, lda, x, incx, beta, y, incy):  # row-major, unit strides
-        A = carray(a, (m, lda))
-        rows, cols = (m, n) if trans == _N else (n, m)
-        for i in range(rows):
-            acc = 0.0
-            for j in range(cols):
-                acc += (A[i, j] if trans == _N else A[j, i]) * x[j]
-            y[i] = alpha * acc
-    @cfunc(_types.void(_I4, _I4, _I4, _I8, _I8, _I8, _F8, ptr, _I8, ptr, _I8, _F8, ptr, _I8))  # noqa: F821
-    def gemm(order, ta, tb, m, n, k, alpha, a, lda, b, ldb, beta, c, ldc):
-        for i in range(m):
-            for j in range(n):
-                acc = 0.0
-                for q in range(k):
-                    acc += (a[i * lda + q] if ta == _N else a[q * lda + i]) * (b[q * ldb + j] if tb == _N
-                                                                              else b[j * ldb + q])
-                c[i * ldc + j] = alpha * acc
-    return {"dgemv": gemv.address, "dgemm": gemm.address}
 
 
 @_njit(cache=True, error_model="numpy")
 def _vecmat(g, B, out):
-    """out = g @ B for g (k,) and B (k, n) C-contiguous: numpy's gemv call."""
-    _dgemv(_ROW, _T, B.shape[0], B.shape[1], 1.0, B.ctypes, B.shape[1], g.ctypes, 1, 0.0, out.ctypes, 1)
+    """out = g @ B for g (k,) and B (k, n): odelab.solvers.ordered's order (i = 0, 1, ... from 0)."""
+    for j in range(B.shape[1]):
+        acc = 0.0
+        for i in range(B.shape[0]):
+            acc += g[i] * B[i, j]
+        out[j] = acc
 
 
 @_njit(cache=True, error_model="numpy")
 def _matvec(A, x, out):
-    """out = A @ x for A (m, n) C-contiguous: numpy's gemv call."""
-    _dgemv(_ROW, _N, A.shape[0], A.shape[1], 1.0, A.ctypes, A.shape[1], x.ctypes, 1, 0.0, out.ctypes, 1)
+    """out = A @ x for A (m, n): ordered.matvec's order (j = 0, 1, ... from 0)."""
+    for i in range(A.shape[0]):
+        acc = 0.0
+        for j in range(A.shape[1]):
+            acc += A[i, j] * x[j]
+        out[i] = acc
 
 
 @_njit(cache=True, error_model="numpy")
 def _matmul(A, B, C, transpose_a=False):
-    """C = A @ B (or A.T @ B) for C-contiguous A (q, k) and B (k, n) (A (k, q) transposed), as
-    numpy's matmul calls BLAS: gemv when C is one row or one column, else gemm."""
+    """C = A @ B (or A.T @ B) for A (q, k) and B (k, n) (A (k, q) transposed): ordered.matmul's
+    order (m = 0, 1, ... from 0)."""
     q, n = C.shape[0], C.shape[1]
     k = B.shape[0]
-    if transpose_a:
-        if n == 1:
-            _dgemv(_ROW, _T, k, q, 1.0, A.ctypes, q, B.ctypes, 1, 0.0, C.ctypes, 1)
-        else:
-            _dgemm(_ROW, _T, _N, q, n, k, 1.0, A.ctypes, q, B.ctypes, n, 0.0, C.ctypes, n)
-    elif q == 1:
-        _dgemv(_ROW, _T, k, n, 1.0, B.ctypes, n, A.ctypes, 1, 0.0, C.ctypes, 1)
-    elif n == 1:
-        _dgemv(_ROW, _N, q, k, 1.0, A.ctypes, k, B.ctypes, 1, 0.0, C.ctypes, 1)
-    else:
-        _dgemm(_ROW, _N, _N, q, n, k, 1.0, A.ctypes, k, B.ctypes, n, 0.0, C.ctypes, n)
+    for i in range(q):
+        for j in range(n):
+            acc = 0.0
+            for m in range(k):
+                acc += (A[m, i] if transpose_a else A[i, m]) * B[m, j]
+            C[i, j] = acc
 
 
 @_njit(cache=True, error_model="numpy")
@@ -216,7 +161,7 @@ def _npmax(a, b):
 def _interp(kind, times, q, t, h, y, A1, A2, D, k, out):
     """The step's interpolant at times[:q] into the rows of out: ode23s's (kind 0; y, k1 = A1,
     k2 = A2), or ode15s's backward differences (kind 1; D[0..k] at the step's end t), whose
-    ``cumprod(x) @ D[1:]`` is numpy's BLAS call (_matmul)."""
+    ``cumprod(x) @ D[1:]`` is ordered.combine's sum (_matmul)."""
     n = out.shape[1]
     if kind == 0:
         for r in range(q):

@@ -28,8 +28,9 @@ import math
 import numpy as np
 
 from odelab.solvers.controller import first_step, given_step
+from odelab.solvers.ordered import matvec, norm
 
-__all__ = ["Work", "rms_or_max", "initial_step", "newton", "rate_test", "Newton",
+__all__ = ["Work", "rms_or_max", "initial_step", "jacobian_times", "newton", "rate_test", "Newton",
            "QuadraticSteps", "QuadraticRecords", "quadratic_through"]
 
 EPS = float(np.finfo(float).eps)
@@ -158,7 +159,16 @@ class Work:
         return x
 
     def mass_times(self, v: np.ndarray) -> np.ndarray:
-        return v if self.mass is None else self.mass @ v
+        return v if self.mass is None else jacobian_times(self.mass, v)
+
+
+def jacobian_times(A, v: np.ndarray) -> np.ndarray:
+    """``A @ v`` for a Jacobian or mass matrix: a dense one summed in index order without BLAS
+    (:func:`odelab.solvers.ordered.matvec`, the compiled loops' order, so the product does not
+    depend on the machine's BLAS kernel); a sparse one by SciPy's own loop (row by row)."""
+    if hasattr(A, "tocsr"):
+        return A @ v
+    return matvec(A, v)
 
 
 def rms_or_max(v: np.ndarray, scale: np.ndarray) -> float:
@@ -172,7 +182,7 @@ def initial_step(f0, y0, threshold, rtol, power, hmax, htspan, t0, htry, normcon
     if htry == htry:  # given
         return given_step(htry, t0, hmax)
     if normcontrol:
-        rh = (float(np.linalg.norm(f0)) / max(float(np.linalg.norm(y0)), float(np.max(threshold)))) / (0.8 * rtol**power)
+        rh = (norm(f0) / max(norm(y0), float(np.max(threshold)))) / (0.8 * rtol**power)
     else:
         rh = float(np.max(np.abs(f0) / np.maximum(np.abs(y0), threshold))) / (0.8 * rtol**power)
     return first_step(rh, htspan, hmax, t0)

@@ -25,14 +25,17 @@ import math
 import numpy as np
 
 from odelab.solvers.controller import first_step, given_step, grow, shrink, shrink_after_newton
-from odelab.solvers.implicit.common import EPS, SQRT_EPS, Newton, Work, newton
+from odelab.solvers.implicit.common import EPS, SQRT_EPS, Newton, Work, jacobian_times, newton
 from odelab.solvers.implicit.driver import Stepper, integrate
+from odelab.solvers.ordered import backwards, combine, matmul
 
 __all__ = ["integrate_ode15s", "NDFStep", "KAPPA"]
 
 # MATLAB's ode15s: alpha = [-37/200, -1/9, -0.0823, -0.0415, 0] for orders 1..5 (index 0 unused).
 KAPPA = np.array([0.0, -37 / 200, -1 / 9, -0.0823, -0.0415, 0.0])
 GAMMA = np.concatenate([[0.0], np.cumsum(1.0 / np.arange(1, 6))])  # 1, 3/2, 11/6, 25/12, 137/60
+# GAMMA[1..k] read backwards, per order k: psi's sum_i GAMMA[i] D[i] in index order without BLAS
+_GAMMA_B = {k: backwards(GAMMA[1 : k + 1]) for k in range(1, 6)}
 # ndarray.max() and .sum() without their Python layers (the same reductions: bit for bit)
 _max, _sum = np.maximum.reduce, np.add.reduce
 
@@ -53,8 +56,8 @@ _U = {order: _rescale(order, 1.0) for order in range(1, 6)}
 
 def change_differences(D: np.ndarray, order: int, factor: float) -> None:
     """Rescale the backward differences ``D[0..order]`` to a step ``factor`` times the old one."""
-    RU = _rescale(order, factor) @ _U[order]
-    D[: order + 1] = RU.T @ D[: order + 1]
+    RU = matmul(_rescale(order, factor), _U[order])
+    D[: order + 1] = matmul(RU.T, D[: order + 1])
 
 
 class NDFStep(Stepper):
@@ -92,7 +95,7 @@ class NDFStep(Stepper):
                 h = tdir * absh
                 tdel = (t + tdir * min(SQRT_EPS * max(abs(t), abs(t + h)), absh)) - t
                 f1 = work.f(t + tdel, y)
-                ypp = (f1 - f0) / tdel + self.J @ yp0
+                ypp = (f1 - f0) / tdel + jacobian_times(self.J, yp0)
                 if work.mass is not None:
                     ypp = np.linalg.lstsq(Md, ypp, rcond=None)[0]
                 rh = 1.25 * math.sqrt(0.5 * float(np.max(np.abs(ypp) / wt)) / rtol)
@@ -133,7 +136,7 @@ class NDFStep(Stepper):
             self.memory.havrate = False
         c = self.c
         ypred = _sum(D[: k + 1], axis=0)
-        psi = (GAMMA[1 : k + 1] @ D[1 : k + 1]) / self.alpha[k]
+        psi = _GAMMA_B[k].dot(D[None, 1 : k + 1])[0] / self.alpha[k]
         absy = np.abs(y)
         wt = np.maximum(absy, self.threshold)
         f = work.f
@@ -190,7 +193,7 @@ class NDFStep(Stepper):
 
         def interp(times, _D=D[: k + 1].copy()):
             x = (np.asarray(times)[:, None] - (tnew - h * np.arange(k))) / (h * np.arange(1, k + 1))
-            return _D[0] + np.cumprod(x, axis=1) @ _D[1:]
+            return _D[0] + combine(np.cumprod(x, axis=1), _D[1:])
 
         self.nconhk = min(self.nconhk + 1, self.max_order + 2)
         return tnew, D[0].copy(), interp

@@ -51,7 +51,7 @@ import numpy as np
 
 from odelab.solvers.controller import first_step, given_step, shrink, shrink_after_newton
 from odelab.solvers.implicit.common import (EPS, SQRT_EPS, Newton, QuadraticRecords, QuadraticSteps, Work,
-                                           consistent_slope, quadratic_through, rate_test)
+                                           consistent_slope, jacobian_times, quadratic_through, rate_test)
 from odelab.solvers.implicit.driver import Stepper, integrate
 
 __all__ = ["integrate_ode23t", "TrapezoidalStep", "predict", "local_error", "rings", "interpolant", "solve_z",
@@ -180,7 +180,7 @@ class TrapezoidalStep(QuadraticRecords, Stepper):
                 # BDF1's error is h^2 |y''| / 2 with y'' = f_t + J y' (one evaluation).
                 h = tdir * absh
                 tdel = (t + tdir * min(SQRT_EPS * max(abs(t), abs(t + h)), absh)) - t
-                ypp = (work.f(t + tdel, y) - f0) / tdel + (self.J @ yp)
+                ypp = (work.f(t + tdel, y) - f0) / tdel + jacobian_times(self.J, yp)
                 if work.mass is not None:
                     ypp = np.linalg.solve(self.Md, ypp)
                 rh = 1.43 * math.sqrt(0.5 * float(np.max(np.abs(ypp) / wt)) / rtol)
