@@ -18,8 +18,9 @@ Two ways to compute them, the same bits:
 * :func:`combine` and :func:`stage`: a loop of numpy ufuncs over the terms (vectorised over
   any leading axes), for everything outside the stepping loop;
 * :func:`matvec` and :func:`matmul`: the products of the stiff solvers (a Jacobian times a
-  slope, the backward differences' rescaling and predictor), in the same order (for m = 0, 1,
-  ...); ``matvec`` is numpy's matmul with the vector read backwards (its own loop, one call);
+  slope, the backward differences' rescaling and predictor, an interpolant), in the same order
+  (for m = 0, 1, ...): numpy's matmul with the vector read backwards, numpy's dot with the
+  left matrix's rows read backwards (its own loops, one call each);
 * :func:`backwards`: a copy of a coefficient vector read through a negative stride. BLAS takes
   positive strides only, so numpy computes a product with such an operand in its own loop,
   ``op = 0; op += a[k] * b[k]`` in index order: ``backwards(w) @ K`` (numpy's ``matmul``) and
@@ -92,5 +93,11 @@ def matvec(A, x) -> np.ndarray:
 
 def matmul(A, B) -> np.ndarray:
     """``A @ B`` for dense A (p, m) and B (m, q), each entry ``sum_k A[i, k] B[k, j]`` for
-    k = 0, 1, ... starting at 0 (:func:`combine` with A's rows as the weights)."""
-    return combine(A, B)
+    k = 0, 1, ... starting at 0: ``numpy.dot`` of a copy of A whose rows run backwards in memory
+    (a negative stride, which BLAS does not take) with B as a 3-D operand, so every entry is
+    numpy's own sequential dot (as :func:`backwards`' engine form; matmul would copy A back to a
+    contiguous array and call BLAS), in one call."""
+    A = np.asarray(A)
+    rows = np.empty_like(A)[:, ::-1]
+    rows[...] = A
+    return rows.dot(np.asarray(B)[None])[:, 0]

@@ -27,7 +27,7 @@ import numpy as np
 from odelab.solvers.controller import first_step, given_step, grow, shrink, shrink_after_newton
 from odelab.solvers.implicit.common import EPS, SQRT_EPS, Newton, Work, jacobian_times, newton
 from odelab.solvers.implicit.driver import Stepper, integrate
-from odelab.solvers.ordered import backwards, combine, matmul
+from odelab.solvers.ordered import backwards, matmul
 
 __all__ = ["integrate_ode15s", "NDFStep", "KAPPA"]
 
@@ -193,7 +193,7 @@ class NDFStep(Stepper):
 
         def interp(times, _D=D[: k + 1].copy()):
             x = (np.asarray(times)[:, None] - (tnew - h * np.arange(k))) / (h * np.arange(1, k + 1))
-            return _D[0] + combine(np.cumprod(x, axis=1), _D[1:])
+            return _D[0] + matmul(np.cumprod(x, axis=1), _D[1:])
 
         self.nconhk = min(self.nconhk + 1, self.max_order + 2)
         return tnew, D[0].copy(), interp
