@@ -94,7 +94,11 @@ def is_built(text: str, prefix: str = "odelab_compiled", function: str | None = 
 def kernels_text() -> str:
     """The text of the shared loops' module (``controller.py``, ``kernels.py``, ``kernels_events.py``,
     ``kernels_stiff.py``)."""
-    return "\n\n".join(path.read_text(encoding="utf-8") for path in _KERNELS)
+    from odelab.solvers.lu import SMALL
+
+    # the size up to which the stiff loops factor as odelab.solvers.lu does: in the text, so that
+    # a change of it is a new module (numba's cache would keep the old value compiled in)
+    return "\n\n".join(path.read_text(encoding="utf-8") for path in _KERNELS) + f"\n\n_SMALL_LU = {SMALL}\n"
 
 
 def load_module(text: str, prefix: str = "odelab_compiled") -> ModuleType:

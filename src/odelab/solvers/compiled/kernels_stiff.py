@@ -7,7 +7,10 @@ This file is appended to ``kernels.py`` in one generated module (see
 rules from :mod:`odelab.solvers.controller`, the same Newton iteration, order selection and
 counters), without mass matrices or events. The Jacobian is the system's generated ``jac``
 (complex step, :func:`odelab.solvers.compiled.codegen.jacobian_source`: the Python path's
-exact Jacobian to the bit), and the LU factorisations and solves call the LAPACK routines that
+exact Jacobian to the bit). Up to ``_SMALL_LU`` states (:data:`odelab.solvers.lu.SMALL`, written
+into the module's text by the cache) the LU factorisations and solves are
+:mod:`odelab.solvers.lu`'s, loop for loop (:func:`_ordered_lu`, :func:`_ordered_solve`); above,
+they call the LAPACK routines that
 SciPy's ``lu_factor`` and ``lu_solve`` call (``dgetrf``/``dgetrs`` of ``scipy.linalg.cython_lapack``,
 bound by name with :func:`_bind_lapack`, so numba's cache keeps the machine code), on the
 matrix in the same (column-major) layout: the same factors and solutions bit for bit. Where
@@ -35,6 +38,7 @@ _dgbtrf = _types.ExternalFunction("odelab_dgbtrf", _types.void(_P, _P, _P, _P, _
 _dgbtrs = _types.ExternalFunction("odelab_dgbtrs", _types.void(_P, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P))
 _SQRT_EPS = 1.4901161193847656e-08  # sqrt(eps), odelab.solvers.implicit.common.SQRT_EPS
 _EPS = 2.220446049250313e-16
+_SFMIN = 2.2250738585072014e-308  # the smallest normal number, odelab.solvers.lu._SFMIN
 _D23 = 1.0 / (2.0 + _np.sqrt(2.0))  # ode23s.D
 _E32 = 6.0 + _np.sqrt(2.0)  # ode23s.E32
 
@@ -85,6 +89,56 @@ def _matmul(A, B, C, transpose_a=False):
 
 
 @_njit(cache=True, error_model="numpy")
+def _ordered_lu(A, piv):
+    """odelab.solvers.lu.factor in place on A (row-major), the pivots into piv: the same
+    operations in the same order."""
+    n = A.shape[0]
+    for j in range(n):
+        p = j
+        biggest = abs(A[j, j])
+        for i in range(j + 1, n):
+            m = abs(A[i, j])
+            if m > biggest:
+                p, biggest = i, m
+        piv[j] = p
+        if p != j:
+            for k in range(n):
+                A[j, k], A[p, k] = A[p, k], A[j, k]
+        d = A[j, j]
+        if d == 0:
+            continue
+        small = abs(d) < _SFMIN
+        reciprocal = 1.0 / d
+        for i in range(j + 1, n):
+            li = A[i, j] / d if small else A[i, j] * reciprocal
+            A[i, j] = li
+            if li != 0:
+                for k in range(j + 1, n):
+                    A[i, k] -= li * A[j, k]
+
+
+@_njit(cache=True, error_model="numpy")
+def _ordered_solve(A, piv, x):
+    """odelab.solvers.lu.solve in place on x."""
+    n = x.shape[0]
+    for j in range(n):
+        p = piv[j]
+        if p != j:
+            x[j], x[p] = x[p], x[j]
+    for j in range(n - 1):
+        xj = x[j]
+        if xj != 0:
+            for i in range(j + 1, n):
+                x[i] -= xj * A[i, j]
+    for j in range(n - 1, -1, -1):
+        x[j] /= A[j, j]
+        xj = x[j]
+        if xj != 0:
+            for i in range(j):
+                x[i] -= xj * A[i, j]
+
+
+@_njit(cache=True, error_model="numpy")
 def _new_lu(n, perm, kl, ku):
     """The LU workspace: (Wf, ipiv, ints, perm, tmp). Dense (perm empty): Wf (n, n) column-major
     for dgetrf; banded (odelab.solvers.banded.Band: position k holds state perm[k]): Wf the
@@ -102,6 +156,12 @@ def _factor(J, c, lu):
     entry (perm[i'], perm[j'])): the same numbers as the Python path's ``M - c J``."""
     Wf, ipiv, ints, perm = lu[0], lu[1], lu[2], lu[3]
     n = J.shape[0]
+    if perm.shape[0] == 0 and n <= _SMALL_LU:  # odelab.solvers.lu: row-major, the same bits everywhere
+        for i in range(n):
+            for j in range(n):
+                Wf[i, j] = (1.0 if i == j else 0.0) - c * J[i, j]
+        _ordered_lu(Wf, ipiv)
+        return
     if perm.shape[0] == 0:
         for i in range(n):
             for j in range(n):
@@ -123,6 +183,9 @@ def _lsolve(lu, trans, b):
     """b <- (I - c J) \\ b with the factors of _factor (lu_solve's dgetrs, or Band.solve's dgbtrs
     on b permuted)."""
     Wf, ipiv, ints, perm, tmp = lu
+    if perm.shape[0] == 0 and b.shape[0] <= _SMALL_LU:
+        _ordered_solve(Wf, ipiv, b)
+        return
     if perm.shape[0] == 0:
         _dgetrs(trans.ctypes, ints[0:1].ctypes, ints[2:3].ctypes, Wf.ctypes, ints[0:1].ctypes, ipiv.ctypes, b.ctypes,
                 ints[0:1].ctypes, ints[1:2].ctypes)

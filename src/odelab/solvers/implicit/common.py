@@ -9,7 +9,9 @@ holds those counters and the three operations that produce them:
   factors are kept from one Jacobian to the next; one evaluation per column, fewer with a
   ``JPattern`` sparsity pattern by grouping structurally orthogonal columns, one vectorised call
   with ``Vectorized``);
-* :meth:`Work.factor` — LU of an iteration matrix ``M - c J`` (dense LAPACK; SuperLU when a
+* :meth:`Work.factor` — LU of an iteration matrix ``M - c J`` (:mod:`odelab.solvers.lu`'s
+  fixed-order LU up to ``lu.SMALL`` states, the same bits on every machine; dense LAPACK
+  above; SuperLU when a
   ``JPattern`` makes the matrix sparse; LAPACK's banded LU of the matrix permuted to a narrow
   band when the Jacobian is an expression system's exact one, whose structure is known from
   its equations (``jacobian.pattern``), and :func:`odelab.solvers.banded.plan_band` finds that
@@ -27,6 +29,7 @@ import math
 
 import numpy as np
 
+from odelab.solvers import lu as _small
 from odelab.solvers.controller import first_step, given_step
 from odelab.solvers.ordered import matvec, norm
 
@@ -143,13 +146,17 @@ class Work:
 
             return ("sparse", splu(matrix.tocsc()))
         matrix = np.asarray(matrix)
-        lu, piv, _info = _lapack_lu(matrix.dtype)[0](matrix)  # info > 0 (singular): Newton fails and says so
-        return ("dense", (lu, piv))
+        if matrix.shape[0] <= _small.SMALL:  # the same bits on every machine (odelab.solvers.lu)
+            return ("ordered", _small.factor(matrix))
+        factors, piv, _info = _lapack_lu(matrix.dtype)[0](matrix)  # info > 0 (singular): Newton fails and says so
+        return ("dense", (factors, piv))
 
     def solve(self, lu, rhs: np.ndarray) -> np.ndarray:
         """Solve with a factorisation from :meth:`factor` (counted as one linear solve)."""
         self.nsolves += 1
         kind, fac = lu
+        if kind == "ordered":
+            return _small.solve(fac, rhs)
         if kind == "sparse":
             return fac.solve(rhs)
         if kind == "banded":
