@@ -29,6 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from odelab.report.mplreuse import renderer, ticks_once
+
 __all__ = [
     "INPUT",
     "LINEARISED",
@@ -257,9 +259,7 @@ def _draw_panel(ax, panel: Panel, columns: int = 1) -> None:
     ax.set_title(drawable("\n".join(textwrap.wrap(panel.title, width))) if panel.title else "", fontsize=size)
     ax.set_xlabel(drawable(panel.xlabel))
     ax.set_ylabel(drawable(panel.ylabel))
-    ax.grid(True, which="major", color="#DDDDDD", linewidth=0.6)
-    if log_y or log_x:
-        ax.grid(True, which="minor", color="#F0F0F0", linewidth=0.4)
+    _grid(ax, minor=log_y or log_x)
     if not drawn:
         ax.text(0.5, 0.5, panel.note or "nothing to plot", transform=ax.transAxes, ha="center", va="center",
                 fontsize=9, color="#555555")
@@ -268,6 +268,21 @@ def _draw_panel(ax, panel: Panel, columns: int = 1) -> None:
             ax.legend(fontsize=8, frameon=False, loc="upper left", bbox_to_anchor=(1.01, 1.0))
         else:
             ax.legend(fontsize=8, frameon=True, framealpha=0.85, loc="best")
+
+
+def _grid(ax, *, minor: bool) -> None:
+    """The major grid on, the minor one on ``minor`` (log) axes; set only when it changes: each
+    ``ax.grid`` call restyles every tick the axes holds, which a kept figure's axes keep."""
+    state = ax.__dict__.setdefault("_odelab_grid", set())
+    if "major" not in state:
+        ax.grid(True, which="major", color="#DDDDDD", linewidth=0.6)
+        state.add("major")
+    if minor and "minor" not in state:
+        ax.grid(True, which="minor", color="#F0F0F0", linewidth=0.4)
+        state.add("minor")
+    elif not minor and "minor" in state:
+        ax.grid(False, which="minor")
+        state.discard("minor")
 
 
 def _figure_legend(fig, axes: list):
@@ -338,14 +353,14 @@ class _Grid:
 
     def measured(self, fig, axes: list) -> tuple[list[float], ...]:
         """Margins that hold what each axes draws outside its frame, measured on ``fig``."""
-        renderer = fig.canvas.get_renderer()
+        render = renderer(fig)
         dpi = fig.dpi
         g = 2 * self.cols
         left, right = [0.0] * g, [0.0] * g
         top, bottom = [0.0] * len(self.ratios), [0.0] * len(self.ratios)
         for (row, start), ax in zip(self.cells, axes):
-            box = ax.get_tightbbox(renderer)
-            frame = ax.get_window_extent(renderer)
+            box = ax.get_tightbbox(render)
+            frame = ax.get_window_extent(render)
             if box is None:
                 box = frame
             left[start] = max(left[start], (frame.x0 - box.x0) / dpi + _PAD)
@@ -393,14 +408,17 @@ def _shape(spec: FigureSpec) -> tuple[_Grid, int, float]:
 
 def _lay_out(fig, axes: list, grid: _Grid, spec: FigureSpec, cols: int) -> None:
     """Draw ``spec``'s panels on ``axes`` (new or cleared) and place them with measured margins."""
+    renderer(fig)  # this size's renderer, with the shared mathtext parser, before anything is measured
     for ax, rect, panel in zip(axes, grid.rects(*grid.guess(spec.panels)), spec.panels):
         ax.set_position(rect)
         _draw_panel(ax, panel, cols)
     if spec.legend:
         legend = _figure_legend(fig, axes)
         if legend is not None:
-            grid.top_band = legend.get_window_extent(fig.canvas.get_renderer()).height / fig.dpi + _PAD
-    for ax, rect in zip(axes, grid.rects(*grid.measured(fig, axes))):
+            grid.top_band = legend.get_window_extent(renderer(fig)).height / fig.dpi + _PAD
+    with ticks_once(axes):
+        margins = grid.measured(fig, axes)
+    for ax, rect in zip(axes, grid.rects(*margins)):
         ax.set_position(rect)
 
 
@@ -432,7 +450,6 @@ def _clear(fig, axes: list) -> None:
             ax.get_legend().remove()
         ax.set_xscale("linear")
         ax.set_yscale("linear")
-        ax.grid(False, which="minor")
         ax.relim()
         ax.set_xlim(0.0, 1.0, auto=True)  # a new axes' view, autoscaled once something is drawn
         ax.set_ylim(0.0, 1.0, auto=True)
@@ -549,7 +566,8 @@ def _draw_png(spec: FigureSpec) -> bytes:
     try:
         buf = io.BytesIO()
         # no timestamp in the metadata: the same data gives the same file, run after run
-        fig.savefig(buf, format="png", dpi=DPI, facecolor="white", metadata={"Software": "odelab report"})
+        with ticks_once(fig.axes):
+            fig.savefig(buf, format="png", dpi=DPI, facecolor="white", metadata={"Software": "odelab report"})
     finally:
         if fresh:
             _pyplot().close(fig)
