@@ -1,5 +1,7 @@
 """Drawing a report's figures: from the cache, else drawn once, in a pool of processes when there are many."""
 
+import sys
+
 import numpy as np
 import pytest
 
@@ -95,3 +97,126 @@ def test_a_kept_figure_draws_the_bytes_of_a_new_one(monkeypatch):
         assert all(new is not kept for kept in plots._REUSABLE.values())
     finally:
         plots._pyplot().close(new)
+
+
+def test_ticks_worked_out_once_draw_the_bytes_matplotlib_draws(monkeypatch):
+    """mplreuse.ticks_once (each axis's ticks once a pass) and the shared mathtext parser change no
+    pixel: every figure drawn with them is the PNG matplotlib's own repeated work gives, and the
+    ticks are worked out fewer times."""
+    import contextlib
+
+    from matplotlib.axis import Axis
+
+    specs = [_varied(k) for k in range(3)] + [spec(0)]
+    calls = []
+    real = Axis._update_ticks
+    monkeypatch.setattr(Axis, "_update_ticks", lambda self: calls.append(1) or real(self))
+    plots._REUSABLE.clear()
+    once = [plots._draw_png(s) for s in specs]
+    fewer = len(calls)
+    calls.clear()
+    monkeypatch.setattr(plots, "ticks_once", lambda axes: contextlib.nullcontext())
+    monkeypatch.setattr(plots, "renderer", lambda fig: fig.canvas.get_renderer())
+    plots._REUSABLE.clear()
+    assert [plots._draw_png(s) for s in specs] == once
+    assert 0 < 2 * fewer <= len(calls)  # at most half the work
+    plots._REUSABLE.clear()
+
+
+def test_renderers_of_figures_of_other_sizes_share_one_mathtext_parser():
+    from odelab.report import mplreuse
+
+    small, tall = plots.draw_figure(spec(0), render=False), plots.draw_figure(_varied(1), render=False)
+    try:
+        assert small.get_figheight() != tall.get_figheight()
+        assert mplreuse.renderer(small).mathtext_parser is mplreuse.renderer(tall).mathtext_parser
+    finally:
+        plots._pyplot().close(small)
+        plots._pyplot().close(tall)
+
+
+def _broken(k: int) -> FigureSpec:
+    return FigureSpec(name=f"b{k}", caption="c", alt="a", panels=(
+        Panel(title="bad", xlabel="t", ylabel="x", lines=(Line(np.arange(3.0), np.ones(3), "l", "not-a-colour"),)),))
+
+
+@pytest.mark.skipif(not drawing._can_fork() or drawing.cores() < 2, reason="needs fork and two cores")
+def test_a_figure_that_fails_in_a_worker_raises_here_as_drawn_serially(tmp_path, monkeypatch):
+    monkeypatch.setenv("ODELAB_CACHE_DIR", str(tmp_path))
+    specs = [spec(k) for k in range(4)] + [_broken(0)]
+    with pytest.raises(ValueError) as serial:
+        drawing._draw_all(specs, 1)
+    with pytest.raises(ValueError) as pooled:
+        drawing._draw_all(specs, 3)
+    assert str(pooled.value) == str(serial.value) and "not-a-colour" in str(serial.value)
+    assert not multiprocessing_children()
+
+
+def multiprocessing_children() -> list:
+    import multiprocessing
+
+    return [p for p in multiprocessing.active_children() if p.is_alive()]
+
+
+# A script drawing many figures of many panels with two processes: long enough to be killed mid-way.
+_MANY = """
+import numpy as np, sys
+from odelab.report import drawing
+from odelab.report.plots import FigureSpec, Line, Panel
+t = np.linspace(0.01, 10, 400)
+specs = [FigureSpec(name=f"m{k}", caption="c", alt="a", columns=3, panels=tuple(
+    Panel(title=f"p{k}.{j}", xlabel="t (s)", ylabel="|e|", yscale="log",
+          lines=(Line(t, np.abs(np.sin(t * (j + 1))) + 1e-9 * (k + 1), "ode45", "#D55E00"),)) for j in range(12)))
+    for k in range(200)]
+print("drawing", flush=True)
+drawing._draw_all(specs, 2)
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux") or not drawing._can_fork(), reason="reads /proc, forks")
+def test_a_killed_report_leaves_no_drawing_worker(tmp_path):
+    import os
+    import signal
+    import subprocess
+    import time
+
+    def children(pid):
+        out = set()
+        for entry in os.listdir("/proc"):
+            try:
+                stat = open(f"/proc/{entry}/stat").read()
+            except OSError:
+                continue
+            if entry.isdigit() and int(stat.rsplit(")", 1)[1].split()[1]) == pid:
+                out.add(int(entry))
+        return out
+
+    def alive(pid):
+        try:
+            return open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()[0] != "Z"
+        except OSError:
+            return False
+
+    env = {**os.environ, "ODELAB_CACHE_DIR": str(tmp_path)}
+    proc = subprocess.Popen([sys.executable, "-c", _MANY], env=env, stdout=subprocess.PIPE, text=True)
+    workers: set[int] = set()
+    try:
+        assert proc.stdout.readline().strip() == "drawing"
+        end = time.monotonic() + 120
+        while not workers and time.monotonic() < end and proc.poll() is None:
+            workers = children(proc.pid)
+            time.sleep(0.02)
+        assert workers, "no worker was forked"
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=10)
+        end = time.monotonic() + 30  # the kernel kills them at once; this only waits for a loaded machine
+        while any(map(alive, workers)) and time.monotonic() < end:
+            time.sleep(0.02)
+        assert not [p for p in workers if alive(p)]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        for p in workers:
+            if alive(p):
+                os.kill(p, signal.SIGKILL)
