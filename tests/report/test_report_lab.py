@@ -12,6 +12,22 @@ PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 LAB = ("exercise1", "exercise1_2pi", "rigid_body")
 
 
+def drawn(data: bytes) -> bool:
+    """A PNG of a drawn figure, not a blank or tiny one: a page-wide image (at least 600 px),
+    at least 1 % of it ink (not white) in at least 8 colours (lines, text and their edges)."""
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    if not data.startswith(PNG_SIGNATURE):
+        return False
+    pixels = np.asarray(Image.open(io.BytesIO(data)).convert("RGB"))
+    ink = pixels[(pixels != 255).any(axis=-1)]
+    return pixels.shape[1] >= 600 and len(ink) >= 0.01 * pixels.shape[0] * pixels.shape[1] and len(
+        np.unique(ink, axis=0)) >= 8
+
+
 @pytest.fixture(scope="module")
 def tree(lab_report):
     root, errors, doctype = parse_html(lab_report.html)
@@ -40,7 +56,7 @@ def test_writes_one_html_page_the_markdown_and_its_figures(lab_report):
     assert len(linked) >= 2 * len(LAB) + 2  # solution + error per experiment, + the linearisation's two
     for rel in linked:
         data = (out / rel).read_bytes()
-        assert data.startswith(PNG_SIGNATURE) and len(data) > 10_000, rel
+        assert drawn(data), rel
         assert out / rel in paths
     assert not list(out.rglob("*.tmp")), "a temporary file was left behind"
 
@@ -79,9 +95,7 @@ def test_every_figure_is_an_embedded_non_trivial_png(tree):
     images = tree.find_all("img")
     assert len(images) >= 2 * len(LAB) + 2
     for img in images:
-        data = png_of(img)
-        assert data.startswith(PNG_SIGNATURE)
-        assert len(data) > 10_000
+        assert drawn(png_of(img))
         assert img.attrs.get("alt")
         assert img.parent.tag == "figure" and img.parent.find("figcaption").text()
 

