@@ -174,7 +174,8 @@ drawing._draw_all(specs, 2)
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux") or not drawing._can_fork(), reason="reads /proc, forks")
-def test_a_killed_report_leaves_no_drawing_worker(tmp_path):
+@pytest.mark.parametrize("how", ["SIGKILL to the report", "Ctrl-C to its process group"])
+def test_a_killed_report_leaves_no_drawing_worker(tmp_path, how):
     import os
     import signal
     import subprocess
@@ -198,7 +199,9 @@ def test_a_killed_report_leaves_no_drawing_worker(tmp_path):
             return False
 
     env = {**os.environ, "ODELAB_CACHE_DIR": str(tmp_path)}
-    proc = subprocess.Popen([sys.executable, "-c", _MANY], env=env, stdout=subprocess.PIPE, text=True)
+    proc = subprocess.Popen([sys.executable, "-c", _MANY], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     workers: set[int] = set()
     try:
         assert proc.stdout.readline().strip() == "drawing"
@@ -207,8 +210,14 @@ def test_a_killed_report_leaves_no_drawing_worker(tmp_path):
             workers = children(proc.pid)
             time.sleep(0.02)
         assert workers, "no worker was forked"
-        proc.send_signal(signal.SIGKILL)
-        proc.wait(timeout=10)
+        if how.startswith("SIGKILL"):
+            proc.send_signal(signal.SIGKILL)
+        else:  # the parent stops and kills its workers; a worker ignores it (no traceback of its own)
+            os.killpg(proc.pid, signal.SIGINT)
+        proc.wait(timeout=60)
+        if not how.startswith("SIGKILL"):
+            err = proc.stderr.read()
+            assert "KeyboardInterrupt" in err and "Process ForkProcess" not in err, err[-2000:]
         end = time.monotonic() + 30  # the kernel kills them at once; this only waits for a loaded machine
         while any(map(alive, workers)) and time.monotonic() < end:
             time.sleep(0.02)

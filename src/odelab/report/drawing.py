@@ -18,6 +18,7 @@ serially would.
 from __future__ import annotations
 
 import os
+import signal
 
 import numpy as np
 
@@ -84,6 +85,7 @@ def _worker(specs: list, order: list[int], counter, conn, parent: int) -> None:
     from odelab.report import mplreuse, plots
 
     exit_with_parent(parent)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's: it stops (kills) the workers
     mplreuse.forked()
     try:
         while (i := _take(order, counter)) is not None:

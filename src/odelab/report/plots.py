@@ -483,8 +483,8 @@ def _reused_figure(spec: FigureSpec):
             for i, ax in enumerate(fig.axes):
                 ax.set_visible(i < n)
             _lay_out(fig, axes, grid, spec, cols)
-        except BaseException:
-            return None  # not kept: a half-drawn figure is never reused
+        except Exception:
+            return None  # not kept: a half-drawn figure is never reused (nor kept on Ctrl-C, which goes on up)
     _REUSABLE["figure"] = fig
     return fig
 
