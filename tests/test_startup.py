@@ -81,3 +81,19 @@ def test_a_plain_run_imports_only_what_it_needs(tmp_path):
 def test_help_and_version_import_neither_numpy_nor_pydantic_nor_rich(tmp_path, args):
     modules = _imported(tmp_path, *args)
     assert not {m.split(".")[0] for m in modules} & {"numpy", "pydantic", "pydantic_core", "rich", "scipy"}
+
+
+def test_python_m_odelab_is_the_odelab_command(tmp_path):
+    # the same app: a run stores its result, and --version prints odelab's version
+    from odelab import __version__
+
+    version = subprocess.run([sys.executable, "-m", "odelab", "--version"], capture_output=True, text=True,
+                             cwd=tmp_path)
+    assert version.returncode == 0 and __version__ in version.stdout
+    run = subprocess.run([sys.executable, "-m", "odelab", "run", str(EXPERIMENTS / "exercise1.toml"), "--runs", "runs"],
+                         capture_output=True, text=True, cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert (tmp_path / "runs" / "exercise1" / "ode45" / "result.json").is_file()
+    bad = subprocess.run([sys.executable, "-m", "odelab", "run", str(tmp_path / "missing.toml")], capture_output=True,
+                         text=True, cwd=tmp_path)
+    assert bad.returncode != 0 and "missing.toml" in bad.stderr + bad.stdout and "Traceback" not in bad.stderr
