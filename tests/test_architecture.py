@@ -24,9 +24,7 @@ def _within(circle, prefixes) -> bool:
 
 MAX_FUNCTION_LINES = 150
 # Functions over MAX_FUNCTION_LINES that other rooms own and have not yet cut (name: reason).
-LONG_FUNCTIONS = {
-    "odelab.solvers.compiled.kernels._adaptive": "core26: one kernel now (events optional); its blocks into njit helpers",
-}
+LONG_FUNCTIONS: dict[str, str] = {}
 
 
 def _modules() -> dict[str, Path]:

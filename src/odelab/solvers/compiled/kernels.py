@@ -65,12 +65,138 @@ def _grow(t_out, y_out, needed):
     return t_new, y_new
 
 
+@_njit(cache=True, error_model="numpy")
+def _start(f0, y0, threshold, norm_control, rtol, power, tspan, hmax, htry):
+    """The first step's size, |h|: InitialStep if given (htry not NaN), else MATLAB's estimate
+    from f0 (engine.py's); and ||y0|| for NormControl (0 otherwise)."""
+    n = y0.shape[0]
+    t0 = tspan[0]
+    normy = 0.0
+    if norm_control:
+        for j in range(n):
+            normy += y0[j] * y0[j]
+        normy = _np.sqrt(normy)
+    if htry == htry:
+        return given_step(htry, t0, hmax), normy
+    if norm_control:
+        nf = 0.0
+        for j in range(n):
+            nf += f0[j] * f0[j]
+        rh = (_np.sqrt(nf) / max(normy, threshold[0])) / (0.8 * rtol ** power)
+    else:
+        rh = 0.0
+        for j in range(n):
+            q = abs(f0[j]) / max(abs(y0[j]), threshold[j])
+            if q > rh or q != q:
+                rh = q
+        rh = rh / (0.8 * rtol ** power)
+    return first_step(rh, abs(tspan[1] - t0), hmax, t0), normy
+
+
+@_njit(cache=True, error_model="numpy")
+def _output(capacity, t0, y0):
+    """The output's arrays, room for ``capacity`` rows, the first (t0, y0)."""
+    t_out = _np.empty(capacity)
+    y_out = _np.empty((capacity, y0.shape[0]))
+    t_out[0] = t0
+    for j in range(y0.shape[0]):
+        y_out[0, j] = y0[j]
+    return t_out, y_out
+
+
+@_njit(cache=True, error_model="numpy")
+def _event_room(te, ye, ie, nev, nevents):
+    """te, ye, ie with room for ``nevents`` more events after the first ``nev`` (grown geometrically)."""
+    if nev + nevents <= te.shape[0]:
+        return te, ye, ie
+    cap = 2 * te.shape[0] + nevents
+    te2 = _np.empty(cap)
+    ye2 = _np.empty((cap, ye.shape[1]))
+    ie2 = _np.empty(cap, dtype=_np.int64)
+    for q in range(nev):
+        te2[q] = te[q]
+        ie2[q] = ie[q]
+        for j in range(ye.shape[1]):
+            ye2[q, j] = ye[q, j]
+    return te2, ye2, ie2
+
+
+@_njit(cache=True, error_model="numpy", _nrt=False)
+def _error(absh, ynew, absy, absynew, fE, threshold, normy, norm_control):
+    """The step's error estimate err (engine.py's, MATLAB's) from fE = sum_k E_k K_k; writes |ynew|
+    into absynew (or returns ||ynew||, NormControl's)."""
+    n = ynew.shape[0]
+    if norm_control:
+        nn = 0.0
+        ne = 0.0
+        for j in range(n):
+            nn += ynew[j] * ynew[j]
+            ne += fE[j] * fE[j]
+        normynew = _np.sqrt(nn)
+        return absh * (_np.sqrt(ne) / max(normy, normynew, threshold[0])), normynew
+    emax = 0.0
+    nan = False
+    for j in range(n):
+        absynew[j] = abs(ynew[j])
+        # np.maximum's rule: a NaN operand gives NaN (it reaches err below)
+        sc = absy[j] if absy[j] >= absynew[j] else absynew[j]
+        sc = sc if sc >= threshold[j] else threshold[j]
+        q = abs(fE[j]) / sc
+        if q != q or absy[j] != absy[j] or absynew[j] != absynew[j]:
+            nan = True
+        elif q > emax:
+            emax = q
+    if nan:
+        emax = _np.nan
+    return absh * emax, normy
+
+
+@_njit(cache=True, error_model="numpy", _nrt=False)
+def _refine_rows(t_out, y_out, count, t, h, y, K, weights, refine):
+    """Refine's points inside a step from row ``count`` on: refine - 1 of them, ``t + h*(j/refine)``
+    (its interpolant's weights ``weights[j-1]``, summed from the first stage up). The rows must
+    exist; returns the next row."""
+    for r in range(refine - 1):
+        t_out[count] = t + h * ((r + 1) / refine)
+        for j in range(y.shape[0]):
+            acc = 0.0
+            for k in range(K.shape[0]):
+                acc += weights[r, k] * K[k, j]
+            y_out[count, j] = h * acc + y[j]
+        count += 1
+    return count
+
+
+@_njit(cache=True, error_model="numpy", _nrt=False)
+def _tspan_rows(t_out, y_out, count, nxt, tspan, tdir, t, h, y, tnew, ynew, K, dense, weight, stop):
+    """A vector tspan's entries tspan[nxt:] the step reached, from row ``count`` on (the
+    interpolant's value, ynew on tnew itself), and after a terminal event (``stop``) its point
+    too, as MATLAB outputs it. The rows must exist; returns the next row and the next entry."""
+    while nxt < tspan.shape[0]:
+        tn = tspan[nxt]
+        if tdir * (tnew - tn) < 0:
+            break
+        t_out[count] = tn
+        if tn == tnew:
+            for j in range(y.shape[0]):
+                y_out[count, j] = ynew[j]
+        else:  # odelab.solvers.dense.step_value, as [events] interpolates (kernels_events.py)
+            _interpolate_inline(tn, t, y, h, K, dense, weight, y_out[count])  # noqa: F821 (kernels_events.py's)
+        count += 1
+        nxt += 1
+    if stop and nxt < tspan.shape[0]:
+        t_out[count] = tnew
+        for j in range(y.shape[0]):
+            y_out[count, j] = ynew[j]
+        count += 1
+    return count, nxt
+
+
 def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min, rtol, threshold, hmax, htry, refine,
               norm_control, max_steps, capacity, _ev, v0, isterminal, direction):
-    """integrate_adaptive: MATLAB's controller on an FSAL pair, with [events] when ``_ev`` is a
-    function (None compiles the loop without them: numba prunes every ``_ev is not None``
-    branch). After each accepted step _locate (MATLAB's odezero) finds the events; a terminal
-    one cuts the step at te, its stages replaced by the interpolant's slopes (engine.py)."""
+    """integrate_adaptive: MATLAB's controller on an FSAL pair; with [events] if ``_ev`` is a function
+    (None: numba prunes each ``_ev is not None`` branch), _locate (odezero) after each accepted step,
+    a terminal event cutting the step at te, its stages the interpolant's slopes (engine.py)."""
     s = c.shape[0]
     n = y0.shape[0]
     t0 = tspan[0]
@@ -78,53 +204,23 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
     ntspan = tspan.shape[0]
     tdir = 1.0 if tfinal > t0 else -1.0
     last = s - 1
-    ndense = dense.shape[1]
     K = _np.empty((s, n))
-    hA = _np.empty((s, s))
-    stage = _np.empty(n)
     y = _np.empty(n)
     absy = _np.empty(n)
     for j in range(n):
         K[0, j] = f0[j]
         y[j] = y0[j]
         absy[j] = abs(y0[j])
+    t_out, y_out = _output(capacity, t0, y0)
+    hA = _np.empty((s, s))
+    stage = _np.empty(n)
     ynew = _np.empty(n)
     absynew = _np.empty(n)
     fE = _np.empty(n)
     weight = _np.empty(s)
-    powers = _np.empty(ndense)
-    thr = threshold[0]
-
-    t = t0
-    normy = 0.0
-    if norm_control:
-        for j in range(n):
-            normy += y0[j] * y0[j]
-        normy = _np.sqrt(normy)
+    absh, normy = _start(f0, y0, threshold, norm_control, rtol, power, tspan, hmax, htry)
     normynew = normy
-
-    if htry != htry:
-        if norm_control:
-            nf = 0.0
-            for j in range(n):
-                nf += f0[j] * f0[j]
-            rh = (_np.sqrt(nf) / max(normy, thr)) / (0.8 * rtol ** power)
-        else:
-            rh = 0.0
-            for j in range(n):
-                q = abs(f0[j]) / max(absy[j], threshold[j])
-                if q > rh or q != q:
-                    rh = q
-            rh = rh / (0.8 * rtol ** power)
-        absh = first_step(rh, abs(tspan[1] - t0), hmax, t0)
-    else:
-        absh = given_step(htry, t0, hmax)
-
-    t_out = _np.empty(capacity)
-    y_out = _np.empty((capacity, n))
-    t_out[0] = t0
-    for j in range(n):
-        y_out[0, j] = y0[j]
+    t = t0
     count = 1
     refine_output = ntspan == 2
     nxt = 1
@@ -132,9 +228,7 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
     nevents = v0.shape[0]
     v_left = v0.copy()
     vnew = _np.empty(nevents)
-    te = _np.empty(4 * nevents + 4)
-    ye = _np.empty((te.shape[0], n))
-    ie = _np.empty(te.shape[0], dtype=_np.int64)
+    te, ye, ie = _event_room(_np.empty(0), _np.empty((0, n)), _np.empty(0, dtype=_np.int64), 0, 4 * nevents + 4)
     nev = 0
     nsteps = 0
     nfailed = 0
@@ -159,9 +253,7 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
                         acc += hA[i, k] * K[k, j]
                     stage[j] = acc + y[j]
                 _rhs(t + c[i] * h, stage, p, K[i])
-            tnew = t + h
-            if done:
-                tnew = tfinal
+            tnew = tfinal if done else t + h
             h = tnew - t
             for j in range(n):
                 acc = 0.0
@@ -176,30 +268,7 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
                 for k in range(s):
                     acc += E[k] * K[k, j]
                 fE[j] = acc
-            if norm_control:
-                nn = 0.0
-                ne = 0.0
-                for j in range(n):
-                    nn += ynew[j] * ynew[j]
-                    ne += fE[j] * fE[j]
-                normynew = _np.sqrt(nn)
-                err = absh * (_np.sqrt(ne) / max(normy, normynew, thr))
-            else:
-                emax = 0.0
-                nan = False
-                for j in range(n):
-                    absynew[j] = abs(ynew[j])
-                    # np.maximum's rule: a NaN operand gives NaN (it reaches err below)
-                    sc = absy[j] if absy[j] >= absynew[j] else absynew[j]
-                    sc = sc if sc >= threshold[j] else threshold[j]
-                    q = abs(fE[j]) / sc
-                    if q != q or absy[j] != absy[j] or absynew[j] != absynew[j]:
-                        nan = True
-                    elif q > emax:
-                        emax = q
-                if nan:
-                    emax = _np.nan
-                err = absh * emax
+            err, normynew = _error(absh, ynew, absy, absynew, fE, threshold, normy, norm_control)
 
             if err > rtol:
                 nfailed += 1
@@ -222,25 +291,15 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
         stop = False
         if _ev is not None:  # pruned from the loop compiled without events
             if nev + nevents > te.shape[0]:
-                cap = 2 * te.shape[0] + nevents
-                te2 = _np.empty(cap)
-                ye2 = _np.empty((cap, n))
-                ie2 = _np.empty(cap, dtype=_np.int64)
-                for q in range(nev):
-                    te2[q] = te[q]
-                    ie2[q] = ie[q]
-                    for j in range(n):
-                        ye2[q, j] = ye[q, j]
-                te, ye, ie = te2, ye2, ie2
+                te, ye, ie = _event_room(te, ye, ie, nev, nevents)
             before = nev
             nev, stop = _locate(_ev, p, isterminal, direction, v_left, t, y, tnew, ynew, h, K, dense, t0, vnew, te, ye, ie,
-                                nev)
+                                nev, weight)
             for j in range(nevents):
                 v_left[j] = vnew[j]
-            if nev > before and stop:
-                t_event = te[nev - 1]
-                _cut_slopes(t, t_event, h, K, dense, c)
-                tnew = t_event
+            if nev > before and stop:  # cut the step at the terminal event
+                tnew = te[nev - 1]
+                _cut_slopes(t, tnew, h, K, dense, c)
                 for j in range(n):
                     ynew[j] = ye[nev - 1, j]
                 h = tnew - t
@@ -248,57 +307,18 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
                 status = _Status.TERMINAL_EVENT
 
         if refine_output:
-            needed = count + refine
-            if needed > t_out.shape[0]:
-                t_out, y_out = _grow(t_out[:count], y_out[:count], needed)
+            if count + refine > t_out.shape[0]:
+                t_out, y_out = _grow(t_out[:count], y_out[:count], count + refine)
             if refine > 1:
-                for r in range(refine - 1):
-                    t_out[count] = t + h * ((r + 1) / refine)
-                    for j in range(n):
-                        acc = 0.0
-                        for k in range(s):
-                            acc += weights[r, k] * K[k, j]
-                        y_out[count, j] = h * acc + y[j]
-                    count += 1
+                count = _refine_rows(t_out, y_out, count, t, h, y, K, weights, refine)
             t_out[count] = tnew
-            for j in range(n):
-                y_out[count, j] = ynew[j]
+            y_out[count] = ynew
             count += 1
         else:
-            while nxt < ntspan:
-                tn = tspan[nxt]
-                if tdir * (tnew - tn) < 0:
-                    if stop:  # MATLAB outputs the terminal event's point too
-                        if count + 1 > t_out.shape[0]:
-                            t_out, y_out = _grow(t_out[:count], y_out[:count], count + 1)
-                        t_out[count] = tnew
-                        for j in range(n):
-                            y_out[count, j] = ynew[j]
-                        count += 1
-                    break
-                t_out[count] = tn
-                if tn == tnew:
-                    for j in range(n):
-                        y_out[count, j] = ynew[j]
-                else:
-                    x = (tn - t) / h
-                    pw = 1.0
-                    for m in range(ndense):
-                        pw *= x
-                        powers[m] = pw
-                    # odelab.solvers.dense.step_value: stage weights, then the stages
-                    for k in range(s):
-                        acc = 0.0
-                        for m in range(ndense):
-                            acc += powers[m] * (h * dense[k, m])
-                        weight[k] = acc
-                    for j in range(n):
-                        acc = 0.0
-                        for k in range(s):
-                            acc += weight[k] * K[k, j]
-                        y_out[count, j] = y[j] + acc
-                count += 1
-                nxt += 1
+            if stop and count + ntspan - nxt + 1 > t_out.shape[0]:  # room for the terminal event's row
+                t_out, y_out = _grow(t_out[:count], y_out[:count], count + ntspan - nxt + 1)
+            if stop or (nxt < ntspan and tdir * (tnew - tspan[nxt]) >= 0):  # the step reached an entry
+                count, nxt = _tspan_rows(t_out, y_out, count, nxt, tspan, tdir, t, h, y, tnew, ynew, K, dense, weight, stop)
 
         if done:
             break

@@ -33,33 +33,34 @@ def _bracketed(V, a, b, direction, found):
     return m
 
 
-@_njit(cache=True, error_model="numpy")
-def _interpolate(tq, t, y, h, K, dense, out):
-    """odelab.solvers.dense.step_value: stage weights sum_m cumprod((tq - t)/h)_m (h dense[k, m]),
-    then y + sum_k weight_k K_k, both summed from index 0 up."""
-    s = K.shape[0]
-    ndense = dense.shape[1]
+@_njit(cache=True, error_model="numpy", _nrt=False)
+def _interpolate(tq, t, y, h, K, dense, weight, out):
+    """odelab.solvers.dense.step_value: stage weights sum_m cumprod((tq - t)/h)_m (h dense[k, m])
+    (into ``weight``, one a stage), then y + sum_k weight_k K_k, both summed from index 0 up."""
     x = (tq - t) / h
-    weight = _np.empty(s)
-    for k in range(s):
+    for k in range(K.shape[0]):
         acc = 0.0
         pw = 1.0
-        for m in range(ndense):
+        for m in range(dense.shape[1]):
             pw *= x
             acc += pw * (h * dense[k, m])
         weight[k] = acc
     for j in range(y.shape[0]):
         acc = 0.0
-        for k in range(s):
+        for k in range(K.shape[0]):
             acc += weight[k] * K[k, j]
         out[j] = y[j] + acc
 
 
+# The same text inlined into the vector tspan's output (kernels._tspan_rows), called at every point.
+_interpolate_inline = _njit(inline="always", error_model="numpy", _nrt=False)(_interpolate.py_func)
+
+
 @_njit(cache=True, error_model="numpy")
-def _locate(_ev, p, isterminal, direction, v, t, y, tnew, ynew, h, K, dense, t0, vnew, te, ye, ie, nev):
+def _locate(_ev, p, isterminal, direction, v, t, y, tnew, ynew, h, K, dense, t0, vnew, te, ye, ie, nev, weight):
     """One step's events (locate_events, statement for statement); writes vnew (the values at tnew),
     appends to te/ye/ie from index nev. Returns (nev, stop); te, ye, ie must have room for every
-    event of the step. The bracket's ends and the point tried are rows L, R, T of Y and V: where
+    event of the step; ``weight`` (one a stage) is _interpolate's work array. The bracket's ends and the point tried are rows L, R, T of Y and V: where
     the Python code swaps arrays, this swaps row numbers."""
     k = v.shape[0]
     n = y.shape[0]
@@ -87,7 +88,7 @@ def _locate(_ev, p, isterminal, direction, v, t, y, tnew, ynew, h, K, dense, t0,
                 any_zero = True
         if any_zero:  # MATLAB ignores a zero at the initial point: search from just off it
             tL = just_off(t, tol, tdir)
-            _interpolate(tL, t, y, h, K, dense, Y[L])
+            _interpolate(tL, t, y, h, K, dense, weight, Y[L])
             _ev(tL, Y[L], p, V[L])
     search_start = tL
     tR = tnew
@@ -116,7 +117,7 @@ def _locate(_ev, p, isterminal, direction, v, t, y, tnew, ynew, h, K, dense, t0,
                     j = found[q]
                     change = min(change, root_fraction(V[L, j], V[R, j], V[T, j], tL, tR, ttry, delta, tdir))
                 ttry = next_try(change, tL, delta, tol, tdir)
-            _interpolate(ttry, t, y, h, K, dense, Y[T])
+            _interpolate(ttry, t, y, h, K, dense, weight, Y[T])
             _ev(ttry, Y[T], p, V[T])
             if _bracketed(V, L, T, direction, found) > 0:  # a crossing in [tL, ttry]: R moves left
                 tR, ttry = ttry, tR
@@ -152,7 +153,7 @@ def _locate(_ev, p, isterminal, direction, v, t, y, tnew, ynew, h, K, dense, t0,
         ttry = tR
         L, R, T = T, L, R
         tL = just_off(tR, tol, tdir)
-        _interpolate(tL, t, y, h, K, dense, Y[L])
+        _interpolate(tL, t, y, h, K, dense, weight, Y[L])
         _ev(tL, Y[L], p, V[L])
         tR = tnew
         for i in range(n):
