@@ -66,18 +66,24 @@ def _grow(t_out, y_out, needed):
 
 
 @_njit(cache=True, error_model="numpy")
-def _start(f0, y0, threshold, norm_control, rtol, power, tspan, hmax, htry):
-    """The first step's size, |h|: InitialStep if given (htry not NaN), else MATLAB's estimate
-    from f0 (engine.py's); and ||y0|| for NormControl (0 otherwise)."""
+def _start(f0, y0, threshold, norm_control, rtol, power, tspan, hmax, htry, capacity):
+    """The run's start: the first step's size |h| (InitialStep if given, htry not NaN, else MATLAB's
+    estimate from f0, engine.py's), ||y0|| for NormControl (0 otherwise), and the output's
+    arrays with room for ``capacity`` rows, the first (t0, y0)."""
     n = y0.shape[0]
     t0 = tspan[0]
+    t_out = _np.empty(capacity)
+    y_out = _np.empty((capacity, n))
+    t_out[0] = t0
+    for j in range(n):
+        y_out[0, j] = y0[j]
     normy = 0.0
     if norm_control:
         for j in range(n):
             normy += y0[j] * y0[j]
         normy = _np.sqrt(normy)
     if htry == htry:
-        return given_step(htry, t0, hmax), normy
+        return given_step(htry, t0, hmax), normy, t_out, y_out
     if norm_control:
         nf = 0.0
         for j in range(n):
@@ -90,18 +96,7 @@ def _start(f0, y0, threshold, norm_control, rtol, power, tspan, hmax, htry):
             if q > rh or q != q:
                 rh = q
         rh = rh / (0.8 * rtol ** power)
-    return first_step(rh, abs(tspan[1] - t0), hmax, t0), normy
-
-
-@_njit(cache=True, error_model="numpy")
-def _output(capacity, t0, y0):
-    """The output's arrays, room for ``capacity`` rows, the first (t0, y0)."""
-    t_out = _np.empty(capacity)
-    y_out = _np.empty((capacity, y0.shape[0]))
-    t_out[0] = t0
-    for j in range(y0.shape[0]):
-        y_out[0, j] = y0[j]
-    return t_out, y_out
+    return first_step(rh, abs(tspan[1] - t0), hmax, t0), normy, t_out, y_out
 
 
 @_njit(cache=True, error_model="numpy")
@@ -211,28 +206,26 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
         K[0, j] = f0[j]
         y[j] = y0[j]
         absy[j] = abs(y0[j])
-    t_out, y_out = _output(capacity, t0, y0)
     hA = _np.empty((s, s))
     stage = _np.empty(n)
     ynew = _np.empty(n)
     absynew = _np.empty(n)
     fE = _np.empty(n)
     weight = _np.empty(s)
-    absh, normy = _start(f0, y0, threshold, norm_control, rtol, power, tspan, hmax, htry)
+    absh, normy, t_out, y_out = _start(f0, y0, threshold, norm_control, rtol, power, tspan, hmax, htry, capacity)
     normynew = normy
     t = t0
-    count = 1
+    count = _np.int64(1)  # typed int64 from the start: each helper is compiled once, not also for a literal 1
     refine_output = ntspan == 2
-    nxt = 1
+    nxt = _np.int64(1)
 
     nevents = v0.shape[0]
     v_left = v0.copy()
     vnew = _np.empty(nevents)
-    te, ye, ie = _event_room(_np.empty(0), _np.empty((0, n)), _np.empty(0, dtype=_np.int64), 0, 4 * nevents + 4)
-    nev = 0
-    nsteps = 0
-    nfailed = 0
-    nfevals = 0
+    te = _np.empty(4 * nevents + 4)
+    ye = _np.empty((te.shape[0], n))
+    ie = _np.empty(te.shape[0], dtype=_np.int64)
+    nev = nsteps = nfailed = nfevals = 0
     status = _Status.SUCCESS
     h = tdir * absh
     tnew = t
@@ -288,7 +281,7 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
             break
         nsteps += 1
 
-        stop = False
+        stop = _np.bool_(False)
         if _ev is not None:  # pruned from the loop compiled without events
             if nev + nevents > te.shape[0]:
                 te, ye, ie = _event_room(te, ye, ie, nev, nevents)
@@ -312,7 +305,8 @@ def _adaptive(_rhs, tspan, y0, f0, p, A, c, E, dense, weights, power, shrink_min
             if refine > 1:
                 count = _refine_rows(t_out, y_out, count, t, h, y, K, weights, refine)
             t_out[count] = tnew
-            y_out[count] = ynew
+            for j in range(n):
+                y_out[count, j] = ynew[j]
             count += 1
         else:
             if stop and count + ntspan - nxt + 1 > t_out.shape[0]:  # room for the terminal event's row
