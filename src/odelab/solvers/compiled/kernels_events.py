@@ -60,8 +60,9 @@ _interpolate_inline = _njit(inline="always", error_model="numpy", _nrt=False)(_i
 def _locate(_ev, p, isterminal, direction, v, t, y, tnew, ynew, h, K, dense, t0, vnew, te, ye, ie, nev, weight):
     """One step's events (locate_events, statement for statement); writes vnew (the values at tnew),
     appends to te/ye/ie from index nev. Returns (nev, stop); te, ye, ie must have room for every
-    event of the step; ``weight`` (one a stage) is _interpolate's work array. The bracket's ends and the point tried are rows L, R, T of Y and V: where
-    the Python code swaps arrays, this swaps row numbers."""
+    event of the step; ``weight`` (one a stage) is _interpolate's work array. The bracket's ends
+    and the point tried are rows L, R, T of Y and V: where the Python code swaps arrays, this
+    swaps row numbers."""
     k = v.shape[0]
     n = y.shape[0]
     tol = event_tolerance(t, tnew)
