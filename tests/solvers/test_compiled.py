@@ -442,6 +442,21 @@ def test_events_are_located_as_the_python_engine_does(y0, tspan, options):
         np.testing.assert_array_equal(got, want)
 
 
+OSCILLATOR = CompiledSystem.from_equations(["x", "v"], ["v", "-x - 0.01*v"], {}).with_events(
+    ["x", "v"], [False, False], [0, 1], {})
+
+
+def test_many_events_grow_their_arrays_as_the_python_engine_records_them():
+    # 48 zero crossings of x and 24 minima (v rising through 0): far past the 4 k + 4 = 12 rows the loop starts with
+    a = solve_compiled(OSCILLATOR, [0, 150], [1.0, 0.0], "ode45", rtol=1e-6, atol=1e-9)
+    b = odelab.solve(lambda t, y: np.array([y[1], -y[0] - 0.01 * y[1]]), [0, 150], [1.0, 0.0], "ode45",
+                     rtol=1e-6, atol=1e-9,
+                     events=lambda t, y: (np.array([y[0], y[1]]), np.array([False, False]), np.array([0.0, 1.0])))
+    assert a.te.size == 72 and a.stats == b.stats
+    for got, want in ((a.ie, b.ie), (a.te, b.te), (a.ye, b.ye), (a.t, b.t), (a.y, b.y)):
+        np.testing.assert_array_equal(got, want)
+
+
 def test_events_need_an_adaptive_method():
     with pytest.raises(InputError, match=r"the compiled backend locates \[events\] with ode23 and ode45 only"):
         solve_compiled(BALL, [0, 1], [10.0, 0.0], "rk4", h=0.1)

@@ -101,9 +101,8 @@ def _start(f0, y0, threshold, norm_control, rtol, power, tspan, hmax, htry, capa
 
 @_njit(cache=True, error_model="numpy")
 def _event_room(te, ye, ie, nev, nevents):
-    """te, ye, ie with room for ``nevents`` more events after the first ``nev`` (grown geometrically)."""
-    if nev + nevents <= te.shape[0]:
-        return te, ye, ie
+    """te, ye, ie grown (geometrically) to hold ``nevents`` more events after the first ``nev``; the
+    loop calls it when they would not fit."""
     cap = 2 * te.shape[0] + nevents
     te2 = _np.empty(cap)
     ye2 = _np.empty((cap, ye.shape[1]))
