@@ -175,3 +175,66 @@ def test_a_restart_where_the_event_function_is_zero_does_not_fire_again(tmp_path
     located = 7 * 128 * math.ulp(10.0)
     np.testing.assert_allclose([e["t"] for e in r.events], [exact_bounce(k) for k in range(7)], rtol=0, atol=located)
     assert all(e["reset"]["h"] == 0.0 for e in r.events)
+
+
+BALLODE = """
+[system]
+states = ["h", "v"]
+[system.equations]
+h = "v"
+v = "-9.8"
+[initial]
+h = 0
+v = 20
+[time]
+stop = 30
+[events]
+max_events = {max_events}
+[events.floor]
+when = "h"
+direction = "falling"
+reset = {{ h = "0", v = "-{e}*v" }}
+[solver]
+method = "{method}"
+"""
+
+
+def ballode_bounce(k, e=0.9, v0=20.0, g=9.8):
+    """Closed form of MATLAB's ballode: the k-th impact (k = 0, 1, ...), flights of 2 v0 e^j / g."""
+    return 2 * v0 / g * sum(e**j for j in range(k + 1))
+
+
+@pytest.mark.parametrize("method", ["ode45", "ode23", "ode113", "ode78", "ode89", "ode23s", "ode23tb", "ode15s",
+                                    "ode23t"])
+def test_ballode_restarted_on_the_floor_bounces_ten_times(tmp_path, method):
+    # MATLAB's ballode: each restart puts the ball exactly on the floor (h = 0), moving up. An
+    # event at a restart's initial point is not an event (MATLAB's odezero), so this is ten
+    # bounces, not a Zeno cascade. ode45/ode23 integrate a parabola exactly (errors are
+    # round-off, as are ode113's, ode23s's and ode23tb's here); ode15s and ode23t (BDF and
+    # trapezoidal with their own predictors) within the tolerance, RelTol 1e-3 of the time.
+    path = tmp_path / "ballode.toml"
+    path.write_text(BALLODE.format(max_events=10, e=0.9, method=method))
+    (r,) = run_experiment(path)
+    assert r.status == "success" and len(r.events) == 10
+    assert not any("Zeno cascade)" in w for w in r.warnings)
+    times = np.array([e["t"] for e in r.events])
+    exact = np.array([ballode_bounce(k) for k in range(10)])
+    units = np.abs(times - exact) / (1e-3 * exact)  # in units of the tolerance
+    assert units.max() < (1e-8 if method not in ("ode15s", "ode23t") else 1e-2)
+    # each impact falling onto the floor with the speed the restitution left it
+    for k, e in enumerate(r.events):
+        assert e["state"]["v"] == pytest.approx(-20 * 0.9**k, rel=1e-3)
+    assert r.x[:, 0].min() > -1e-9 * 20.4
+
+
+def test_a_zeno_ball_restarted_on_the_floor_is_still_stopped(tmp_path):
+    # Restitution 0.5: the bounces pile up at 2 v0/g (1 + e/(1 - e)) = 8.1633 s. The case must
+    # end there with the note, never let the ball fall through the floor to t = 30.
+    path = tmp_path / "zeno.toml"
+    path.write_text(BALLODE.format(max_events=100, e=0.5, method="ode45"))
+    (r,) = run_experiment(path)
+    zeno_time = 2 * 20 / 9.8 * (1 + 0.5 / (1 - 0.5))
+    assert r.status == "success" and "Zeno" in r.message and 10 < len(r.events) < 100
+    assert any("Zeno cascade" in w for w in r.warnings)
+    assert r.t[-1] == pytest.approx(zeno_time, abs=1e-9) and r.x[:, 0].min() > -1e-9
+    assert r.t[-1] == r.events[-1]["t"] and r.event_marks[-1] == len(r.events)

@@ -50,6 +50,7 @@ class EventSet:
     exact: dict[int, Callable]  # event index -> exact time of occurrence k (0-based)
     max_events: int
     whens: tuple = ()  # (text, TOML key) of each event's `when`: the compiled backend generates them
+    max_events_given: bool = False  # the file set `events.max_events` (a planned stop, not a Zeno guard)
 
     def function(self, t, x):
         """MATLAB's events function: (value, isterminal, direction)."""
@@ -170,7 +171,8 @@ def compile_events(section: dict[str, Any], states: tuple[str, ...], params: dic
         exact[i] = exact_time
     events = EventSet(names=tuple(names), terminal=np.array(terminal), direction=np.array(direction, dtype=float),
                       values=values, resets=resets, exact=exact, max_events=max_events,
-                      whens=tuple((str(w), f"events.{n}.when") for w, n in zip(whens, names)))
+                      whens=tuple((str(w), f"events.{n}.when") for w, n in zip(whens, names)),
+                      max_events_given="max_events" in section)
     return events, resolved
 
 
@@ -245,6 +247,29 @@ def solve_with_events(fun, tspan: np.ndarray, x0: np.ndarray, method: str, optio
         if (sol.status == "success" and sol.te.size and events.terminal[int(sol.ie[-1])]
                 and sol.t[-1] == sol.te[-1]):
             stopped_by = int(sol.ie[-1])
+        unheeded = _unheeded_terminal(events, sol, stopped_by) if restarted_by is not None else None
+        if unheeded is not None:
+            # A terminal event located within odezero's tolerance of the restart (MATLAB counts
+            # it non-terminal there): the next bounce came before the solver could leave the
+            # last one, so the piece went on past it. Keep the piece up to that event and stop.
+            new = new[: unheeded + 1]
+            t_last, y_last = float(sol.te[unheeded]), np.asarray(sol.ye[unheeded], dtype=float)
+            keep = tdir * (t_piece - t_last) < 0
+            t_piece = np.concatenate([t_piece[keep], [t_last]])
+            x_piece = np.concatenate([x_piece[keep], y_last[None, :]])
+            mark = np.zeros(t_piece.size, dtype=int)
+            mark[-1] = len(records) + len(new)
+            records.extend(new)
+            t_parts.append(t_piece)
+            x_parts.append(x_piece)
+            mark_parts.append(mark)
+            name = events.names[int(sol.ie[unheeded])]
+            message = (f"{method} stopped at t = {t_last:.10g} after {len(records)} events: events of "
+                       f"{name!r} pile up (a Zeno cascade).")
+            warnings.append(f"the case stopped at t = {t_last:.6g}: after {len(records)} events, event {name!r} "
+                            "recurs within the event tolerance of the last restart (a Zeno cascade); the "
+                            "solution beyond would pass through it.")
+            break
         restart = (stopped_by is not None and stopped_by in events.resets and sol.te[-1] != tfinal)
         total = len(records) + len(new)
         over = total > events.max_events or (total == events.max_events and restart)
@@ -270,8 +295,10 @@ def solve_with_events(fun, tspan: np.ndarray, x0: np.ndarray, method: str, optio
             t_last = records[-1]["t"]
             message = (f"{method} stopped at t = {t_last:.10g} after max_events = {events.max_events} events "
                        f"({restarts} restart{'s' if restarts != 1 else ''}).")
+            why = ("as the file's `events.max_events` asks" if events.max_events_given
+                   else "(a Zeno cascade of events piling up?)")
             warnings.append(f"the case stopped after max_events = {events.max_events} events, at t = {t_last:.6g} "
-                            "(a Zeno cascade of events piling up?); raise `events.max_events` to go further.")
+                            f"{why}; raise `events.max_events` to go further.")
             break
         if stopped_by is None or (stopped_by in events.resets and not restart):
             if restarts:
@@ -297,6 +324,21 @@ def solve_with_events(fun, tspan: np.ndarray, x0: np.ndarray, method: str, optio
             status, message, warnings, records, np.concatenate(mark_parts))
 
 
+def _unheeded_terminal(events: EventSet, sol, stopped_by) -> int | None:
+    """The index in ``sol.te`` of the first terminal event that did not stop the piece, if any.
+
+    The solver (as MATLAB's ``odezero``) treats a terminal event found while its search is still
+    at the initial point as non-terminal; after a restart that is an event recurring within the
+    event tolerance of the last one."""
+    for j, ie in enumerate(sol.ie):
+        if not events.terminal[int(ie)]:
+            continue
+        if stopped_by is not None and sol.te[j] == sol.te[-1]:
+            return None
+        return j
+    return None
+
+
 def _missed_crossing(events: EventSet, i: int, sol, t_piece, x_piece, scale: float) -> bool:
     """After a restart at a zero of event ``i``, did the piece pass to the event's far side unseen?
 
@@ -304,15 +346,24 @@ def _missed_crossing(events: EventSet, i: int, sol, t_piece, x_piece, scale: flo
     cross back to - only through a located event. Rows before the first event of ``i`` that lie
     on the far side by more than 1e-6 of the event function's scale reveal a crossing that
     fell inside one step (two zeros in a step are invisible to sign tests, MATLAB's as well).
+
+    The scale is the largest |value| seen so far, this piece's rows before the event included:
+    a ball restarted exactly on the floor (``reset = { h = "0", ... }``, MATLAB's ballode) has
+    zero at every piece's ends, and its flight between them is what a round-off far side
+    (the located event's own row, 1e-13 below the floor) is measured against. That row, the
+    event itself, is not a missed crossing.
     """
     d = events.direction[i]
     if d == 0:
         return False
     first = sol.te[sol.ie == i]
     limit = first[0] if first.size else None
+    forward = 1.0 if t_piece[-1] >= t_piece[0] else -1.0
     far = 0.0
     for t, x in zip(t_piece, x_piece):
-        if limit is not None and (t - limit) * (t_piece[-1] - t_piece[0]) > 0:
+        if limit is not None and (t - limit) * forward >= 0:
             break
-        far = max(far, float(d * events.values(float(t), x)[i]))
+        value = float(events.values(float(t), x)[i])
+        far = max(far, d * value)
+        scale = max(scale, abs(value))
     return far > 1e-6 * max(scale, 1e-300)
