@@ -99,7 +99,37 @@ def test_a_fit_that_does_not_converge_reports_its_last_iterate_and_why():
     fit = fit_least_squares(broken, [1.0, 1.0], names=("A", "k"), lower=[0, 0], upper=[10, 2])
     assert fit.status in ("converged", "failed")
     fit = fit_least_squares(broken, [1.0, 1.6], names=("A", "k"))
-    assert fit.status == "failed" and "could not be evaluated: the solver failed at t = 1" in fit.message
+    assert fit.status == "failed" and fit.failed_trials == 0
+    assert "could not be evaluated at the initial point: the solver failed at t = 1" in fit.message
+
+
+@pytest.mark.parametrize("how", ["raises", "nan", "inf jacobian"])
+def test_a_trial_point_that_cannot_be_evaluated_is_a_rejected_step(how):
+    # The model fails at the first trial point (a blow-up, NaN, max steps): the trust region
+    # shrinks and the fit goes on from the start, to the same estimates as a fit that never failed.
+    data = decay(TRUE)[0]
+
+    def evaluate(p):
+        y, J = decay(p)
+        return y - data, J
+
+    clean = fit_least_squares(evaluate, [1.0, 1.0], names=("A", "k"))
+    seen = []
+
+    def flaky(p):
+        seen.append(tuple(p))
+        if len(seen) == 2:  # the first trial point
+            if how == "raises":
+                raise FitEvaluationError("the solver failed at t = 3")
+            r, J = evaluate(p)
+            return (np.full_like(r, np.nan), J) if how == "nan" else (r, J * np.inf)
+        return evaluate(p)
+
+    fit = fit_least_squares(flaky, [1.0, 1.0], names=("A", "k"))
+    assert fit.converged and fit.failed_trials == 1
+    np.testing.assert_allclose(fit.estimates, TRUE, rtol=1e-9)
+    np.testing.assert_allclose(fit.estimates, clean.estimates, rtol=1e-9)
+    assert fit.solves > clean.solves
 
 
 def test_autocorrelation():

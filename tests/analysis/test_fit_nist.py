@@ -3,11 +3,12 @@
 Certified values from NIST's Statistical Reference Datasets
 (https://www.itl.nist.gov/div898/strd/nls/nls_main.shtml): Misra1a (lower difficulty) and
 Misra1b (average), both on the data of Misra, D., NIST (1978), embedded in
-tests/assets/fit/misra1a.csv, and Lanczos3 (lower difficulty, tests/assets/fit/lanczos3.csv).
+tests/assets/fit/misra1a.csv, Lanczos3 (lower difficulty, tests/assets/fit/lanczos3.csv) and BoxBOD
+(higher difficulty, tests/assets/fit/boxbod.csv, Box, Hunter & Hunter 1978).
 The models are solutions of ODEs, so the fit goes through the solver and the forward
 sensitivities, not through the closed form: Misra1a's y = b1 (1 - exp(-b2 x)) solves
 y' = b2 (b1 - y), Misra1b's y = b1 (1 - (1 + b2 x/2)^-2) solves y' = b2 (b1 - y)^(3/2) / sqrt(b1),
-both from y(0) = 0; Lanczos3's three exponentials are three decaying states whose initial
+both from y(0) = 0, as BoxBOD's y = b1 (1 - exp(-b2 x)) does; Lanczos3's three exponentials are three decaying states whose initial
 values are three of the six parameters (sensitivities started at dx0/dp).
 """
 
@@ -31,6 +32,7 @@ CERTIFIED = {
                   4.9863565084e00),
                  (1.7197908859e-02, 9.7041624475e-02, 4.1488663282e-02, 1.0766312506e-01, 5.8371576281e-02,
                   3.4436403035e-02), 1.6117193594e-08, (1.2, 0.3, 5.6, 5.5, 6.5, 7.6)),
+    "boxbod": ((2.1380940889e02, 5.4723748542e-01), (1.2354515176e01, 1.0455993237e-01), 1.1680088766e03, (1, 1)),
 }
 
 # Lanczos3's six estimates are correlated up to 0.9997 (the scaled Fisher matrix's condition number is 7e8):
@@ -60,8 +62,17 @@ def test_certified_estimates_and_standard_errors(name):
     assert fit["dof"] == fit["n"] - len(values)
     # 95 % intervals: estimate +- t(0.975, dof) se; Student's t table: t(0.975, 12) = 2.179, t(0.975, 18) = 2.101
     b1 = fit["parameters"]["b1"]
-    assert fit["t_quantile"] == pytest.approx({12: 2.179, 18: 2.101}[fit["dof"]], abs=5e-4)
+    assert fit["t_quantile"] == pytest.approx({4: 2.776, 12: 2.179, 18: 2.101}[fit["dof"]], abs=5e-4)
     assert b1["ci95"][1] - b1["estimate"] == pytest.approx(fit["t_quantile"] * b1["standard_error"], rel=1e-12)
+
+
+def test_boxbod_from_start_1_survives_the_trial_points_that_blow_up():
+    # From b1 = b2 = 1 the first trial steps go to b2 < 0 (b1 = 176.27, b2 = -530.7), where y grows
+    # like exp(530 x) and no solver reaches x = 10. Those are rejected steps, not the fit's end
+    # (before: "could not be solved at b1 = 176.27, b2 = -530.718", the fit failed).
+    fit = fit_experiment(load_experiment(ASSETS / "boxbod.toml")).cases[0].problem.fit
+    assert fit["status"] == "converged" and fit["failed_trials"] >= 1
+    assert fit["evaluations"] > fit["failed_trials"]
 
 
 def test_the_cases_run_at_the_estimates_against_the_data():

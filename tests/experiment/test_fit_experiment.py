@@ -353,3 +353,23 @@ def test_the_report_shows_the_fit_its_failure_and_the_warning(tmp_path):
     assert "### Parameter estimates" in text and "| k | 0.04" in text
     assert "The fit failed:" in text and "did not converge within 2 model solves" in text
     assert "figures/good-data.png" in text and "figures/good-residuals.png" in text
+
+
+def test_trial_points_that_cannot_be_solved_are_counted_in_the_terminal_json_and_report(tmp_path):
+    # NIST's BoxBOD from Start 1: the first trial point (b2 = -530.7) blows up; the fit goes on.
+    from odelab.report import build_report
+
+    assets = ROOT / "tests" / "assets" / "fit"
+    for name in ("boxbod.toml", "boxbod.csv"):
+        shutil.copy(assets / name, tmp_path / name)
+    runs = tmp_path / "runs"
+    result = runner.invoke(app, ["run", str(tmp_path / "boxbod.toml"), "--runs", str(runs)], terminal_width=200)
+    assert result.exit_code == 0, result.output
+    text = " ".join(result.output.split())
+    assert ("1 trial point where the model could not be solved (blow-up, NaN or max steps): rejected as a step of "
+            "infinite cost") in text
+    assert "b1 213.809" in text
+    stored = json.loads(next(runs.rglob("result.json")).read_text())
+    assert stored["extra"]["fit"]["failed_trials"] == 1 and stored["extra"]["fit"]["status"] == "converged"
+    report = build_report(runs, tmp_path / "report", formats="md", jobs=1)
+    assert "At 1 trial point the model could not be solved" in report.markdown.read_text()

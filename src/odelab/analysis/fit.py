@@ -71,6 +71,7 @@ class FitResult:
     jacobian: np.ndarray = field(repr=False)
     initial: np.ndarray = field(default_factory=lambda: np.empty(0))
     at_bound: tuple[str, ...] = ()
+    failed_trials: int = 0  # trial points where the model could not be evaluated (rejected, infinite cost)
 
     @property
     def converged(self) -> bool:
@@ -187,8 +188,13 @@ def fit_least_squares(evaluate: Callable[[np.ndarray], tuple[np.ndarray, np.ndar
     """Fit by trust-region reflective least squares; ``evaluate(p) -> (r, J)``, weighted residuals and Jacobian.
 
     ``evaluate`` may raise :class:`FitEvaluationError` when the model cannot be computed at a
-    trial point: the fit then fails with that reason and the last iterate that could be
-    evaluated. Never raises for a fit that does not converge: the result's status says so.
+    trial point (the solver blew up, met NaN, ran out of steps). Such a trial point, or one whose
+    residuals or Jacobian are not finite, is a step of infinite cost: the trust-region method
+    rejects it and shrinks its region to a quarter of the step (Branch, Coleman & Li's rule for
+    an unacceptable step; SciPy's ``trf`` does this for non-finite residuals), so the fit goes on
+    from the last good point; ``FitResult.failed_trials`` counts them. Only an initial point
+    that cannot be evaluated fails the fit, with that reason. Never raises for a fit that does
+    not converge: the result's status says so.
     """
     from scipy.optimize import least_squares
 
@@ -197,10 +203,11 @@ def fit_least_squares(evaluate: Callable[[np.ndarray], tuple[np.ndarray, np.ndar
     m = p0.size
     lo = np.full(m, -np.inf) if lower is None else np.asarray(lower, dtype=float)
     hi = np.full(m, np.inf) if upper is None else np.asarray(upper, dtype=float)
-    cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
-    state = {"solves": 0, "last": p0.copy(), "last_rss": math.nan, "error": None}
+    cache: dict[bytes, tuple[np.ndarray, np.ndarray | None, str | None]] = {}
+    state = {"solves": 0, "last": p0.copy(), "last_rss": math.nan, "failed": 0, "size": None}
 
     def get(p):
+        """(r, J, why): J is None and r infinite where the model cannot be evaluated (``why``)."""
         key = np.asarray(p, dtype=float).tobytes()
         if key not in cache:
             if len(cache) > 8:
@@ -208,30 +215,52 @@ def fit_least_squares(evaluate: Callable[[np.ndarray], tuple[np.ndarray, np.ndar
             if state["solves"] >= max_solves:
                 raise _Budget()
             state["solves"] += 1
-            r, J = evaluate(np.array(p, dtype=float))
-            r = np.asarray(r, dtype=float)
-            J = np.asarray(J, dtype=float)
-            if not (np.all(np.isfinite(r)) and np.all(np.isfinite(J))):
-                raise FitEvaluationError(f"the model's values or sensitivities are not finite at {_point(names, p)}")
-            cache[key] = (r, J)
-            rss = float(r @ r)
-            if not rss > state["last_rss"]:  # the best point evaluated so far
-                state["last"], state["last_rss"] = np.array(p, dtype=float), rss
+            why = None
+            try:
+                r, J = evaluate(np.array(p, dtype=float))
+                r = np.asarray(r, dtype=float)
+                J = np.asarray(J, dtype=float)
+                if not (np.all(np.isfinite(r)) and np.all(np.isfinite(J))):
+                    why = f"the model's values or sensitivities are not finite at {_point(names, p)}"
+            except FitEvaluationError as exc:
+                why = str(exc)
+            if why is not None:
+                state["failed"] += 1
+                size = state["size"] if state["size"] is not None else 1
+                cache[key] = (np.full(size, np.inf), None, why)
+            else:
+                state["size"] = r.size
+                cache[key] = (r, J, None)
+                rss = float(r @ r)
+                if not rss > state["last_rss"]:  # the best point evaluated so far
+                    state["last"], state["last_rss"] = np.array(p, dtype=float), rss
         return cache[key]
+
+    def jacobian(p):
+        r, J, why = get(p)
+        if J is None:  # trf asks for the Jacobian only at accepted points, which were evaluated
+            raise FitEvaluationError(why)
+        return J
 
     def failed(why: str) -> FitResult:
         p = state["last"]
-        try:
-            r, J = get(p) if p.tobytes() in cache else (np.full(1, math.nan), np.full((1, m), math.nan))
-        except Exception:  # noqa: BLE001 - the reason is already known
+        entry = cache.get(p.tobytes())
+        if entry is not None and entry[1] is not None:
+            r, J = entry[0], entry[1]
+        else:
             r, J = np.full(1, math.nan), np.full((1, m), math.nan)
         nan = np.full(m, math.nan)
         return FitResult(names, p, nan, nan, nan, np.full((m, m), math.nan), float(np.nansum(r ** 2)), r.size,
                          r.size - m, math.nan, sigma_known, math.nan, state["solves"], 0, "failed",
-                         f"{why}. The last iterate was {_point(names, p)}.", math.nan, None, None, r, J, p0)
+                         f"{why.rstrip('.')}. The last iterate was {_point(names, p)}.", math.nan, None, None, r, J,
+                         p0, failed_trials=state["failed"])
 
     try:
-        res = least_squares(lambda p: get(p)[0], p0, jac=lambda p: get(p)[1], bounds=(lo, hi), method="trf",
+        _, J0, why0 = get(p0)
+        if J0 is None:
+            state["failed"] = 0  # the start is not a trial point
+            return failed(f"the model could not be evaluated at the initial point: {why0}")
+        res = least_squares(lambda p: get(p)[0], p0, jac=jacobian, bounds=(lo, hi), method="trf",
                             x_scale="jac", xtol=xtol, ftol=ftol, gtol=gtol, max_nfev=max_solves)
     except _Budget:
         return failed(f"the fit did not converge within {max_solves} model solves (raise max_solves, or start closer)")
@@ -244,7 +273,9 @@ def fit_least_squares(evaluate: Callable[[np.ndarray], tuple[np.ndarray, np.ndar
         state["last"] = np.asarray(res.x, dtype=float)
         return failed(f"the fit stopped: {res.message}")
     p = np.asarray(res.x, dtype=float)
-    r, J = get(p)
+    r, J, why = get(p)
+    if J is None:
+        return failed(f"the model could not be evaluated at the fit's last point: {why}")
     info = uncertainties(J, r, p, names, sigma_known=sigma_known, limit=limit)
     at_bound = tuple(names[i] for i in range(m) if res.active_mask[i] != 0)
     message = {1: "the gradient is below its tolerance", 2: "the parameters changed less than their tolerance",
@@ -253,7 +284,8 @@ def fit_least_squares(evaluate: Callable[[np.ndarray], tuple[np.ndarray, np.ndar
     return FitResult(names, p, info["standard_errors"], info["lower95"], info["upper95"], info["correlation"],
                      info["rss"], info["n"], info["dof"], info["residual_variance"], sigma_known, info["t_quantile"],
                      state["solves"], max(int(res.njev or 1) - 1, 0), "converged", f"converged: {message}",
-                     info["condition"], info["identifiability"], info["null_direction"], r, J, p0, at_bound)
+                     info["condition"], info["identifiability"], info["null_direction"], r, J, p0, at_bound,
+                     failed_trials=state["failed"])
 
 
 class _Budget(Exception):

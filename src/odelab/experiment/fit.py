@@ -494,7 +494,8 @@ def residuals_and_jacobian(spec: FitSpec, p: np.ndarray) -> tuple[np.ndarray, np
 
     rs, Js = [], []
     for fc in spec.cases:
-        y, dy, sol = _solve_case(fc, p, spec)
+        with np.errstate(over="ignore", invalid="ignore"):  # a trial point's blow-up is the solver's status
+            y, dy, sol = _solve_case(fc, p, spec)
         if y is None:
             point = ", ".join(f"{n} = {v:.6g}" for n, v in zip(spec.names, p))
             raise FitEvaluationError(f"case {fc.name!r} could not be solved at {point}: {sol.message}")
@@ -615,6 +616,8 @@ def fit_summary(result, spec: FitSpec) -> dict:
         "solves": int(result.solves) * len(spec.cases),
         "evaluations": int(result.solves),
         "iterations": int(result.iterations),
+        # trial points where a case could not be solved: rejected steps of infinite cost
+        "failed_trials": int(getattr(result, "failed_trials", 0)),
         "condition": _finite(float(result.condition)),
         "identifiability": result.identifiability,
         "cases": [fc.name for fc in spec.cases],

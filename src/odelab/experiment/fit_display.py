@@ -29,6 +29,11 @@ def print_fit(console: Console, fit: dict) -> None:
                   f"({', '.join(shown(q) for q in fit['quantities'])}; {noise}), {fit['iterations']} iterations, "
                   f"{fit['solves']} solves of states and sensitivities ({shown(fit['method'])}, rtol "
                   f"{fit['rtol']:g})")
+    failed = fit.get("failed_trials") or 0
+    if failed:
+        steps = "steps" if failed != 1 else "a step"
+        console.print(f"  {failed} trial point{'s' if failed != 1 else ''} where the model could not be solved "
+                      f"(blow-up, NaN or max steps): rejected as {steps} of infinite cost, the trust region shrunk")
     if not ok:
         console.print(f"[red]  {shown(fit['message'], lines=True)}[/]")
         return

@@ -29,6 +29,7 @@ class FitView:
     correlations: list[tuple[str, str, float]] = field(default_factory=list)
     files: list[str] = field(default_factory=list)
     figures: list = field(default_factory=list)  # FigureSpecs, then drawn Figures
+    failed_trials: int = 0  # trial points where the model could not be solved (rejected steps)
 
     @property
     def converged(self) -> bool:
@@ -48,6 +49,9 @@ def fit_view(stem: str, runs, units: dict[str, str]) -> FitView | None:
         return None
     view = FitView(fit=fit)
     if fit is not None:
+        failed = fit.get("failed_trials")
+        if isinstance(failed, int) and not isinstance(failed, bool) and failed > 0:
+            view.failed_trials = failed
         for name, p in fit.get("parameters", {}).items():
             est, se = p.get("estimate"), p.get("standard_error")
             rel = f"{abs(se / est):.2%}" if se is not None and est else "—"
