@@ -4,7 +4,7 @@ A damped pendulum (an expression system) swept over 100 dampings x 100 lengths, 
 ``store = "summary"``. The cases are loaded once in this process (``--limit cases=10000``),
 run serially (the reference, and the serial rate), then on a cluster started as a user starts
 one: ``dask scheduler`` and 1, then 2, ``dask worker`` processes (one thread each) on loopback
-ports (:func:`odelab.experiment.daskprocs.dask_processes`), through the same
+ports (:func:`odelab.run.daskprocs.dask_processes`), through the same
 ``run_cases(executor="dask", scheduler=...)`` as ``odelab run --executor dask --scheduler``.
 
 For each cluster: the first run (each worker loads the experiment file itself, as a worker on
@@ -70,9 +70,9 @@ def main() -> None:
     parser.add_argument("--cases", type=int, default=10_000, help="a square number of cases (default 10000)")
     args = parser.parse_args()
     side = int(round(args.cases ** 0.5))
-    from odelab.experiment import executors
-    from odelab.experiment.daskprocs import dask_processes
-    from odelab.experiment.executors import run_cases
+    from odelab.run import executors
+    from odelab.run.daskprocs import dask_processes
+    from odelab.run.executors import run_cases
     from odelab.experiment.limits import DEFAULT_LIMITS
     from odelab.experiment.loader import load_experiment
 

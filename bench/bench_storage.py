@@ -59,7 +59,7 @@ def csv_formatting(rows: int = 100_000, repeat: int = 3) -> None:
     errors): the store's whole-block writer against formatting value by value, best of ``repeat``."""
     import numpy as np
 
-    from odelab.experiment.store import _trajectory_csv
+    from odelab.store.results import _trajectory_csv
 
     rng = np.random.default_rng(1)
     data = rng.standard_normal((rows, 13))

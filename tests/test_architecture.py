@@ -166,3 +166,110 @@ def test_no_function_over_150_lines():
     assert not new, f"functions over {MAX_FUNCTION_LINES} lines (split them): {new}"
     stale = sorted(set(LONG_FUNCTIONS) - set(long))
     assert not stale, f"these functions are short now: remove them from LONG_FUNCTIONS: {stale}"
+
+
+# --- the rooms along the flow (issue 38): formats -> experiment -> run -> store -> report / cli -------------
+
+# The package of each module: odelab.<package>..., a top-level module is its own package.
+def _package(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else parts[0]
+
+
+def package_graph(graph: dict[str, set[str]]) -> dict[str, set[str]]:
+    out: dict[str, set[str]] = {}
+    for mod, deps in graph.items():
+        out.setdefault(_package(mod), set()).update(_package(d) for d in deps if _package(d) != _package(mod))
+    return out
+
+
+def test_no_loop_between_packages():
+    loops = [sorted(c) for c in circles(package_graph(import_graph()))]
+    assert not loops, f"packages of src/odelab that import each other (imports inside functions included): {loops}"
+
+
+def test_the_flow_points_one_way():
+    """formats knows no later room; experiment no run, store, report or cli; run no report or cli; store no run."""
+    later = {"formats": {"experiment", "run", "store", "report", "cli", "grading", "fmi"},
+             "experiment": {"run", "store", "report", "cli", "grading"},
+             "store": {"run", "report", "cli", "grading"},
+             "run": {"report", "cli", "grading"},
+             "report": {"cli", "grading", "formats"}}
+    pg = package_graph(import_graph())
+    wrong = {pkg: sorted(pg.get(pkg, set()) & banned) for pkg, banned in later.items() if pg.get(pkg, set()) & banned}
+    assert not wrong, f"imports against the flow: {wrong}"
+
+
+# What the report may take from experiment/: the study-kind registry and a label check, never loading.
+REPORT_MAY_IMPORT = {"odelab.experiment.studykinds", "odelab.experiment.fields"}
+
+
+def test_the_report_never_loads_an_experiment_file():
+    graph = import_graph()
+    taken = {d for m, deps in graph.items() if m.startswith("odelab.report") for d in deps
+             if d.startswith(("odelab.experiment", "odelab.formats"))}
+    assert taken <= REPORT_MAY_IMPORT, f"report/ imports experiment loading or a file format: {taken - REPORT_MAY_IMPORT}"
+
+
+def test_experiment_is_one_room_of_at_most_20_modules():
+    modules = [p for p in (SRC / "experiment").glob("*.py") if p.name != "__init__.py"]
+    assert len(modules) <= 20, sorted(p.name for p in modules)
+
+
+def _prints(tree: ast.AST) -> list[int]:
+    """Lines that write to the terminal: print(), typer.echo(), sys.stdout/stderr.write(), a Rich console's print."""
+    found = []
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.Call):
+            continue
+        f = node.func
+        if isinstance(f, ast.Name) and f.id == "print":
+            found.append(node.lineno)
+        elif isinstance(f, ast.Attribute) and f.attr == "echo" and isinstance(f.value, ast.Name) and f.value.id == "typer":
+            found.append(node.lineno)
+        elif (isinstance(f, ast.Attribute) and f.attr == "write" and isinstance(f.value, ast.Attribute)
+              and f.value.attr in ("stdout", "stderr") and isinstance(f.value.value, ast.Name) and f.value.value.id == "sys"):
+            found.append(node.lineno)
+        elif isinstance(f, ast.Attribute) and f.attr in ("print", "log", "rule") and isinstance(f.value, ast.Name) \
+                and f.value.id in ("console", "out", "err", "out_console"):
+            found.append(node.lineno)
+    return found
+
+
+def test_nothing_outside_cli_prints():
+    printing = {}
+    for mod, path in _modules().items():
+        if mod == "odelab.cli" or mod.startswith("odelab.cli.") or mod == "odelab.__main__":
+            continue
+        lines = _prints(ast.parse(path.read_text(encoding="utf-8")))
+        if lines:
+            printing[mod] = lines
+    assert not printing, f"modules below cli/ that print (return text or events instead): {printing}"
+
+
+# Modules that cannot be imported on their own, with who cuts them and why (an entry that imports fails too).
+_PASTED = ("issue 38 item 4: a fragment solvers/compiled/cache.py pastes into one generated module with the others; "
+           "it uses their names unimported")
+CANNOT_IMPORT_ALONE: dict[str, str] = {"odelab.solvers.compiled.kernels": _PASTED,
+                                       "odelab.solvers.compiled.kernels_events": _PASTED,
+                                       "odelab.solvers.compiled.kernels_stiff": _PASTED}
+
+
+def test_every_module_imports_on_its_own():
+    """Each module in a fresh interpreter, so that no module leans on another having been imported first."""
+    import subprocess
+    import sys
+
+    names = sorted(m for m in _modules() if not m.endswith("__main__"))
+    code = ("import importlib, sys\nbad = []\nfor name in sys.argv[1:]:\n"
+            "    for loaded in [m for m in sys.modules if m.startswith('odelab')]:\n"
+            "        del sys.modules[loaded]\n"
+            "    try:\n        importlib.import_module(name)\n"
+            "    except Exception as exc:\n        bad.append(f'{name}: {exc!r}')\n"
+            "print('\\n'.join(bad))\n")
+    out = subprocess.run([sys.executable, "-c", code, *names], capture_output=True, text=True, timeout=600)
+    failed = {line.split(":", 1)[0]: line for line in out.stdout.splitlines() if line.strip()}
+    new = {m: why for m, why in failed.items() if m not in CANNOT_IMPORT_ALONE}
+    assert not new, f"modules that fail to import on their own: {list(new.values())}"
+    stale = sorted(set(CANNOT_IMPORT_ALONE) - set(failed))
+    assert not stale, f"these modules import on their own now: remove them from CANNOT_IMPORT_ALONE: {stale}"

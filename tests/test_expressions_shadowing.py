@@ -18,8 +18,8 @@ from odelab.expressions import (
 )
 from odelab.expressions.functions import shadowed_constants, shadowing_note
 from odelab.experiment.loader import load_experiment
-from odelab.experiment.runner import run_case, run_experiment
-from odelab.experiment.store import write_case
+from odelab.run.runner import run_case, run_experiment
+from odelab.store.results import write_case
 
 ROOT = Path(__file__).resolve().parents[1]
 BALL = ROOT / "experiments" / "bouncing_ball.toml"

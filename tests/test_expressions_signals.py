@@ -53,7 +53,7 @@ def test_complex_step_derivatives_are_the_slopes_between_jumps():
 
 def test_the_compiled_backend_gives_the_python_engines_steps(tmp_path):
     from odelab.experiment.loader import load_experiment
-    from odelab.experiment.runner import run_case
+    from odelab.run.runner import run_case
 
     path = tmp_path / "wave.toml"
     path.write_text('[system]\nstates = ["x"]\n[system.equations]\n'

@@ -71,7 +71,7 @@ def _imported(tmp_path, *args) -> set[str]:
 def test_a_plain_run_imports_only_what_it_needs(tmp_path):
     modules = _imported(tmp_path, "run", str(EXPERIMENTS / "exercise1.toml"), "--runs", "runs")
     assert (tmp_path / "runs" / "exercise1" / "ode45" / "result.json").is_file()  # it ran and stored
-    assert {"numpy", "pydantic", "odelab.experiment.store"} <= modules
+    assert {"numpy", "pydantic", "odelab.store.results"} <= modules
     loaded = sorted(m for m in modules if m.split(".")[0] in {n.split(".")[0] for n in NOT_FOR_A_PLAIN_RUN}
                     and any(m == n or m.startswith(n + ".") for n in NOT_FOR_A_PLAIN_RUN))
     assert loaded == []

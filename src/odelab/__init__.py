@@ -46,7 +46,7 @@ _LAZY = {
     "dcgain": "odelab.analysis.control",
     "damp": "odelab.analysis.control",
     "load_experiment": "odelab.experiment.loader",
-    "run_experiment": "odelab.experiment.runner",
+    "run_experiment": "odelab.run.runner",
 }
 
 # public name -> a whole module (``from odelab import diagram as dg``)
@@ -79,7 +79,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from odelab.exceptions import (ExperimentError, ExpressionError, InputError, OdelabError, OdelabWarning,
                                    SolverWarning)
     from odelab.experiment.loader import load_experiment
-    from odelab.experiment.runner import run_experiment
+    from odelab.run.runner import run_experiment
     from odelab.solution import Solution, Stats, deval
     from odelab.solvers.api import ode23, ode45, odextend, solve
     from odelab.solvers.dde23 import dde23

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -136,6 +137,12 @@ class Solution:
         )
 
 
+#: The methods that have dense output, for deval's message: the solver registry installs its own
+#: list here when it is imported (a solution is only ever made by a solver, so it always is by then);
+#: the registry imports this module, never the other way round.
+DENSE_METHODS: Callable[[], str] = lambda: "a method with dense output"
+
+
 def deval(sol, t, derivative: bool = False):
     """Evaluate a solution anywhere in its span with the method's own interpolant (MATLAB's ``deval``).
 
@@ -167,11 +174,9 @@ def deval(sol, t, derivative: bool = False):
     """
     interpolant = getattr(sol, "interpolant", None)  # any result with an interpolant (duck-typed)
     if interpolant is None:
-        from odelab.solvers.registry import dense_output_text
-
         method = getattr(sol, "method", "") or "this method"
         raise InputError(
-            f"this solution has no dense output: {method} does not provide one. Solve with {dense_output_text()}, "
+            f"this solution has no dense output: {method} does not provide one. Solve with {DENSE_METHODS()}, "
             "or with a vector tspan of the times you need.",
             key="sol",
         )

@@ -76,7 +76,7 @@ def test_boxbod_from_start_1_survives_the_trial_points_that_blow_up():
 
 
 def test_the_cases_run_at_the_estimates_against_the_data():
-    from odelab.experiment.runner import run_case
+    from odelab.run.runner import run_case
 
     fitted = fit_experiment(load_experiment(ASSETS / "misra1a.toml"))
     case = fitted.cases[0]

@@ -9,7 +9,7 @@ from typer.testing import CliRunner
 
 from odelab.cli import app
 from odelab.experiment.loader import load_experiment
-from odelab.experiment.runner import run_case
+from odelab.run.runner import run_case
 
 ROOT = Path(__file__).resolve().parents[2]
 EXERCISE2 = ROOT / "experiments" / "exercise2.toml"

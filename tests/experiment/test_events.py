@@ -9,8 +9,8 @@ import pytest
 
 from odelab.exceptions import InputError
 from odelab.experiment.loader import load_experiment
-from odelab.experiment.runner import run_case, run_experiment
-from odelab.experiment.store import read_run, write_case
+from odelab.run.runner import run_case, run_experiment
+from odelab.store.results import read_run, write_case
 
 ROOT = Path(__file__).resolve().parents[2]
 BALL = ROOT / "experiments" / "bouncing_ball.toml"

@@ -7,7 +7,7 @@ import pytest
 
 from odelab.exceptions import InputError
 from odelab.experiment.loader import load_experiment
-from odelab.experiment.runner import run_case, run_experiment
+from odelab.run.runner import run_case, run_experiment
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -12,7 +12,7 @@ from odelab.cli import app
 from odelab.exceptions import ExperimentError
 from odelab.experiment.fit import fit_experiment
 from odelab.experiment.loader import load_experiment
-from odelab.experiment.runner import run_case
+from odelab.run.runner import run_case
 
 ROOT = Path(__file__).resolve().parents[2]
 EXPERIMENTS = ROOT / "experiments"

@@ -64,7 +64,7 @@ def test_sweep_csv_cells_are_never_live_formulas(tmp_path):
 
 def _diagram_dot(name="figure1.toml"):
     from odelab.experiment.loader import load_experiment
-    from odelab.experiment.runner import diagram_record
+    from odelab.run.runner import diagram_record
 
     return diagram_record(load_experiment(ROOT / "experiments" / name).cases[0].problem)["dot"]
 

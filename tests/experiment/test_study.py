@@ -4,9 +4,10 @@ from pathlib import Path
 
 import pytest
 
-from odelab.experiment.executors import run_cases
+from odelab.run.executors import run_cases
 from odelab.experiment.loader import load_experiments
-from odelab.experiment.study import run_study, sweep_csv, sweep_record, sweep_rows
+from odelab.experiment.study import run_study, sweep_rows
+from odelab.store.sweeps import sweep_csv, sweep_record
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -8,13 +8,15 @@ import pytest
 from rich.console import Console
 
 from odelab.exceptions import ExperimentError
-from odelab.experiment.display import print_sweep
+from odelab.cli.display import print_sweep
 from odelab.experiment.keyref import explain
 from odelab.experiment.loader import load_experiment
-from odelab.experiment.runner import run_experiment
-from odelab.experiment.study import sweep_record
+from odelab.run.runner import run_experiment
+from odelab.store.sweeps import sweep_record
 from odelab.experiment.studykinds import STUDY_KINDS, StudyKind, fmt_number, register_study_kind
 from odelab.report.studies import study_sections
+from odelab.report.study_sections import SECTIONS, register_section
+from odelab.cli.study_views import TERMINAL_VIEWS, register_terminal_view
 
 DECAY = """
 [system]
@@ -58,17 +60,27 @@ def steps_kind():
             return {"label": label, "method": members[0]["method"], "steps": n.tolist(), "error": e.tolist(),
                     "slope": slope}, []
 
-        def terminal(self, study, over):
-            return ("error against steps:", ["method", "slope"],
-                    [[c["label"], f"{c['slope']:.2f}"] for c in study["curves"]])
-
-        def draw(self, record, study, section):
-            section.summary = "Error against the number of steps."
-            section.header = ["method", "slope"]
-            section.rows = [[c["label"], fmt_number(c["slope"], 3)] for c in study["curves"]]
-
     yield STUDY_KINDS["steps"]
     del STUDY_KINDS["steps"]
+
+
+@pytest.fixture
+def steps_views(steps_kind):
+    """The toy kind's own terminal table and report section (the views live with the CLI and the report)."""
+
+    @register_terminal_view("steps")
+    def terminal(study, over):
+        return ("error against steps:", ["method", "slope"],
+                [[c["label"], f"{c['slope']:.2f}"] for c in study["curves"]])
+
+    @register_section("steps")
+    def draw(record, study, section):
+        section.summary = "Error against the number of steps."
+        section.header = ["method", "slope"]
+        section.rows = [[c["label"], fmt_number(c["slope"], 3)] for c in study["curves"]]
+
+    yield steps_kind
+    del TERMINAL_VIEWS["steps"], SECTIONS["steps"]
 
 
 def _file(tmp_path, study):
@@ -77,7 +89,7 @@ def _file(tmp_path, study):
     return path
 
 
-def test_a_registered_kind_runs_from_toml_and_reaches_terminal_and_report(steps_kind, tmp_path):
+def test_a_registered_kind_runs_from_toml_and_reaches_terminal_and_report(steps_views, tmp_path):
     exp = load_experiment(_file(tmp_path, 'kind = "steps"\nmin_steps = 10'))
     assert exp.study.kind == "steps" and exp.study.over == "solver.rtol" and exp.study.error == "end"
     assert exp.study.options == {"min_steps": 10}
@@ -91,6 +103,20 @@ def test_a_registered_kind_runs_from_toml_and_reaches_terminal_and_report(steps_
     assert "error against steps:" in console.export_text()
     (section,), warnings = study_sections([record], set())
     assert not warnings and section.kind == "steps" and section.rows == [["ode45", fmt_number(curve["slope"], 3)]]
+
+
+def test_a_kind_without_views_of_its_own_shows_its_numbers(steps_kind, tmp_path):
+    exp = load_experiment(_file(tmp_path, 'kind = "steps"\nmin_steps = 10'))
+    results = run_experiment(exp)
+    record = sweep_record(exp, results)
+    (curve,) = record["study"]["curves"]
+    console = Console(record=True, width=100)
+    print_sweep(console, exp, results)
+    text = console.export_text()
+    assert "steps of the x error over rtol:" in text and "slope" in text and fmt_number(curve["slope"]) in text
+    (section,), warnings = study_sections([record], set())
+    assert not warnings and section.header == ["curve", "method", "slope"]
+    assert section.rows == [["ode45", "ode45", fmt_number(curve["slope"])]]
 
 
 def test_its_name_and_keys_join_the_messages_and_explain(steps_kind, tmp_path):

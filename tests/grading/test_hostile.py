@@ -198,7 +198,7 @@ def test_missing_experiment_scores_zero_with_not_found(make_class):
 
 def test_one_case_that_breaks_odelab_costs_that_case_only(make_class, monkeypatch):
     """An unexpected error inside a run (a bug, not a bad file) fails that student's checks of that case."""
-    import odelab.experiment.runner as runner
+    import odelab.run.runner as runner
 
     real = runner.run_case
 

@@ -4,7 +4,7 @@ signal flow, feedback edges are found, the drawing is deterministic and reads no
 from pathlib import Path
 
 from odelab.experiment.loader import load_experiment
-from odelab.experiment.runner import diagram_record
+from odelab.run.runner import diagram_record
 from odelab.report.dotlayout import draw_png, layout, parse_dot
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -8,9 +8,10 @@ import pytest
 import odelab
 from odelab.exceptions import InputError
 from odelab.expressions import compile_vector
-from odelab.experiment.backend import simulate_problem, why_not_compiled
+from odelab.run.backend import simulate_problem
+from odelab.solvers.compiled.capability import why_not_compiled
 from odelab.experiment.loader import load_experiment, load_experiments
-from odelab.experiment.runner import run_case
+from odelab.run.runner import run_case
 from odelab.solvers.compiled import AUTO_STEPS, CompiledSystem, solve_compiled
 from odelab.solvers.registry import get_method
 

@@ -9,7 +9,7 @@ import odelab
 from odelab.cli import app
 from odelab.exceptions import ExperimentError, InputError
 from odelab.experiment.keyref import explain
-from odelab.experiment.runner import run_experiment
+from odelab.run.runner import run_experiment
 from odelab.solvers import registry
 from odelab.solvers.options import normalize_options
 from odelab.solvers.registry import METHODS, Method, get_method, methods_with, register_method

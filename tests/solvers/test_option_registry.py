@@ -7,7 +7,7 @@ from odelab.exceptions import ExperimentError, InputError
 from odelab.experiment import schema
 from odelab.experiment.keyref import explain
 from odelab.experiment.loader import load_experiment
-from odelab.experiment.runner import run_experiment
+from odelab.run.runner import run_experiment
 from odelab.solvers.optionset import OPTIONS, SolverOption, canonical, positive, register_option
 from odelab.solvers.options import method_options, normalize_options, resolve_options
 from odelab.solvers.registry import METHODS

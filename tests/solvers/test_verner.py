@@ -224,7 +224,7 @@ def test_registry_rows_and_backend():
         assert m.power == 1 / (order) and m.tableau is PAIRS[name] and m.kind_label == "non-stiff"
         sol = getattr(odelab, name)(lambda t, y: -y, [0, 1], 1.0)
         assert sol.warnings == () and sol.method == name
-    from odelab.experiment.backend import why_not_compiled
+    from odelab.solvers.compiled.capability import why_not_compiled
 
     assert "Verner's non-FSAL pair" in why_not_compiled(METHODS["ode78"], object())
     from odelab.solvers.compiled import solve_compiled

@@ -146,7 +146,7 @@ def test_in_an_experiment_file(tmp_path):
     from typer.testing import CliRunner
 
     from odelab.cli import app
-    from odelab.experiment.runner import run_experiment
+    from odelab.run.runner import run_experiment
 
     diagram = tmp_path / "loop.toml"
     diagram.write_text("""
@@ -191,7 +191,7 @@ points = 51
 
 def test_analysis_of_a_delayed_loop_in_an_experiment_file(tmp_path):
     control = pytest.importorskip("control")
-    from odelab.experiment.runner import run_experiment
+    from odelab.run.runner import run_experiment
 
     path = tmp_path / "loop.toml"
     path.write_text("""

@@ -75,7 +75,7 @@ def build_ode(model: schema.Experiment, params: dict[str, float]) -> Built:
 
         resolved["outputs"] = dict(system.outputs)
     if delayed:
-        from odelab.experiment.delays import build_delay
+        from odelab.experiment.kinds.delays import build_delay
 
         return build_delay(model, params, states, outputs, output_fn, resolved)
 

@@ -73,7 +73,7 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
                                 [k for _, k in events.whens])
     if backend != "auto":
         resolved["solver"]["backend"] = backend
-        from odelab.experiment.backend import check_backend
+        from odelab.solvers.compiled.capability import check_backend
 
         check_backend(backend, method, fast, "solver.backend", options, events)
     if method.matlab_defaults:
@@ -133,12 +133,12 @@ def _build_system(model: schema.Experiment, path: Path, params: dict, params_key
 
         built = build_state_space(model, params)
     elif system.kind == "diagram":
-        from odelab.experiment.diagram import build_diagram
+        from odelab.experiment.kinds.diagram import build_diagram
 
         built = build_diagram(model, params, path, constant(model.time.start, "time.start", params),
                               max_rows=limits.table_rows or None, limits=limits)
     elif system.kind == "network":
-        from odelab.experiment.network import build_network
+        from odelab.experiment.kinds.network import build_network
 
         built = build_network(model, params)
     elif model.elements is not None:
@@ -204,7 +204,7 @@ def _case_inputs(model: schema.Experiment, built, path: Path, tspan: np.ndarray,
 def _case_solver(model: schema.Experiment, built, params: dict, tspan: np.ndarray, limits: Limits,
                  resolved: dict):
     """The method, the options it runs with (state names made indices, a mass matrix evaluated) and the backend."""
-    from odelab.experiment.delays import check_delay_method, method_name
+    from odelab.experiment.kinds.delays import check_delay_method, method_name
     from odelab.solvers.options import as_tspan, normalize_options, resolve_options
 
     states = built.states
@@ -297,7 +297,7 @@ def _case_reference(model: schema.Experiment, built, method, signals, events, da
     if ref.solver != "auto":
         get_method(ref.solver, key="reference.solver")
     if method.delays:
-        from odelab.experiment.delays import check_delay_case
+        from odelab.experiment.kinds.delays import check_delay_case
 
         check_delay_case(model, method, kind)
     resolved["reference"] = {"method": kind, "solver": ref.solver, "rtol": ref.rtol, "atol": ref.atol}

@@ -1,4 +1,4 @@
-"""Loading experiment files: TOML -> validated, merged, compiled cases.
+"""Loading experiment files: a file's dict (:mod:`odelab.formats`) -> validated, merged, compiled cases.
 
 Every problem with a file is raised as one :class:`~odelab.exceptions.ExperimentError`
 naming the file, the TOML key, the value, and the fix. Nothing here runs a solver.
@@ -20,7 +20,7 @@ from odelab.experiment.cases import Case, LoadedExperiment, Problem
 from odelab.experiment.compile import compile_case
 from odelab.experiment.limits import DEFAULT_LIMITS, Limits, check_count
 from odelab.experiment.naming import NAME_RULE, check_experiment_names, folder_key, slug  # noqa: F401 (re-exported)
-from odelab.experiment.reading import read_toml
+from odelab.formats import ImportOptions, read
 from odelab.experiment.schema_errors import describe_value, schema_error  # noqa: F401 (schema_error re-exported)
 
 __all__ = ["Case", "LoadedExperiment", "Problem", "load_experiment", "load_experiments", "merge", "slug"]
@@ -56,7 +56,8 @@ def _retyped(base: dict, override: dict) -> bool:
 # --- loading ------------------------------------------------------------------------------
 
 
-def load_experiment(path: str | Path, *, limits: Limits = DEFAULT_LIMITS) -> LoadedExperiment:
+def load_experiment(path: str | Path, *, limits: Limits = DEFAULT_LIMITS,
+                    options: ImportOptions | None = None) -> LoadedExperiment:
     """Read, validate and compile an experiment file into its cases, within the work and memory ``limits``.
 
     Raises
@@ -65,14 +66,15 @@ def load_experiment(path: str | Path, *, limits: Limits = DEFAULT_LIMITS) -> Loa
         Naming the file, the key, the value and the fix.
     """
     path = Path(path)
-    data, raw = read_toml(path)
+    data, raw = _read(path, options)
     if "problem" in data:
         raise ExperimentError("holds several problems ([[problem]]); load it with `load_experiments`, which "
                               "returns one experiment per problem.", source=str(path), key="problem")
     return _load(path, data, hashlib.sha256(raw).hexdigest(), data.get("name", path.stem), limits)
 
 
-def load_experiments(path: str | Path, *, limits: Limits = DEFAULT_LIMITS) -> list[LoadedExperiment]:
+def load_experiments(path: str | Path, *, limits: Limits = DEFAULT_LIMITS,
+                     options: ImportOptions | None = None) -> list[LoadedExperiment]:
     """Load an experiment file as a list of experiments: one, or one per ``[[problem]]``.
 
     A ``[[problem]]`` table (with a ``name``) replaces the base's tables of the same names
@@ -82,7 +84,7 @@ def load_experiments(path: str | Path, *, limits: Limits = DEFAULT_LIMITS) -> li
     """
     path = Path(path)
     src = str(path)
-    data, raw = read_toml(path)
+    data, raw = _read(path, options)
     file_hash = hashlib.sha256(raw).hexdigest()
     name = data.get("name", path.stem)
     problems = data.pop("problem", None)
@@ -107,6 +109,14 @@ def load_experiments(path: str | Path, *, limits: Limits = DEFAULT_LIMITS) -> li
         merged = {**copy.deepcopy(data), **{k: v for k, v in problem.items() if k != "name"}}
         out.append(_load(path, merged, file_hash, f"{name}_{pname}", limits, copies=len(problems)))
     return out
+
+
+def _read(path: Path, options: ImportOptions | None) -> tuple[dict, bytes]:
+    """The file's dict and bytes, by its format (:mod:`odelab.formats`); an imported file with gaps is refused."""
+    doc = read(path, options)
+    if doc.gaps:
+        raise ExperimentError(doc.gaps_message(), source=str(path))
+    return doc.data, doc.raw
 
 
 def _dotted_states(table):

@@ -18,7 +18,6 @@ from __future__ import annotations
 import difflib
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -218,76 +217,3 @@ def run_study(spec: StudySpec, rows: list[dict[str, Any]]) -> dict[str, Any]:
         curves.append(curve)
         warnings.extend(notes)
     return {**spec.as_dict(), "curves": curves, "warnings": warnings}
-
-
-SWEEP_FORMAT = "odelab-sweep/1"
-
-
-def sweep_record(exp, results) -> dict[str, Any]:
-    """What ``sweep.json`` holds: the sweep, its rows, the study's result and provenance."""
-    from datetime import datetime, timezone
-
-    from odelab.experiment.store import versions
-
-    rows = sweep_rows(results)
-    first = results[0].case
-    record = {
-        "format": SWEEP_FORMAT,
-        "experiment": exp.name,
-        "title": exp.title,
-        "source": str(exp.source),
-        "file_sha256": exp.file_hash,
-        "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-        "versions": dict(versions()),
-        "sweep": exp.sweep.as_dict(),
-        "complete": len(results) == len(exp.cases),  # False: interrupted, these are the cases that finished
-        "cases_total": len(exp.cases),
-        "states": list(first.problem.states),
-        "outputs": list(first.problem.outputs),
-        "reference": results[0].reference_kind,
-        "description": first.config.get("description", ""),
-        "rows": rows,
-        "study": run_study(exp.study, rows) if exp.study is not None else None,
-    }
-    return record
-
-
-def sweep_csv(record: dict[str, Any]) -> str:
-    """The sweep as one table a spreadsheet opens: a row per case."""
-    import csv
-    import io
-
-    from odelab.fileio import spreadsheet_cell
-
-    rows = record["rows"]
-    keys = record["sweep"]["keys"]
-    quantities = sorted({q for r in rows for q in r["max_abs"]})
-    header = ["case", *keys, "method", "status", "nsteps", "nfailed", "nfevals", "elapsed_s"]
-    header += [f"{q}_{what}" for q in quantities for what in ("max_abs", "end_abs", "max_rel")]
-    buf = io.StringIO()
-    writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow([spreadsheet_cell(h) for h in header])
-    for r in rows:
-        cells = [r["case"], *(r["swept"].get(k) for k in keys), r["method"], r["status"], r["nsteps"], r["nfailed"],
-                 r["nfevals"], r["elapsed_s"]]
-        for q in quantities:
-            cells += [r["max_abs"].get(q), r["end_abs"].get(q), r["max_rel"].get(q)]
-        writer.writerow(["" if c is None else repr(c) if isinstance(c, float) else spreadsheet_cell(c)
-                         for c in cells])
-    return buf.getvalue()
-
-
-def write_sweep(exp, results, runs) -> Path:
-    """Store ``runs/<experiment>/sweep.json`` and ``sweep.csv`` atomically; returns the folder."""
-    import json
-
-    from odelab.experiment.naming import slug
-    from odelab.experiment.store import json_safe
-    from odelab.fileio import atomic_write
-
-    folder = Path(runs) / slug(exp.name)
-    folder.mkdir(parents=True, exist_ok=True)
-    record = json_safe(sweep_record(exp, results))
-    atomic_write(folder / "sweep.csv", sweep_csv(record))
-    atomic_write(folder / "sweep.json", json.dumps(record, indent=1, allow_nan=False) + "\n")
-    return folder

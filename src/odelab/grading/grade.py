@@ -4,7 +4,7 @@ does, evaluate the rubric's checks.
 The runs go through the same library functions as ``odelab run``: experiment files are loaded by
 :func:`odelab.experiment.loader.load_experiments` within the run's budgets
 (:class:`odelab.experiment.limits.Limits`, ``max_steps``) and every case is run by
-:func:`odelab.experiment.executors.run_cases` (serially or in its process pool, ``jobs``), so a
+:func:`odelab.run.executors.run_cases` (serially or in its process pool, ``jobs``), so a
 student's numbers are the ones ``odelab run`` prints for their file. Only the cases the rubric
 checks are run, and each result is reduced to its checks as it arrives, so a class costs at most
 (students x checked cases) solves, each within the budgets, and the memory of a few runs.
@@ -144,7 +144,7 @@ def _run(cases: list, *, jobs, max_steps, backend, executor, on_done=None):
     Should the pool stop on an unexpected error of one case, the cases not yet handed back are run
     again one by one in this process, so that the error costs that case only (a str: why).
     """
-    from odelab.experiment.executors import run_cases
+    from odelab.run.executors import run_cases
 
     if not cases:
         return

@@ -158,7 +158,7 @@ def load_rubric(path: str | Path) -> Rubric:
     RubricError
         Naming the file, the key path, the value and the fix.
     """
-    from odelab.experiment.reading import read_toml
+    from odelab.formats.toml import read_toml
 
     path = Path(path)
     try:

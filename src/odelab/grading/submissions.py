@@ -123,7 +123,7 @@ def _collect(student: Student) -> None:
             item.error = ExperimentError("is a symbolic link to a file outside the submission's folder; it was not "
                                          "read. Hand in the file itself.", source=shown)
             continue
-        from odelab.experiment.reading import read_toml
+        from odelab.formats.toml import read_toml
 
         try:
             item.data, _ = read_toml(path)

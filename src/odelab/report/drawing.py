@@ -81,7 +81,7 @@ def _take(order: list[int], counter) -> int | None:
 
 def _worker(specs: list, order: list[int], counter, conn, parent: int) -> None:
     """In a forked worker: draw the figures it takes, sending each back as (index, PNG bytes or None)."""
-    from odelab.experiment.lifeline import exit_with_parent
+    from odelab.run.lifeline import exit_with_parent
     from odelab.report import mplreuse, plots
 
     exit_with_parent(parent)
@@ -120,7 +120,7 @@ def _draw_in_pool(specs: list, jobs: int) -> list[bytes]:
     next figure from a shared counter; the specs reach the workers by the fork, the PNGs come
     back through a pipe each, read by a thread so that no worker waits on this process. A
     figure a worker could not draw, or did not (a worker killed), is drawn here. The workers
-    die with this process (:func:`odelab.experiment.lifeline.exit_with_parent`) and are
+    die with this process (:func:`odelab.run.lifeline.exit_with_parent`) and are
     joined before it returns."""
     import multiprocessing
     import threading

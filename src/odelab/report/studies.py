@@ -1,6 +1,6 @@
 """The report's sections for sweeps and studies, read from ``runs/<experiment>/sweep.json``.
 
-- a study: its kind's section (:mod:`odelab.experiment.studykinds`), e.g. a convergence study's
+- a study: its kind's section (:mod:`odelab.report.study_sections`), e.g. a convergence study's
   error against h on log-log axes with each method's fitted C h^p, or a work-precision study's
   error against function evaluations and time;
 - a sweep without a study: the quantity of interest (overshoot, peak, final value) against
@@ -19,15 +19,15 @@ from pathlib import Path
 
 import numpy as np
 
-from odelab.experiment.studykinds import MARKERS as _MARKERS
 from odelab.experiment.studykinds import STUDY_KINDS
 from odelab.experiment.studykinds import fmt_number as _g
 from odelab.experiment.studykinds import key_label as _label
 from odelab.report.plots import SERIES_COLORS, FigureSpec, Line, Panel
+from odelab.report.study_sections import MARKERS as _MARKERS
+from odelab.report.study_sections import draw_study
+from odelab.store.sweeps import SWEEP_FORMAT
 
-__all__ = ["SWEEP_FORMAT", "StudySection", "collect_studies", "study_sections"]
-
-SWEEP_FORMAT = "odelab-sweep/1"
+__all__ = ["StudySection", "collect_studies", "study_sections"]
 
 
 @dataclass(eq=False)
@@ -147,8 +147,8 @@ def study_sections(records: list[dict], taken: set[str]) -> tuple[list[StudySect
             created=str(record.get("created", "")), kind=study["kind"] if study else "sweep", summary="", header=[],
             rows=[], cases=len(rows), failed=sum(1 for r in rows if isinstance(r, dict) and r.get("status") != "success"))
         try:
-            if study and study["kind"] in STUDY_KINDS:  # each kind draws its section (experiment/studykinds.py)
-                STUDY_KINDS[study["kind"]].draw(record, study, section)
+            if study and study["kind"] in STUDY_KINDS:  # each kind's section: report/study_sections.py
+                draw_study(record, study, section)
             else:
                 _parameter_sweep(record, section)
         except (KeyError, TypeError, ValueError, IndexError) as exc:

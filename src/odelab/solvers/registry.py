@@ -350,3 +350,13 @@ def get_method(name: str, *, key: str = "method") -> Method:
         )
     return method
 
+
+
+def _install_dense_methods() -> None:
+    """deval's message lists the methods with dense output (odelab.solution.DENSE_METHODS)."""
+    from odelab import solution
+
+    solution.DENSE_METHODS = dense_output_text
+
+
+_install_dense_methods()

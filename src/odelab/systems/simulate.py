@@ -138,7 +138,7 @@ def simulate(
         ``piece_solver(grid, x, lo, hi, options) -> Solution`` solves one piece from state
         ``x`` over ``grid`` with the inputs read at t clipped to ``[lo, hi]``; the default is
         :func:`~odelab.solvers.api.solve` on ``system.dynamics``. The compiled backend passes
-        its own (:func:`odelab.experiment.backend.solve_problem`), so both take the same pieces.
+        its own (:func:`odelab.run.backend.solve_problem`), so both take the same pieces.
 
     Returns
     -------

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import odelab
-from odelab.experiment.runner import run_experiment
+from odelab.run.runner import run_experiment
 
 STIFF = ("ode15s", "ode23s", "ode23t", "ode23tb")
 A, B = 1e6 / (1e6 + 1), 1e3 / (1e6 + 1)

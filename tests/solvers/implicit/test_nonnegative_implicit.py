@@ -94,7 +94,7 @@ def test_the_stiff_tutorials_e5_experiment_keeps_its_digits(tmp_path):
     # stiff solvers from TOML (with the exact Jacobian an experiment derives from its equations).
     from pathlib import Path
 
-    from odelab.experiment.runner import run_experiment
+    from odelab.run.runner import run_experiment
 
     page = (Path(__file__).parents[3] / "docs" / "tutorials" / "stiff.md").read_text()
     block = next(b.split("\n", 1)[1] for b in page.split("```toml")[1:] if 'title = "E5' in b).split("```")[0]

@@ -9,7 +9,7 @@ import pytest
 pytest.importorskip("sympy")  # a dependency of odelab; a venv made before it was added lacks it
 
 from odelab.experiment.loader import load_experiment  # noqa: E402
-from odelab.experiment.runner import run_case  # noqa: E402
+from odelab.run.runner import run_case  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[3]
 EXPERIMENTS = ROOT / "experiments"

@@ -12,7 +12,7 @@ pytest.importorskip("sympy")
 
 from odelab.cli import app  # noqa: E402
 from odelab.experiment.loader import load_experiment  # noqa: E402
-from odelab.experiment.runner import run_case  # noqa: E402
+from odelab.run.runner import run_case  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[3]
 EXPERIMENTS = ROOT / "experiments"

@@ -2,7 +2,7 @@
 
 ``Method.compiled`` says whether it runs a method; :func:`method_refusal` says why not in words
 that list the methods it does run (from :data:`odelab.solvers.registry.METHODS`), for the
-backend's messages (:mod:`odelab.solvers.compiled`, :mod:`odelab.experiment.backend`).
+backend's messages (:mod:`odelab.solvers.compiled`, :mod:`odelab.run.backend`).
 """
 
 from __future__ import annotations

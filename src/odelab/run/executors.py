@@ -1,0 +1,486 @@
+"""Running many cases: serially, in a process pool, or on a Dask cluster — with identical results.
+
+Every executor runs :func:`odelab.run.runner.run_case` on the same cases and hands the
+results back **in case order**, whatever order they finish in, so what is stored does not
+depend on how it was run. A case's compiled functions (closures over expressions) are not
+sent between processes: a worker loads the experiment file itself (once per process) and runs
+the case by its index, checking the file's SHA-256 so that an edited file is never mixed with
+the cases already run. Pool workers are forked from the running process and inherit the
+experiments it has loaded; Dask workers need the experiment files at the same paths (a shared
+file system, as on any cluster).
+
+In a pool or on a cluster the cases are handed out **longest first** within each experiment
+(:func:`schedule`: a fixed-step case costs its number of steps times its stages; an adaptive
+one grows as its tolerance tightens), so that the last case to finish is a short one and no
+worker idles while another runs a long tail. The experiments themselves keep their order, so
+that the first one's results can be stored and printed while the next one runs.
+
+``on_result(item)`` and then ``on_done(done, failed)`` are called in the calling thread the
+moment each case finishes, in the order they finish, whichever process ran it: the caller
+stores a case there (a killed run keeps every case it finished) and updates a progress bar;
+nothing here prints. Pool workers, and the workers of a local Dask cluster, exit when the
+process that started them dies (:mod:`odelab.run.lifeline`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from pathlib import Path
+from typing import Callable, Iterable, Iterator
+
+from odelab.exceptions import InputError
+
+__all__ = ["EXECUTORS", "CaseError", "POOL_WORTHWHILE", "case_cost", "default_jobs", "run_cases", "schedule", "small_work"]
+
+EXECUTORS = ("serial", "process", "dask")
+
+# Experiments loaded in this process, by (path, sha256): forked workers inherit it.
+_LOADED: dict[tuple[str, str], object] = {}
+
+
+@dataclasses.dataclass(frozen=True)
+class CaseError:
+    """A case that could not run because of its input (e.g. no equilibrium for an input)."""
+
+    case: object
+    error: InputError
+
+
+def default_jobs() -> int:
+    """The number of cores this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def case_cost(case) -> float:
+    """A relative estimate of a case's run time, for scheduling (only the order matters).
+
+    A fixed-step method: steps (span / h) times stages. An adaptive one: its stages times
+    rtol^(-1/order) per unit of span (the step size an error-per-step controller settles at),
+    which orders a tolerance sweep correctly. Anything else counts 1.
+    """
+    from odelab.solvers.registry import get_method
+
+    p = case.problem
+    try:
+        method = get_method(p.method)
+        span = float(abs(p.tspan[-1] - p.tspan[0]))
+        tableau = getattr(method, "tableau", None)
+        stages = tableau.c.size if tableau is not None else 1
+        h = p.options.get("h")
+        if not method.adaptive and h:
+            return stages * span / float(h)
+        rtol = float(p.options.get("rtol", 1e-3))
+        order = float(method.order or 4)
+        return stages * max(span, 1e-300) * rtol ** (-1.0 / order)
+    except (TypeError, ValueError, KeyError, AttributeError, ZeroDivisionError, OverflowError):
+        return 1.0
+
+
+#: Below this much estimated work (:func:`case_cost`'s units, about right-hand-side evaluations
+#: of the Python engine, a few microseconds each), a run with the default ``jobs`` stays in one
+#: process: forking a pool and sending every result back costs 0.1-0.2 s, more than it saves.
+POOL_WORTHWHILE = 50_000
+
+
+def small_work(cases: list) -> bool:
+    """Whether ``cases`` together are too little work to be worth a process pool."""
+    total = 0.0
+    for case in cases:
+        cost = case_cost(case)
+        total += cost if math.isfinite(cost) else POOL_WORTHWHILE
+        if total >= POOL_WORTHWHILE:
+            return False
+    return True
+
+
+def schedule(cases: list) -> list[int]:
+    """The order in which to hand ``cases`` to a pool: experiments in order, each one's cases longest first."""
+    position: dict[tuple[str, str], int] = {}
+    keys = []
+    for i, case in enumerate(cases):
+        exp = position.setdefault((str(case.source), case.experiment), len(position))
+        cost = case_cost(case)
+        keys.append((exp, -cost if math.isfinite(cost) else 0.0, i))
+    return [i for _, _, i in sorted(keys)]
+
+
+def _case_in_worker(source: str, file_hash: str, index: int, experiment: str, limits=None, import_options=None):
+    key = (source, file_hash, experiment)
+    if key not in _LOADED:
+        from odelab.experiment.limits import DEFAULT_LIMITS
+        from odelab.experiment.loader import load_experiments
+
+        for exp in load_experiments(Path(source), limits=limits or DEFAULT_LIMITS, options=import_options):
+            _LOADED[(source, exp.file_hash, exp.name)] = exp.cases
+    cases = _LOADED.get(key)
+    if cases is None:
+        raise RuntimeError(f"{source} changed since the run started (its SHA-256 is no longer {file_hash[:12]}); "
+                           "run it again")
+    return cases[index]
+
+
+def _run_remote(source: str, file_hash: str, index: int, experiment: str, opts: dict, limits=None,
+                import_options=None):
+    """Run one case in a worker; the result travels without its (unpicklable) compiled case.
+
+    ``limits`` and ``import_options``: those the file was loaded with (``--limit``; an imported file's
+    ``--workspace``, ``--set`` and ``--call``), for a worker that loads it again."""
+    from odelab.run.runner import run_case
+
+    case = _case_in_worker(source, file_hash, index, experiment, limits, import_options)
+    try:
+        result = run_case(case, **opts)
+    except InputError as exc:
+        return "error", exc
+    return "ok", dataclasses.replace(result, case=None)
+
+
+def _attach(case, outcome):
+    kind, value = outcome
+    if kind == "error":
+        return CaseError(case, value)
+    return dataclasses.replace(value, case=case)
+
+
+def _run_local(case, opts: dict):
+    from odelab.run.runner import run_case
+
+    try:
+        return run_case(case, **opts)
+    except InputError as exc:
+        return CaseError(case, exc)
+
+
+def _failed(item) -> bool:
+    return isinstance(item, CaseError) or item.status != "success"
+
+
+def _init_worker(parent: int) -> None:
+    """A pool worker exits with its parent, and leaves Ctrl-C to it (the parent stops the pool
+    and reports what finished)."""
+    import signal
+
+    from odelab.run.lifeline import exit_with_parent
+
+    exit_with_parent(parent)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def run_cases(cases: Iterable, *, executor: str = "serial", jobs: int | None = None, scheduler: str | None = None,
+              max_steps: int | None = None, on_done: Callable[[int, int], None] | None = None,
+              backend: str | None = None, on_result: Callable[[object], None] | None = None,
+              limits=None, import_options=None) -> Iterator:
+    """Run ``cases``; returns an iterator of each one's :class:`CaseResult` (or :class:`CaseError`), in case order.
+
+    A process pool is started (its workers forked) before this returns; the cases run as the
+    iterator is consumed or, in a pool or on a cluster, straight away.
+
+    Parameters
+    ----------
+    executor
+        ``"serial"`` (this process), ``"process"`` (a pool of ``jobs`` forked processes) or
+        ``"dask"`` (a ``distributed`` cluster at ``scheduler``; without one, a local cluster
+        of ``jobs`` worker processes is started for the run).
+    on_result
+        Called with each case's result (or :class:`CaseError`) as soon as it finishes, before
+        ``on_done`` and before the iterator yields it in case order: the place to store it.
+    limits
+        The :class:`~odelab.experiment.limits.Limits` the cases' files were loaded with
+        (``--limit``): a Dask worker loads each file again, within the same budgets.
+    import_options
+        The :class:`~odelab.formats.ImportOptions` an imported file (MATLAB, Simulink) was read with:
+        a Dask worker reads it again with them.
+    """
+    cases = list(cases)
+    if executor not in EXECUTORS:
+        raise InputError(f"`executor` is {executor!r}; it must be one of {', '.join(EXECUTORS)}.", key="executor")
+    asked = jobs is not None
+    jobs = jobs or default_jobs()
+    if executor == "process" and (jobs < 2 or len(cases) < 2 or (not asked and small_work(cases))):
+        executor = "serial"
+    counts = [0, 0]
+
+    def done(item):
+        if on_result is not None:
+            on_result(item)
+        counts[0] += 1
+        counts[1] += _failed(item)
+        if on_done is not None:
+            on_done(counts[0], counts[1])
+
+    opts = {"max_steps": max_steps, **({"backend": backend} if backend is not None else {})}  # run_case's options
+    if executor == "serial":
+        return _run_serial(cases, opts, done)
+    if executor == "process":
+        return _run_pool(cases, jobs, opts, done)
+    return _run_dask(cases, jobs, scheduler, opts, done, limits, import_options)
+
+
+def _run_serial(cases, opts, done):
+    for case in cases:
+        item = _run_local(case, opts)
+        done(item)
+        yield item
+
+
+def _source(case) -> str:
+    """The case's file as an absolute path: a Dask worker may run in another folder."""
+    return os.path.abspath(str(case.source))
+
+
+def _submit_args(case, opts):
+    return (_source(case), case.file_hash, case.index, case.experiment, opts)
+
+
+def _run_pool(cases, jobs, opts, done):
+    import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    from odelab.experiment.loader import load_experiments  # noqa: F401  (imported before forking)
+    from odelab.run.runner import run_case  # noqa: F401
+
+    _seed(cases)
+    if any((opts.get("backend") or getattr(c.problem, "backend", "python")) != "python" for c in cases):
+        from odelab.solvers.compiled.cache import compiled_folder
+
+        try:  # checked once, here: the workers inherit the verdict (and a private cache, if one is needed)
+            compiled_folder()
+        except InputError:
+            pass  # each case says so
+        done = _with_notes(done)
+    # The workers are forked here, before the caller starts any thread (a progress bar's), so
+    # that no lock can be inherited held.
+    pool = ProcessPoolExecutor(max_workers=min(jobs, len(cases)), mp_context=multiprocessing.get_context("fork"),
+                               initializer=_init_worker, initargs=(os.getpid(),))
+    futures = [None] * len(cases)
+    for i in schedule(cases):
+        futures[i] = pool.submit(_run_remote, *_submit_args(cases[i], opts))
+
+    def results():
+        try:
+            yield from _in_order(cases, [(f, [i]) for i, f in enumerate(futures)], lambda f: [f.result()], done,
+                                 lambda pending: wait(pending, return_when=FIRST_COMPLETED)[0])
+        except BaseException:
+            _stop_pool(pool)
+            raise
+        pool.shutdown(wait=True)
+
+    return results()
+
+
+def _with_notes(done):
+    """``done``, adding this process's pending notes (odelab.cachedir) to the first case that
+    finishes: taken before forking, so that the workers do not each repeat them."""
+    from odelab.cachedir import take_notes
+
+    notes = take_notes()
+
+    def first_gets_notes(item):
+        if notes and not isinstance(item, CaseError):
+            item.warnings.extend(notes)
+            notes.clear()
+        done(item)
+
+    return first_gets_notes
+
+
+def _stop_pool(pool) -> None:
+    """Stop at once: cancel what has not started, end the workers running a case."""
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        proc.terminate()
+    # Wait for the pool's manager thread to see the workers gone, so that nothing is left for
+    # the interpreter's exit hooks (which would otherwise print a traceback).
+    pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _seed(cases) -> None:
+    """Put the cases' experiments in the cache that forked workers inherit."""
+    by_exp: dict[tuple[str, str, str], list] = {}
+    for case in cases:
+        by_exp.setdefault((_source(case), case.file_hash, case.experiment), []).append(case)
+    for key, members in by_exp.items():
+        table = [None] * (max(c.index for c in members) + 1)
+        for c in members:
+            table[c.index] = c
+        _LOADED[key] = tuple(table)
+
+
+def _in_order(cases, groups, result_of, done, wait_some):
+    """Yield results in case order while reporting each completion as it happens.
+
+    ``groups``: (future, case indices) pairs; ``result_of(future)`` is the list of those cases'
+    outcomes (a pool's future runs one case, a Dask task a batch of them).
+
+    If the wait is interrupted (Ctrl-C, SIGTERM), the cases that finished but could not be
+    yielded yet (a case before them is still running) travel on the exception, as its
+    ``finished`` list in case order, so that the caller can store them too.
+    """
+    members = {f: indices for f, indices in groups}
+    ready: dict[int, object] = {}
+    pending = set(members)
+    nxt = 0
+    try:
+        while nxt < len(cases):
+            for f in wait_some(pending):
+                pending.discard(f)
+                for i, outcome in zip(members[f], result_of(f)):
+                    ready[i] = _attach(cases[i], outcome)
+                    done(ready[i])
+            while nxt in ready:
+                yield ready.pop(nxt)
+                nxt += 1
+    except BaseException as exc:
+        for f in pending:  # finished while we were interrupted
+            try:
+                if f.done():
+                    for i, outcome in zip(members[f], result_of(f)):
+                        if i not in ready:
+                            ready[i] = _attach(cases[i], outcome)
+            except BaseException:  # cancelled, failed or lost with its worker: not finished
+                pass
+        exc.finished = [ready[i] for i in sorted(ready)]
+        raise
+
+
+def _run_dask(cases, jobs, scheduler, opts, done, limits=None, import_options=None):
+    try:
+        from distributed import Client, LocalCluster, wait
+    except ImportError:
+        raise InputError("`--executor dask` needs Dask's distributed package: pip install 'odelab[dask]'.",
+                         key="executor") from None
+    _seed(cases)  # an in-process worker finds them here; others load the files
+    return _dask_results(cases, jobs, scheduler, opts, done, Client, LocalCluster, wait, limits, import_options)
+
+
+#: How long to wait for a Dask scheduler to answer, and for it to have a worker.
+DASK_CONNECT_SECONDS = 10.0
+DASK_WORKERS_SECONDS = 30.0
+
+
+#: A Dask task runs a batch of consecutive cases (in :func:`schedule`'s order) of at most this
+#: many, and there are at least :data:`DASK_TASKS_PER_WORKER` tasks per worker thread: the
+#: scheduler's and the client's bookkeeping cost about a millisecond a task, as much as a small
+#: case, so one task per case spends a core on bookkeeping; a few tasks per thread keep the
+#: workers evenly busy to the end.
+DASK_BATCH = 64
+DASK_TASKS_PER_WORKER = 8
+
+
+def dask_batches(order: list[int], threads: int) -> list[list[int]]:
+    """``order`` cut into consecutive batches for ``threads`` worker threads (see :data:`DASK_BATCH`)."""
+    size = max(1, min(DASK_BATCH, len(order) // max(1, threads * DASK_TASKS_PER_WORKER)))
+    return [order[k:k + size] for k in range(0, len(order), size)]
+
+
+def _run_batch(items: list, opts: dict, limits=None, import_options=None) -> list:
+    """In a Dask worker: :func:`_run_remote` for each case of a batch, in order."""
+    return [_run_remote(*item, opts, limits, import_options) for item in items]
+
+
+def _dask_results(cases, jobs, scheduler, opts, done, Client, LocalCluster, wait, limits=None, import_options=None):
+    cluster = None
+    if scheduler:
+        client = _dask_client(scheduler, Client)
+    else:
+        cluster, client = _local_cluster(jobs, Client, LocalCluster)
+    futures: list = []
+    try:
+        threads = sum(client.nthreads().values()) or jobs
+        groups = []
+        batches = dask_batches(schedule(cases), threads)
+        for rank, batch in enumerate(batches):  # the scheduler runs higher priorities first
+            items = [_submit_args(cases[i], opts)[:4] for i in batch]
+            future = client.submit(_run_batch, items, opts, limits, import_options, pure=False,
+                                   priority=len(batches) - rank)
+            futures.append(future)
+            groups.append((future, batch))
+        yield from _in_order(cases, groups, lambda f: f.result(), done,
+                             lambda pending: wait(list(pending), return_when="FIRST_COMPLETED").done)
+    except BaseException:
+        client.cancel(futures)
+        raise
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _dask_client(scheduler: str, Client):
+    """A client of the scheduler at ``scheduler`` that has at least one worker, or an InputError
+    within :data:`DASK_CONNECT_SECONDS` + :data:`DASK_WORKERS_SECONDS`.
+
+    distributed's own connect timeout does not cover the handshake: an address that accepts
+    the connection and never answers would hang it for ever. So the handshake is tried first,
+    under a deadline of our own.
+    """
+    import asyncio
+    import threading
+
+    where = f"the Dask scheduler at {scheduler!r}"
+    fix = "Check the address (tcp://host:8786) and that `dask scheduler` is running there."
+
+    async def handshake():
+        from distributed.comm import connect
+
+        comm = await asyncio.wait_for(connect(scheduler, timeout=DASK_CONNECT_SECONDS), DASK_CONNECT_SECONDS)
+        await comm.close()
+
+    def probe():  # in a thread of its own: the caller may already run an event loop (Jupyter)
+        try:
+            asyncio.run(handshake())
+        except BaseException as exc:  # noqa: BLE001 - handed to the caller
+            failed.append(exc)
+
+    failed: list[BaseException] = []
+    thread = threading.Thread(target=probe, name="odelab-dask-probe", daemon=True)
+    thread.start()
+    thread.join()
+    try:
+        if failed:
+            raise failed[0]
+        client = Client(scheduler, timeout=DASK_CONNECT_SECONDS)
+    except (OSError, TimeoutError, asyncio.TimeoutError, ValueError, TypeError) as exc:
+        why = str(exc) or f"no answer within {DASK_CONNECT_SECONDS:g} s"
+        raise InputError(f"cannot reach {where}: {why}. {fix}", key="scheduler") from None
+    try:
+        client.wait_for_workers(1, timeout=DASK_WORKERS_SECONDS)
+    except (OSError, TimeoutError, asyncio.TimeoutError) as exc:
+        client.close()
+        raise InputError(f"{where} has no workers (none joined within {DASK_WORKERS_SECONDS:g} s): start some "
+                         f"with `dask worker {scheduler}`, or leave out --scheduler for a local cluster.",
+                         key="scheduler") from None
+    return client
+
+
+def _local_cluster(jobs: int, Client, LocalCluster):
+    """A local cluster of ``jobs`` worker processes that die with this process, and its client."""
+    from odelab.run.lifeline import exit_with_parent
+
+    import logging
+
+    spec_log = logging.getLogger("distributed.deploy.spec")  # "Cluster closed without starting up"
+    level = spec_log.level
+    spec_log.setLevel(logging.ERROR)
+    try:
+        cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None)
+    except Exception as exc:  # noqa: BLE001 - distributed wraps whatever stopped it in a RuntimeError
+        cause = exc.__cause__ or exc
+        raise InputError(f"could not start a local Dask cluster: {cause}. Its workers need a folder they can "
+                         "create: point DASK_TEMPORARY_DIRECTORY (or TMPDIR) at a folder you can write, or run "
+                         "with --executor process.", key="executor") from None
+    finally:
+        spec_log.setLevel(level)
+    client = Client(cluster)
+    try:  # the workers are children of this process (their nannies run here)
+        client.run(exit_with_parent, os.getpid())
+    except BaseException:
+        client.close()
+        cluster.close()
+        raise
+    return cluster, client

@@ -1,0 +1,246 @@
+"""Running a case: solve, compute its reference, and measure the errors."""
+
+from __future__ import annotations
+
+import copy
+import time
+
+import numpy as np
+
+from odelab.analysis.errors import summarize
+from odelab.experiment.cases import Case, LoadedExperiment
+from odelab.experiment.loader import load_experiment
+from odelab.store.result import CaseResult, Integration
+from odelab.solution import Stats
+
+__all__ = ["CaseResult", "run_case", "run_experiment"]
+
+
+def _integrate(problem, tspan, method, options, backend="python") -> Integration:
+    """Solve (no inputs) or simulate (inputs, restarting at their discontinuities), a hybrid diagram or a run
+    with [events]: one :class:`~odelab.store.result.Integration` whichever ran (its ``backend``: the engine,
+    "python" or "compiled", see :mod:`odelab.run.backend`). A failed integration is reported in the
+    case's result, so the solvers' SolverWarning is not repeated here.
+    """
+    import warnings
+
+    from odelab.exceptions import SolverWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SolverWarning)
+        if problem.diagram is not None and problem.diagram.hybrid:
+            from odelab.run.backend import run_hybrid
+
+            return run_hybrid(problem, tspan, method, options, backend)
+        if problem.events is not None:
+            from odelab.run.backend import solve_events_problem
+
+            (t, x, stats, status, message, warns, events, marks), ran = solve_events_problem(
+                problem, tspan, method, options, backend)
+            return Integration(t, x, None, stats, status, message, warns, events, marks, ran)
+        return _integrate_quietly(problem, tspan, method, options, backend)
+
+
+def _integrate_quietly(problem, tspan, method, options, backend="python"):
+    if problem.signals:
+        from odelab.run.backend import simulate_problem
+
+        r, ran = simulate_problem(problem, tspan, method, options, backend)
+        return Integration(r.t, r.x, r.u, r.stats, r.status, r.message, (), backend=ran)
+    from odelab.exceptions import InputError
+    from odelab.run.backend import solve_problem
+
+    try:
+        sol, ran = solve_problem(problem, tspan, method, options, backend)
+    except InputError as exc:
+        if exc.key != "fun":
+            raise
+        # The user's function returned something unusable (wrong shape, complex): a failed
+        # case with the reason, like any other fault of the right-hand side.
+        message = f"{method} could not start: {exc.message.replace('`fun`', 'the system function')}"
+        return Integration(tspan[:1].copy(), problem.x0.reshape(1, -1), None, Stats(0, 0, 1), "failed", message)
+    return Integration(sol.t, sol.y, None, sol.stats, sol.status, sol.message, sol.warnings, backend=ran)
+
+
+def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = None) -> CaseResult:
+    """Run one case and compute its error table (never raises for a failed integration).
+
+    ``backend`` ("auto", "python", "compiled") overrides the case's ``[solver] backend``.
+    """
+    p = case.problem
+    if p.linearize is not None:
+        from odelab.run.linearization import run_linearization_case
+
+        return run_linearization_case(case, max_steps=max_steps)
+    options = dict(p.options)
+    capped = False
+    if max_steps and "h" not in options:
+        from odelab.experiment.limits import capped_max_steps
+
+        options["max_steps"], capped = capped_max_steps(options.get("max_steps"), max_steps)
+    start = time.perf_counter()
+    run = _integrate(p, p.tspan, p.method, options, backend or p.backend)
+    t, x, u, stats, status, message, warnings = run.t, run.x, run.u, run.stats, run.status, run.message, run.warnings
+    elapsed = time.perf_counter() - start
+    if (status != "success" and max_steps and ("max_steps" not in p.options or capped) and "h" not in p.options
+            and stats.nsteps >= max_steps):
+        asked = p.options.get("max_steps")
+        why = (f" ([solver] asks max_steps = {asked:,}{' (no limit)' if asked == 0 else ''}, but a file cannot lift "
+               "the budget of whoever runs it)" if capped else "")
+        message += (f" It was odelab run's step budget that stopped it (--max-steps, {max_steps} steps){why}: lift "
+                    f"it with --max-steps {10 * max_steps if not capped or not asked else asked} (or --max-steps 0 "
+                    "for no limit).")
+    if u is None and p.input_fn is not None:
+        u = p.input_fn(t)
+    y = p.output_fn(t, x, u) if p.output_fn is not None else None
+    from odelab.cachedir import take_notes
+
+    # a cache that could not be used or an entry compiled again (odelab.cachedir): said once, with this case
+    warnings = [*warnings, *take_notes()]
+    from odelab.expressions.functions import shadowing_note
+
+    warnings += shadowing_note(p.parameters)  # "parameter e shadows the constant e (2.718...)"
+    result = CaseResult(case=case, status=status, message=message, stats=stats, elapsed=elapsed, t=t, x=x, u=u,
+                        y=y, warnings=list(warnings), events=run.events, event_marks=run.marks, backend=run.backend)
+    result.record_input_jumps()
+    if p.fit is not None:  # the experiment's [fit], estimated before its cases ran (experiment/fit.py)
+        result.extra["fit"] = p.fit
+    _reference(result, max_steps)
+    if status == "success" and case.config.get("expect") in ("max-steps", "failure"):
+        result.warnings.append(f"the file expects this case to stop (expect = {case.config['expect']!r}), but it "
+                               "reached the end of its span: remove `expect` if that is now right.")
+    if p.diagram is not None:
+        result.extra["diagram"] = diagram_record(p)
+        result.warnings.extend(n for n in p.diagram.notes if n not in result.warnings)
+    if getattr(p, "network", None) is not None:  # kind = "network": its drawing and derivation
+        from odelab.experiment.kinds.network import network_record
+
+        result.extra["network"] = network_record(p)
+    if p.analysis is not None:
+        from odelab.exceptions import InputError
+
+        try:
+            result.extra["analysis"] = analyze_problem(p)
+        except InputError as exc:  # e.g. no equilibrium to linearise about
+            result.warnings.append(f"[analysis] could not be computed: {exc.message}")
+    return result
+
+
+def diagram_record(p) -> dict:
+    """What the report needs of a diagram: its drawing (DOT) and, if linear, its A, B, C, D."""
+    from odelab.systems.diagram.draw import to_dot
+
+    d = p.diagram
+    record = {"linear": d.linear, "dot": to_dot(d.wiring), "states": list(d.states), "inputs": list(d.inputs),
+              "outputs": list(d.outputs)}
+    if d.linear and d.outputs:
+        record.update(zip("ABCD", (M.tolist() for M in d.matrices())))
+    return record
+
+
+def analyze_problem(p) -> dict:
+    """The [analysis] of a case's system: its own matrices if linear, else its linear model about
+    the equilibrium for the operating input (exact Jacobians)."""
+    from odelab.analysis.control import analyze
+    from odelab.systems.statespace import StateSpace
+
+    key = None if not isinstance(p.system, StateSpace) else (
+        p.system.A.tobytes(), p.system.B.tobytes(), p.system.C.tobytes(), p.system.D.tobytes(), p.system.A.shape,
+        p.system.B.shape, p.system.C.shape, p.system.states, p.system.inputs, p.system.outputs, repr(p.analysis))
+    if key is not None and key in _ANALYSES:  # the cases of an experiment usually share their system
+        return copy.deepcopy(_ANALYSES[key])
+    system, point = p.system, None
+    if not isinstance(system, StateSpace):
+        from odelab.analysis.linearize import linearize
+
+        system = linearize(system, u0=p.analysis["input"])
+        op = system.operating_point
+        point = {"x": dict(zip(op.states, op.x.tolist())), "u": dict(zip(op.inputs, op.u.tolist())),
+                 "residual": op.residual}
+    spec = p.analysis
+    info = analyze(system, step_info=spec["step_info"], bode_range=spec["bode"], show_poles=spec["poles"],
+                   linearized_at=point, with_margins=p.diagram is None)
+    if spec.get("loop"):
+        from odelab.analysis.control import loop_analysis
+
+        op = getattr(system, "operating_point", None)
+        x0 = op.x if op is not None else np.zeros(len(p.states))
+        u0 = op.u if op is not None else np.zeros(len(p.inputs))
+        info["loop"] = loop_analysis(p.diagram.open_loop(spec["loop"]), x0, u0, spec["loop"], spec["bode"])
+    if key is not None:
+        if len(_ANALYSES) > 64:
+            _ANALYSES.clear()
+        _ANALYSES[key] = copy.deepcopy(info)
+    return info
+
+
+_ANALYSES: dict = {}
+
+
+def _reference(result: CaseResult, max_steps: int | None = None) -> None:
+    p = result.case.problem
+    t = result.t
+    kind = p.reference
+    ref: dict[str, np.ndarray] = {}
+    if kind == "data":
+        from odelab.experiment.data import data_reference
+
+        data_reference(result, _integrate)
+        return
+    if kind == "none" or t.size < 2:
+        return
+    if kind == "exact":
+        ref = p.exact_fn(t)
+    elif kind == "lti" and np.all(np.diff(t) > 0):
+        from odelab.analysis.lti import lti_response
+
+        xr, yr = lti_response(p.system, t, p.x0, u=list(p.signals) if p.signals else None)
+        ref = {name: xr[:, i] for i, name in enumerate(p.states)}
+        ref.update({name: yr[:, i] for i, name in enumerate(p.outputs)})
+    else:
+        if kind == "lti":
+            result.warnings.append("exact LTI reference needs increasing time; used a high-accuracy one instead")
+            kind = "high-accuracy"
+        solver, rtol, atol = p.reference_solver
+        from odelab.run.reference import can_share, shared_reference
+
+        if can_share(p):  # one stiff-aware, bounded solve shared by the problem's cases
+            shared = shared_reference(result.case, max_steps)
+            if shared.status != "success":
+                result.warnings.append(f"the high-accuracy reference ({shared.solver}, rtol {rtol:g}) failed: "
+                                       f"{shared.message}")
+                return
+            if shared.note:
+                result.warnings.append(f"reference: {shared.note}")
+            rt, rx, ru = t, shared.values(t), None
+        else:
+            options = {"rtol": rtol, "atol": atol, **({"max_steps": max_steps} if max_steps else {})}
+            solver = "DOP853" if solver == "auto" else solver
+            ran = _integrate(p, t, solver, options)
+            rt, rx, ru = ran.t, ran.x, ran.u
+            if ran.status != "success" or rt.size != t.size:
+                result.warnings.append(f"the high-accuracy reference ({solver}, rtol {rtol:g}) failed: {ran.message}")
+                return
+        ref = {name: rx[:, i] for i, name in enumerate(p.states)}
+        if p.output_fn is not None:
+            if ru is None and p.input_fn is not None:
+                ru = p.input_fn(rt)
+            ry = p.output_fn(rt, rx, ru)
+            ref.update({name: ry[:, i] for i, name in enumerate(p.outputs)})
+    result.reference_kind = kind
+    series = result.series()
+    for name, values in ref.items():
+        result.reference[name] = np.asarray(values, dtype=float)
+        result.errors[name] = summarize(name, t, series[name], result.reference[name])
+    undefined = [f"{n} ({e.undefined})" for n, e in result.errors.items() if e.undefined]
+    if undefined:
+        result.warnings.append(
+            "relative error undefined where the reference is zero or tiny, at the number of points shown: "
+            + ", ".join(undefined) + "; left out of the maximum")
+
+
+def run_experiment(path_or_experiment, *, max_steps: int | None = None, backend: str | None = None
+                   ) -> list[CaseResult]:
+    """Load (if given a path) and run every case of an experiment."""
+    exp = path_or_experiment if isinstance(path_or_experiment, LoadedExperiment) else load_experiment(path_or_experiment)
+    return [run_case(case, max_steps=max_steps, backend=backend) for case in exp.cases]
