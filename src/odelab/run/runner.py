@@ -28,6 +28,10 @@ def _integrate(problem, tspan, method, options, backend="python") -> Integration
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SolverWarning)
+        if problem.diagram is not None and not problem.diagram.states:
+            from odelab.run.backend import run_stateless
+
+            return run_stateless(problem, tspan, options)
         if problem.diagram is not None and problem.diagram.hybrid:
             from odelab.run.backend import run_hybrid
 
