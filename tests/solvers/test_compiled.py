@@ -500,3 +500,32 @@ def test_both_event_locators_take_odezeros_rule(rule, args, want):
 
     assert getattr(odezero, rule)(*args) == want
     assert getattr(load_kernels(), rule)(*args) == want
+
+
+def test_min_and_max_of_600_arguments_compile_flat_and_give_the_python_values(tmp_path):
+    # issue 41: folded left to right in nested calls, 600 arguments nested 599 deep and Python's compiler stopped
+    # with "too many nested parentheses" (a traceback). Past 8 arguments they are one tuple, folded
+    # in a loop in the same order: the leftmost extreme (a tie keeps the left one), NaN if any is NaN.
+    args = ",".join(["x", "y", "-x", "2*y", "x/2", "-y"] * 100)  # 600 arguments, ties among them
+    (tmp_path / "many.toml").write_text(
+        f'[system]\nstates = ["x", "y"]\n[system.equations]\nx = "-max({args})"\ny = "min({args}) - y"\n'
+        '[initial]\nx = 1\ny = -0.5\n[time]\nstop = 2\n[solver]\nmethod = "ode45"\n', encoding="utf-8")
+    case = load_experiment(tmp_path / "many.toml").cases[0]
+    source = case.problem.compiled.source()
+    depth = deepest = 0
+    for ch in source:
+        depth += ch == "("
+        depth -= ch == ")"
+        deepest = max(deepest, depth)
+    assert deepest <= 16, deepest
+    python, compiled = run_case(case, backend="python"), run_case(case, backend="compiled")
+    assert compiled.backend == "compiled" and compiled.stats == python.stats
+    np.testing.assert_array_equal(compiled.x, python.x)
+    module = case.problem.compiled.module()
+    for x, y in [(0.0, -0.0), (-0.0, 0.0), (np.nan, 1.0), (1.0, np.nan), (2.0, 2.0)]:
+        out = np.empty(2)
+        module.rhs(0.0, np.array([x, y]), case.problem.compiled.parameter_vector(), out)
+        F = compile_vector([f"-max({args})", f"min({args}) - y"], args=["t", "x", "y"])
+        expected = F(0.0, x, y)
+        np.testing.assert_array_equal(out, expected)
+        assert np.array_equal(np.signbit(out), np.signbit(expected))

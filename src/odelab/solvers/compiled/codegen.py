@@ -90,6 +90,22 @@ def _max(a, b):
     return a if a >= b else b
 
 
+@_njit(cache=True, error_model="numpy")
+def _minn(args):
+    out = args[0]
+    for i in range(1, len(args)):
+        out = _min(out, args[i])
+    return out
+
+
+@_njit(cache=True, error_model="numpy")
+def _maxn(args):
+    out = args[0]
+    for i in range(1, len(args)):
+        out = _max(out, args[i])
+    return out
+
+
 @_njit(cache=True, error_model="numpy", inline="always")
 def _mod(a, m):
     return a if m == 0.0 else _np.mod(a, m)
@@ -120,6 +136,25 @@ def _number(value: float) -> str:
     if math.isinf(value):
         return "_INF" if value > 0 else "(-_INF)"
     return repr(float(value))
+
+
+NESTED_MAX = 8  # min/max of more arguments take them as one tuple (see fold)
+
+
+def fold(helper: str, parts: list[str], cast: str = "") -> str:
+    """``min``/``max`` of several arguments, left to right as numpy's reduction: nested pairs for a
+    few, and for more than :data:`NESTED_MAX` one call of the ``n``-ary helper on a tuple
+    (``_maxn((a, b, ...))``), which folds them in a loop. Nested, 600 arguments made 599 calls
+    deep, past what Python's compiler takes ("too many nested parentheses"), and inlined they
+    took numba minutes to compile (a balanced tree of 600 inlined calls: 350 s; the tuple: 8 s).
+    ``cast`` wraps each argument (``complex``: the complex-step helpers take one type)."""
+    if len(parts) > NESTED_MAX:
+        items = ", ".join(f"{cast}({p})" if cast else p for p in parts)
+        return f"{helper}n(({items},))"
+    text = parts[0]
+    for part in parts[1:]:
+        text = f"{helper}({text}, {part})"
+    return text
 
 
 def _node(node: ast.AST, parts: list[str], rename: dict[str, str] | None = None,
@@ -153,11 +188,8 @@ def _node(node: ast.AST, parts: list[str], rename: dict[str, str] | None = None,
         if name in _NUMPY:
             return f"_np.{_NUMPY[name]}({', '.join(parts)})"
         helper = _HELPERS[name]
-        if name in ("min", "max"):  # variadic: nested pairs, left to right as numpy's reduction
-            text = parts[0]
-            for part in parts[1:]:
-                text = f"{helper}({text}, {part})"
-            return text
+        if name in ("min", "max"):
+            return fold(helper, parts)
         return f"{helper}({', '.join(parts)})"
     raise AssertionError(f"unvalidated node {type(node).__name__}")  # pragma: no cover
 
@@ -305,6 +337,22 @@ def _cs_max(a, b):
     return complex(b) if (b.real != b.real or b.real > a.real) else complex(a)
 
 
+@_njit(cache=True, error_model="numpy")
+def _cs_minn(args):
+    out = args[0]
+    for i in range(1, len(args)):
+        out = _cs_min(out, args[i])
+    return out
+
+
+@_njit(cache=True, error_model="numpy")
+def _cs_maxn(args):
+    out = args[0]
+    for i in range(1, len(args)):
+        out = _cs_max(out, args[i])
+    return out
+
+
 @_njit(cache=True, error_model="numpy", inline="always")
 def _cs_where(c, a, b):
     return complex(a) if c.real != 0.0 else complex(b)
@@ -399,10 +447,7 @@ def _cs_node(node: ast.AST, parts: list[tuple[str, bool]], perturbed: frozenset[
             return f"{_ON_REAL_PART[name]}({', '.join(f'({t}).real' for t in texts)})", False
         helper = _CS_HELPERS[name]
         if name in ("min", "max"):
-            text = texts[0]
-            for part in texts[1:]:
-                text = f"{helper}({text}, {part})"
-            return text, True
+            return fold(helper, texts, cast="complex"), True
         return f"{helper}({', '.join(texts)})", True
     raise AssertionError(f"unvalidated node {type(node).__name__}")  # pragma: no cover
 
