@@ -259,29 +259,41 @@ _MAYBE = "number or null"
 _NAMES = [str]
 _MATRIX = [[_NUM]]
 _COMPLEX = {"re": _NUM, "im": _NUM}
+
+
+class Optional:
+    """A key of a table shape that odelab does not always write (every other listed key must be there:
+    the report reads it without asking)."""
+
+    def __init__(self, shape) -> None:
+        self.shape = shape
+
+
 _EXTRA_SHAPES = {
     "input_jumps": {"t": [_NUM], "before": [[_NUM]], "after": [[_NUM]]},
-    "diagram": {"linear": bool, "dot": str, "states": _NAMES, "inputs": _NAMES, "outputs": _NAMES, "A": _MATRIX,
-                "B": _MATRIX, "C": _MATRIX, "D": _MATRIX},
+    "diagram": {"linear": bool, "dot": str, "states": _NAMES, "inputs": _NAMES, "outputs": _NAMES,
+                "A": Optional(_MATRIX), "B": Optional(_MATRIX), "C": Optional(_MATRIX), "D": Optional(_MATRIX)},
     "analysis": {
         "states": _NAMES, "inputs": _NAMES, "outputs": _NAMES, "A": _MATRIX, "B": _MATRIX, "C": _MATRIX,
         "D": _MATRIX,
-        "operating_point": {"x": {str: _NUM}, "u": {str: _NUM}, "residual": _MAYBE},
+        "operating_point": Optional({"x": {str: _NUM}, "u": {str: _NUM}, "residual": _MAYBE}),
         "transfer_functions": [{"output": str, "input": str, "num": [_NUM], "den": [_NUM], "text": _NAMES,
                                 "dc_gain": _MAYBE}],
-        "poles": [{"re": _NUM, "im": _NUM, "wn": _MAYBE, "zeta": _MAYBE}],
-        "zeros": {str: [_COMPLEX]},
-        "step_info": [{"output": str, "input": str, str: _MAYBE}],
-        "margins": [{"output": str, "input": str, str: _MAYBE}],
-        "bode": {"w": [_NUM], "channels": [{"output": str, "input": str, "magnitude_db": [_MAYBE],
-                                            "phase_deg": [_MAYBE]}]},
-        "loop": {"at": str, "num": [_NUM], "den": [_NUM], "text": _NAMES, "bode": {"w": [_NUM],
-                 "magnitude_db": [_MAYBE], "phase_deg": [_MAYBE]}, str: _MAYBE},
+        "poles": Optional([{"re": _NUM, "im": _NUM, "wn": _MAYBE, "zeta": _MAYBE}]),
+        "zeros": Optional({str: [_COMPLEX]}),
+        "step_info": Optional([{"output": str, "input": str, str: _MAYBE}]),
+        "margins": Optional([{"output": str, "input": str, str: _MAYBE}]),
+        "bode": Optional({"w": [_NUM], "channels": [{"output": str, "input": str, "magnitude_db": [_MAYBE],
+                                                     "phase_deg": [_MAYBE]}]}),
+        "loop": Optional({"at": str, "num": [_NUM], "den": [_NUM], "text": _NAMES,
+                          "bode": {"w": [_NUM], "magnitude_db": [_MAYBE], "phase_deg": [_MAYBE]}, str: _MAYBE}),
     },
 }
 
 
 def _check_shape(value, shape, where: str) -> None:
+    if isinstance(shape, Optional):
+        shape = shape.shape
     if shape == _NUM or shape == _MAYBE:
         if not (_is_number(value) or (shape == _MAYBE and value is None)):
             raise ValueError(f"`{where}` must be a number; got {value!r:.40}")
@@ -296,6 +308,9 @@ def _check_shape(value, shape, where: str) -> None:
     elif isinstance(shape, dict):
         if not isinstance(value, dict):
             raise ValueError(f"`{where}` must be a table; got {type(value).__name__}")
+        missing = [k for k, s in shape.items() if k is not str and not isinstance(s, Optional) and k not in value]
+        if missing:
+            raise ValueError(f"`{where}` has no `{missing[0]}`, which odelab always writes")
         rest = shape.get(str)
         for key, item in value.items():
             if key in shape:
