@@ -21,7 +21,9 @@ _LAZY = {
     "odextend": "odelab.solvers.api",
     "OdelabWarning": "odelab.exceptions",
     "SolverWarning": "odelab.exceptions",
-    **{name: "odelab.solvers.suite" for name in ("ode15s", "ode23s", "ode23t", "ode23tb", "ode113", "ode78", "ode89")},
+    **{name: "odelab.solvers.suite" for name in ("ode15s", "ode23s", "ode23t", "ode23tb", "ode113", "ode78", "ode89",
+                                                 "ode15i")},
+    "decic": "odelab.solvers.implicit.decic",
     "METHODS": "odelab.solvers.registry",
     "Solution": "odelab.solution",
     "Stats": "odelab.solution",
@@ -84,7 +86,8 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from odelab.solvers.api import ode23, ode45, odextend, solve
     from odelab.solvers.dde23 import dde23
     from odelab.solvers.registry import METHODS
-    from odelab.solvers.suite import ode15s, ode23s, ode23t, ode23tb, ode113, ode78, ode89
+    from odelab.solvers.implicit.decic import decic
+    from odelab.solvers.suite import ode15i, ode15s, ode23s, ode23t, ode23tb, ode113, ode78, ode89
     from odelab.systems.nonlinear import NonlinearSystem
     from odelab.systems.simulate import Response, simulate
     from odelab.systems.statespace import StateSpace

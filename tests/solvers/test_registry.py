@@ -25,7 +25,7 @@ def test_every_matlab_name_runs_as_method_and_function(name):
 
 
 @pytest.mark.parametrize("typed, meant", [
-    ("ode15", "ode15s"), ("ODE15", "ode15s"), ("ode15i", "ode15s"), ("ode113s", "ode113"), ("ode23st", "ode23s"),
+    ("ode15", "ode15s"), ("ODE15", "ode15s"), ("ode113s", "ode113"), ("ode23st", "ode23s"),
     ("ode46", "ode45"), ("trbdf2", "ode23tb"), ("rosenbrock", "ode23s"), ("ode87", "ode78"),
 ])
 def test_did_you_mean_knows_the_suite(typed, meant):

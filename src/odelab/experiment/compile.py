@@ -55,14 +55,24 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
     states, inputs, outputs = built.states, built.inputs, built.outputs
     resolved["system"] = dict(built.resolved)
 
-    # initial state (a diagram's blocks carry theirs; [initial] may override some)
-    check_keys(model.initial, states, "initial", "states", require_all=built.x0 is None)
-    x0 = np.array([constant(model.initial[s], f"initial.{s}", params) if s in model.initial else built.x0[i]
+    # initial state (a diagram's blocks carry theirs; [initial] may override some; an implicit
+    # system's also guesses der() values and says what decic may not change: experiment/kinds/implicit.py)
+    from odelab.experiment.kinds.implicit import consistent_start, is_implicit_system, split_initial
+
+    implicit = is_implicit_system(built)
+    initial, slopes, fixed = split_initial(model.initial, states, implicit)
+    check_keys(initial, states, "initial", "states", require_all=built.x0 is None)
+    x0 = np.array([constant(initial[s], f"initial.{s}", params) if s in initial else built.x0[i]
                    for i, s in enumerate(states)], dtype=float)
     resolved["initial"] = {s: float(v) for s, v in zip(states, x0)}
     tspan, resolved["time"] = _case_tspan(model, params, params_key, limits, shared)
     signals, input_fn = _case_inputs(model, built, path, tspan, limits, resolved)
     method, options, backend = _case_solver(model, built, params, tspan, limits, resolved)
+    if implicit:  # decic: consistent x0 and x'0 at load time, or the file's keys to change
+        from dataclasses import replace
+
+        x0, fun, _ = consistent_start(model, built, x0, slopes, fixed, params, float(tspan[0]), options, resolved)
+        built = replace(built, fun=fun)
     events = _case_events(model, method, inputs, states, params, limits, resolved)
     data = _case_data(model, events, path, states, outputs, tspan, resolved)
     fast = built.compiled  # the compiled backend's system, its inputs driven by the signals
@@ -104,16 +114,9 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
         options=options, output_fn=built.output_fn, input_fn=input_fn, exact_fn=exact_fn, reference=kind,
         reference_solver=(ref.solver, float(ref.rtol), float(ref.atol)), system=built.system, signals=signals,
         linearize=model.linearize, parameters=params, diagram=built.diagram, events=events, backend=backend,
-        compiled=fast, analysis=analysis, data=data, network=built.network, fmu=_bound_fmu(built.fmu, signals),
+        compiled=fast, analysis=analysis, data=data, network=built.network,
     )
     return problem, resolved
-
-
-def _bound_fmu(run, signals):
-    """An FMU case's run with its inputs' signals bound (kind = "fmu")."""
-    if run is not None:
-        run.signals = tuple(signals)  # built for this case alone: its output_fn reads this run
-    return run
 
 
 def _build_system(model: schema.Experiment, path: Path, params: dict, params_key: tuple, limits: Limits,
@@ -133,12 +136,20 @@ def _build_system(model: schema.Experiment, path: Path, params: dict, params_key
         # name the missing initial values first (that is the file's mistake), then the budget
         check_keys(model.initial, tuple(system.states), "initial", "states", require_all=True)
         check_count("states", len(system.states), "system.states", "states", limits)
+    if system.residuals is not None and system.kind != "implicit":
+        raise ExperimentError("[system.residuals] (F = 0 with der(x) for x') is given but the system is not implicit: "
+                              "add kind = \"implicit\" under [system] (solved by ode15i), or write "
+                              "[system.equations] for x' = f(t, x).", key="system.residuals")
     if share is not None and share in shared:
         built = shared[share][1]
     elif system.kind == "state-space":
         from odelab.experiment.build import build_state_space
 
         built = build_state_space(model, params)
+    elif system.kind == "implicit":
+        from odelab.experiment.kinds.implicit import build_implicit
+
+        built = build_implicit(model, params)
     elif system.kind == "diagram":
         from odelab.experiment.kinds.diagram import build_diagram
 
@@ -148,13 +159,6 @@ def _build_system(model: schema.Experiment, path: Path, params: dict, params_key
         from odelab.experiment.kinds.network import build_network
 
         built = build_network(model, params)
-    elif system.kind == "fmu":
-        from odelab.experiment.kinds.fmu import build_fmu
-
-        built = build_fmu(model, params, path, limits)
-    elif system.file is not None or system.interface is not None:
-        key = "system.file" if system.file is not None else "system.interface"
-        raise ExperimentError(f"`{key}` is for an FMU: add kind = \"fmu\" under [system], or remove it.", key=key)
     elif model.elements is not None:
         raise ExperimentError("[elements] is given but the system is not a network: add kind = \"network\" under "
                               "[system].", key="elements")
@@ -221,8 +225,10 @@ def _case_solver(model: schema.Experiment, built, params: dict, tspan: np.ndarra
     from odelab.experiment.kinds.delays import check_delay_method, method_name
     from odelab.solvers.options import as_tspan, normalize_options, resolve_options
 
+    from odelab.experiment.kinds.implicit import implicit_method_name
+
     states = built.states
-    method = get_method(method_name(model, built), key="solver.method")
+    method = get_method(implicit_method_name(model, built, method_name(model, built)), key="solver.method")
     check_delay_method(model, built, method)  # lag(...) runs with dde23 only (experiment/delays.py)
     options = {k: v for k, v in model.solver.model_dump().items()
                if k not in ("method", "backend", "zero_crossing") and v is not None}
@@ -300,6 +306,9 @@ def _case_reference(model: schema.Experiment, built, method, signals, events, da
         kind = "data"  # measurements are the reference of every case
     if kind == "auto":
         kind = "exact" if exact_fn else ("lti" if built.linear and _all_exact(signals) and events is None else "none")
+    from odelab.experiment.kinds.implicit import check_implicit_case
+
+    check_implicit_case(model, built, method, kind)  # ode15i and implicit systems only together
     if kind == "exact" and exact_fn is None:
         raise ExperimentError("`reference.method` is \"exact\" but the file has no [exact] section: add one, "
                               "or use \"high-accuracy\".", key="reference.method")

@@ -49,21 +49,22 @@ NOTES: dict[str, str] = {
     "parameters.<name>": "A number, or an expression of other parameters.",
     "system": "What is integrated: equations, a state-space model, a block diagram or a Python function.",
     "system.kind": "The kind of system: `ode` (states and [system.equations]), `state-space` (A, B, C, D), "
-                   "`diagram` ([blocks]), `network` ([elements]: odelab derives the equations), `fmu` (an FMU "
-                   "through FMPy: `file`).",
+                   "`diagram` ([blocks]), `network` ([elements]: odelab derives the equations), `implicit` "
+                   "([system.residuals]: F(t, x, x') = 0, solved by ode15i).",
     "system.states": "The state names, in order (the order of y in MATLAB).",
     "system.equations": "d(state)/dt for each state, in the expression language.",
     "system.equations.<name>": "The right-hand side of d(<name>)/dt: an expression of t, the states, the inputs "
                                "and the parameters; `lag(x, tau)` is the state x at t - tau (a delay equation, "
                                "solved by dde23; see docs/delays.md).",
+    "system.residuals": "kind = \"implicit\": one residual per state, each an expression that is zero on the "
+                        "solution, F(t, x, x') = 0, with der(x) for x' (MATLAB's ode15i form): `r = \"t*y^2*der(y)^3 "
+                        "- y^3*der(y)^2 + t*(t^2 + 1)*der(y) - t^2*y\"`. A residual without der() is an algebraic "
+                        "equation (an index-1 DAE). Solved by ode15i from initial values decic makes consistent "
+                        "([initial] \"der(x)\" guesses, [initial.fixed]). See docs/implicit.md.",
+    "system.residuals.<name>": "A residual, zero on the solution: an expression of t, the states, der(state) and the "
+                               "parameters.",
     "system.function": "A Python function `def f(t, y)`, written \"file.py:name\" relative to the experiment file, "
                        "as a MATLAB function file (runs code: refused by `odelab grade` unless allowed).",
-    "system.file": "kind = \"fmu\": the FMU (FMI 2.0 or 3.0), relative to the experiment file. Its states, inputs, "
-                   "outputs and parameters are its own; loading it runs its machine code, so `odelab run` needs "
-                   "--allow-native (see docs/fmi.md).",
-    "system.interface": "kind = \"fmu\": `model-exchange` (default when offered: odelab's solvers step it, events "
-                        "by its event indicators) or `co-simulation` (the FMU steps itself at the communication "
-                        "step: [solver] h, else its DefaultExperiment's stepSize).",
     "system.inputs": "The input names (u); each needs an [inputs.<name>] signal.",
     "system.outputs": "Outputs: a table of expressions (`y = \"q*x\"`), the names of state-space outputs, or, for "
                       "a diagram, output name = block name.",
@@ -77,7 +78,12 @@ NOTES: dict[str, str] = {
                               "solved by Newton's method, named once in a note), `none` (solved quietly) or `error` "
                               "(refused). See docs/blocks.md.",
     "initial": "Initial values of the states (default 0), numbers or expressions of the parameters.",
-    "initial.<name>": "The initial value of state <name>.",
+    "initial.<name>": "The initial value of state <name>; for an implicit system also \"der(<name>)\" = a guess of "
+                      "its initial slope (default 0), which decic makes consistent.",
+    "initial.fixed.<name>": "true: decic keeps the guess of <name> (a state's value, or \"der(state)\": its slope).",
+    "initial.fixed": "kind = \"implicit\": what decic may not change, state = true (its value) or \"der(state)\" = "
+                     "true (its slope); default: every state's value fixed, every slope free (MATLAB's fixed_y0, "
+                     "fixed_yp0). Free an algebraic state's value (y3 = false) so decic can make it consistent.",
     "time": "The time span and output times (MATLAB's tspan).",
     "time.start": "The start of the span (t0).",
     "time.stop": "The end of the span (tf); a number or an expression such as \"pi\".",
@@ -91,7 +97,7 @@ NOTES: dict[str, str] = {
     "history.<name>": "The history of state <name>: x(t) for t <= t0, a number or an expression of t.",
     "solver": "The method and its options (MATLAB's odeset names work too).",
     "solver.method": "The method: MATLAB's ode45, ode23, ode113, ode78, ode89, ode15s, ode23s, ode23t, ode23tb, "
-                     "dde23 (delay equations; `auto` picks it for lag()); "
+                     "dde23 (delay equations; `auto` picks it for lag()), ode15i (kind = \"implicit\", its default); "
                      "fixed-step euler, heun, midpoint, rk3, rk4; SciPy's RK23, RK45, DOP853, Radau, BDF, LSODA "
                      "(`odelab solvers` lists them).",
     "solver.zero_crossing": "Diagrams: locate the instants switching blocks (saturation, relay, switch...) change "
@@ -263,6 +269,7 @@ _FREE_FORM = {
     "study": ("table", ("kind", "over", "error", "quantity")),
     "events": ("table", ("max_events", "<name>")),
     "events.<name>": ("table", ("when", "direction", "terminal", "reset", "exact")),
+    "initial.fixed": ("table", ("<name>",)),
 }
 _FREE_TYPES = {
     "case.name": "string", "problem.name": "string", "sweep.<key>": "list or range table",
@@ -271,6 +278,7 @@ _FREE_TYPES = {
     "events.<name>.when": "expression", "events.<name>.direction": "string or -1, 0, 1",
     "events.<name>.terminal": "boolean", "events.<name>.reset": "table of expressions",
     "events.<name>.exact": "expression",
+    "initial.fixed.<name>": "boolean",
 }
 _FREE_CHOICES = {
     "sweep.mode": ("product", "zip"), "sweep.store": ("summary", "all"),

@@ -31,11 +31,10 @@ class _Section(BaseModel):
 class System(_Section):
     """[system]: what is integrated."""
 
-    kind: Literal["ode", "state-space", "diagram", "network", "fmu"] = "ode"
-    file: StrictStr | None = None  # kind = "fmu": the FMU (experiment/kinds/fmu.py)
-    interface: Literal["model-exchange", "co-simulation"] | None = None  # kind = "fmu"
+    kind: Literal["ode", "state-space", "diagram", "network", "implicit"] = "ode"
     states: list[StrictStr] | None = None
     equations: dict[str, Value] | None = None
+    residuals: dict[str, Value] | None = None  # kind = "implicit": F(t, x, der(x)) = 0 (experiment/kinds/implicit.py)
     function: StrictStr | None = None
     inputs: list[StrictStr] | None = None
     outputs: Union[dict[str, Value], list[StrictStr], None] = None
@@ -234,6 +233,16 @@ class Report(_Section):
     quote: list[StrictStr] | None = None  # "experiment/case": stored maximum relative errors the note quotes
 
 
+def _initial_entry(value, handler):
+    """An [initial] entry is a value; a table ([initial.fixed] of an implicit system) passes through, checked
+    with its meaning by experiment/kinds/implicit.py."""
+    return value if isinstance(value, dict) else handler(value)
+
+
+#: One entry of [initial]: a number or expression (the table [initial.fixed] passes through).
+InitialEntry = Annotated[Value, WrapValidator(_initial_entry)]
+
+
 class Experiment(_Section):
     """A whole experiment file, or one case after merging it over the base."""
 
@@ -245,7 +254,8 @@ class Experiment(_Section):
     expect: Literal["success", "max-steps", "failure"] | None = None
     parameters: dict[str, Value] = Field(default_factory=dict)
     system: System
-    initial: dict[str, Value] = Field(default_factory=dict)
+    # [initial]: the states' values; an implicit system's "der(x)" guesses and [initial.fixed] too
+    initial: dict[str, InitialEntry] = Field(default_factory=dict)
     time: Time
     exact: dict[str, Value] | None = None
     history: dict[str, Value] | None = None  # [history]: x(t) for t <= t0 of delay equations (experiment/delays.py)

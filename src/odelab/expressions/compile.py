@@ -24,6 +24,7 @@ from odelab.expressions.functions import (
     shadowed_constants,
 )
 from odelab.expressions.parse import (
+    DER,
     LAG,
     ParsedExpression,
     _did_you_mean,
@@ -65,8 +66,15 @@ def _unknown_name_error(
 
 
 def _lag_error(parsed: ParsedExpression, key: str | None, source: str | None) -> ExpressionError | None:
-    """``lag(x, tau)`` outside [system.equations] (which rewrites it before compiling: systems/delay.py)."""
+    """``lag(x, tau)`` outside [system.equations] (which rewrites it before compiling: systems/delay.py),
+    and ``der(x)`` outside [system.residuals] (systems/implicit.py rewrites it)."""
     for node in ast.walk(parsed.tree):
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == DER:
+            return ExpressionError(
+                "`der(x)` (a state's derivative) is allowed in [system.residuals] of a system with kind = "
+                "\"implicit\" only, where ode15i solves F(t, x, x') = 0; in [system.equations] the derivative is "
+                "the equation's left side",
+                expression=parsed.text, column=parsed.column(node.col_offset), source=source, key=key)
         if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == LAG:
             return ExpressionError(
                 "`lag(x, tau)` (a delayed state) is allowed in [system.equations] only, where dde23 solves the "

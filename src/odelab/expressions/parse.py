@@ -45,6 +45,10 @@ _MAX_BRACKETS = 100
 #: :mod:`odelab.systems.delay` (compiling it anywhere else is refused, see compile.py).
 LAG = "lag"
 
+#: ``der(x)``, a state's derivative x': parsed here, given meaning only in [system.residuals] of a
+#: fully implicit system by :mod:`odelab.systems.implicit` (refused anywhere else, see compile.py).
+DER = "der"
+
 
 # --------------------------------------------------------------------------------------------
 # Parsing and validation
@@ -433,6 +437,8 @@ def _check_call(reader: _Reader, node: ast.Call) -> list[ast.AST]:
     name = func.id
     if name == LAG and name not in FUNCTIONS:
         return _check_lag(reader, node)
+    if name == DER and name not in FUNCTIONS:
+        return _check_der(reader, node)
     if name not in FUNCTIONS:
         from odelab.expressions.matlab import indexing_hint
 
@@ -474,6 +480,21 @@ def _check_lag(reader: _Reader, node: ast.Call) -> list[ast.AST]:
     if not isinstance(node.args[0], ast.Name):
         raise reader.error("the first argument of `lag` is a state name: `lag(x, tau)` is x at t - tau",
                            node.args[0].col_offset)
+    return list(node.args)
+
+
+def _check_der(reader: _Reader, node: ast.Call) -> list[ast.AST]:
+    """``der(x)``: one positional argument, a plain name (the state whose derivative it is)."""
+    if node.keywords or len(node.args) != 1 or any(isinstance(a, ast.Starred) for a in node.args):
+        raise reader.error(f"`der` takes 1 argument (a state), e.g. `der(x)` for x'; got "
+                           f"{len(node.args) + len(node.keywords)}", node.func.col_offset)
+    argument = node.args[0]
+    if (isinstance(argument, ast.Call) and isinstance(argument.func, ast.Name) and argument.func.id == DER):
+        raise reader.error("`der(der(x))` is a second derivative; write the system in first order, with a state "
+                           "for der(x) (v = der(x), then der(v))", node.func.col_offset)
+    if not isinstance(argument, ast.Name):
+        raise reader.error("the argument of `der` is a state name: `der(x)` is x' (the derivative of an expression "
+                           "is the expression of the states' derivatives)", argument.col_offset)
     return list(node.args)
 
 

@@ -21,6 +21,7 @@ __all__ = ["READERS", "FOLDER_SUFFIXES", "Document", "ImportOptions", "Note", "T
 #: suffix -> (the reader's module, what the format is called in messages)
 READERS: dict[str, tuple[str, str]] = {
     ".toml": ("odelab.formats.toml", "an experiment file"),
+    ".m": ("odelab.formats.matlab", "a MATLAB file"),
 }
 
 #: What ``odelab run FOLDER`` picks up in a folder: experiment files only (a MATLAB folder holds

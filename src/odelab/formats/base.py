@@ -42,6 +42,7 @@ class ImportOptions:
     workspace: tuple[Path, ...] = ()  # MATLAB scripts that assign the model's workspace variables
     sets: tuple[tuple[str, str], ...] = ()  # NAME=VALUE overrides of workspace variables and parameters
     call: str | None = None  # the solver call a student types at MATLAB's prompt, for a function file
+    output: Path | None = None  # where `odelab import` writes the experiment file: its file names are relative to it
 
 
 @dataclass(frozen=True)

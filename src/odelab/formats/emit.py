@@ -24,7 +24,7 @@ _BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
 class Entry:
     """``key = value``, with a comment above it; ``gap`` writes it commented out, with what to write."""
 
-    key: str
+    key: str | tuple[str, ...]  # a tuple is a dotted key: ("solver", "method") writes solver.method
     value: Any = None
     comment: str = ""
     gap: str = ""  # not empty: the key is not known; this says what to write instead
@@ -39,14 +39,16 @@ class Section:
     comment: str = ""
     array: bool = False
 
-    def add(self, key: str, value: Any = None, comment: str = "", gap: str = "") -> Entry:
+    def add(self, key: str | tuple[str, ...], value: Any = None, comment: str = "", gap: str = "") -> Entry:
         entry = Entry(key, value, comment, gap)
         self.entries.append(entry)
         return entry
 
 
-def toml_key(key: str) -> str:
-    """A key as TOML writes it: bare when it can be, else a basic string."""
+def toml_key(key: str | tuple[str, ...]) -> str:
+    """A key as TOML writes it: bare when it can be, else a basic string; a tuple of parts as a dotted key."""
+    if isinstance(key, tuple):
+        return ".".join(toml_key(part) for part in key)
     return key if _BARE_KEY.match(key) else _string(key)
 
 

@@ -16,6 +16,8 @@ the price of not guessing.
 
 from __future__ import annotations
 
+import numpy as np
+
 from odelab.exceptions import InputError
 
 __all__ = ["solve_problem", "simulate_problem", "solve_events_problem", "run_hybrid"]
@@ -174,6 +176,26 @@ def _choose(problem, tspan, method_name, options, backend, python, compiled, pil
             if elapsed * steps / AUTO_STEPS < expected_compile_seconds(problem.compiled, loop):
                 return python(options), "python"
     return compiled(options), "compiled"
+
+
+def run_stateless(problem, tspan, options: dict):  # -> Integration
+    """A diagram without state (sources through gains to outputs): evaluated at its output times as Simulink
+    evaluates such a model (every MaxStep, the span over 50 by default, and at the sources' jumps), its
+    algebraic loops solved at each point; nothing is integrated."""
+    from odelab.solution import Stats
+    from odelab.store.result import Integration
+
+    d = problem.diagram
+    t, u = d.output_times(tspan, options.get("max_step"))
+    message = (f"the diagram has no state: its outputs evaluated at {t.size} times (every max_step and at the "
+               "sources' jumps), as Simulink evaluates a model without states")
+    notes = [message]
+    stop = d.first_stop(t, u)
+    if stop is not None:
+        t, u = t[:stop[0] + 1], u[:stop[0] + 1]
+        message = f"stopped at t = {t[-1]:.10g} by the stop block `{stop[1]}` (its input became nonzero)"
+    return Integration(t, np.zeros((t.size, 0)), u if d.inputs else None, Stats(0, 0, 0), "success", message,
+                       tuple(notes))
 
 
 def run_hybrid(problem, tspan, method: str, options: dict, backend: str):  # -> Integration

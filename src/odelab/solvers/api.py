@@ -13,7 +13,7 @@ from odelab.solution import Solution, Stats
 from odelab.solvers import engine
 from odelab.solvers.controller import min_step
 from odelab.solvers.options import SolverOptions, as_tspan, as_y0, normalize_options, resolve_options
-from odelab.solvers.registry import Method, get_method, methods_with
+from odelab.solvers.registry import Method, get_method, join_names, methods_with
 from odelab.solvers.status import Status
 
 __all__ = ["ode23", "ode45", "solve", "odextend"]
@@ -240,6 +240,12 @@ def _solve_method(fun, tspan, y0, method: str, options: dict) -> Solution:
         names = " or ".join(f'method = "{n}"' for n in methods_with(lambda x: x.delays, delays=True))
         raise InputError(f"this system has delayed states (lag(...)): {m.name} solves ordinary equations only; "
                          f"use {names} (MATLAB's solver for delay equations).", key="method")
+    if hasattr(fun, "residual") and hasattr(fun, "partials") and hasattr(fun, "start"):
+        return _solve_implicit_system(fun, tspan, y0, m, options)
+    if m.kind == "residual":
+        raise InputError(f"{m.name} solves fully implicit systems F(t, y, y') = 0 from y0 and a consistent slope "
+                         f"yp0: call odelab.{m.name}(F, tspan, y0, yp0) (odelab.decic makes them consistent); "
+                         "for y' = f(t, y) use ode15s.", key="method")
     tspan_arr = as_tspan(tspan)
     if m.kind == "delay":  # dde23 (odelab.solvers.dde23), which evaluates the delayed states itself
         from odelab.solvers.dde23 import solve_delay
@@ -279,6 +285,124 @@ def _solve_method(fun, tspan, y0, method: str, options: dict) -> Solution:
     if m.kind in ("adaptive", "multistep"):
         return _solve_adaptive(rhs, tspan_arr, y0_arr, f0, m, opts, {"fun": user_fun, "options": given})
     return _solve_fixed(rhs, tspan_arr, y0_arr, m, opts)
+
+
+def solve_residual(fun, tspan, y0, yp0, method: str = "ode15i", **options) -> Solution:
+    """Solve a fully implicit system ``F(t, y, y') = 0`` from consistent ``y0, yp0`` (``odelab.ode15i``).
+
+    The driver of the methods of kind ``"residual"`` (:data:`odelab.solvers.registry.DRIVERS`);
+    ``fun(t, y, yp)`` returns the residual, ``options`` as :func:`odelab.ode15i` documents them."""
+    m = get_method(method)
+    if m.kind != "residual":
+        raise InputError(f"{m.name} solves y' = f(t, y); a fully implicit F(t, y, y') = 0 is solved by "
+                         f"{join_names(methods_with(lambda x: True, residual=True), 'or')}.", key="method")
+    if not callable(fun):
+        raise InputError(f"`fun` must be a callable F(t, y, yp) returning the residual; got {fun!r}.", key="fun")
+    tspan_arr = as_tspan(tspan)
+    y0_arr = as_y0(y0)
+    try:
+        yp0_arr = as_y0(yp0)
+    except InputError as exc:
+        raise InputError(str(exc).replace("`y0`", "`yp0`"), key="yp0") from None
+    n = y0_arr.size
+    if yp0_arr.size != n:
+        raise InputError(f"`yp0` has {yp0_arr.size} entries but `y0` has {n}: give one initial slope per state.",
+                         key="yp0")
+    given = normalize_options(options, m)
+    if given.get("events") is not None and not callable(given["events"]):
+        raise InputError(f"`events` of {m.name} is one function events(t, y, yp) returning (value, isterminal, "
+                         f"direction), as MATLAB's; got {given['events']!r}.", key="events")
+    opts = resolve_options(m, given, tspan_arr, n)
+    args = opts.args
+    if args:
+        def fun(t, y, yp, _f=fun):
+            return _f(t, y, yp, *args)
+
+    t0 = float(tspan_arr[0])
+    try:
+        raw = fun(t0, y0_arr.copy(), yp0_arr.copy())
+    except Exception as exc:
+        return _failed_at_start(m, tspan_arr, y0_arr, opts, f"the residual raised {_describe(exc)} at t = {t0:g} "
+                                "(the first call)", Status.FUN_RAISED)
+    try:
+        f0 = np.asarray(raw, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"`fun` must return numbers (one residual per state); it returned {raw!r}.",
+                         key="fun") from None
+    if f0.size != n:
+        raise InputError(f"`fun` returned {f0.size} residual{'s' if f0.size != 1 else ''} but the state has {n}: "
+                         "return one residual per state (as many equations as unknowns).", key="fun")
+    f0 = f0.reshape(n)
+    if not np.all(np.isfinite(f0)):
+        return _failed_at_start(m, tspan_arr, y0_arr, opts, f"the residual at t = {t0:g} is not finite "
+                                f"({_fmt_vec(f0)}): check F at the initial state and slope")
+    from odelab.solvers.implicit.ode15i import run_ode15i
+    from odelab.solvers.implicit.residual import index_problem
+    from odelab.solvers.implicit.residual import ResidualWork
+
+    atol = np.broadcast_to(np.asarray(opts.atol, dtype=float), (n,))
+    work = ResidualWork(fun, n, jacobian=opts.extra["jacobian"], atol=atol)
+    dfdy, dfdyp = work.partials(t0, y0_arr, yp0_arr, f0)
+    why = index_problem(dfdy, dfdyp)
+    if why is not None:
+        raise InputError(f"{m.name} solves ODEs and DAEs of index 1, as MATLAB's; at t = {t0:g} {why}. Write the "
+                         "hidden constraints out (differentiate the algebraic equations until the system is of "
+                         "index 1).", key="fun")
+    (t, y, nsteps, nfailed, status, t_stop, h_stop, exc), stepper, found = run_ode15i(
+        work, tspan_arr, y0_arr, yp0_arr, f0, opts.rtol, atol, opts.max_step, opts.initial_step, opts.refine,
+        opts.max_steps, opts.extra["max_order"], opts.events, args, dfdy, dfdyp)
+    stats = Stats(nsteps=nsteps, nfailed=nfailed, nfevals=work.nfevals + 1, npds=work.npds,
+                  ndecomps=work.ndecomps, nsolves=work.nsolves)
+    te, ye, ie = found
+    message = _status_message(status, m, t_stop, h_stop, y, y0_arr, opts, exc, tspan_arr, te, ie)
+    if status == Status.STEP_UNDERFLOW:
+        if stepper.singular_at is not None:
+            message += (f" The iteration matrix dF/dy + (alpha/h) dF/dy' was singular at t = {stepper.singular_at:.6g}:"
+                        f" {m.name} solves ODEs and DAEs of index 1; a DAE of index 2 or higher, or one whose "
+                        "algebraic equations do not determine its algebraic variables there, cannot be solved.")
+        else:
+            message = message.replace("the problem is stiff (try method 'ode15s', or 'ode23s' at crude tolerances), ",
+                                      "the DAE is not of index 1 there, ")
+    notes = tuple(opts.warnings)
+    if status == Status.SUCCESS:  # a stiff run's result checked, as the other stiff solvers' (plausibility.py)
+        from odelab.solvers.plausibility import implausible
+
+        note = implausible(t, y, y0_arr, atol, m.name)
+        if note is not None:
+            notes += (note,)
+    return Solution(t=t, y=y, stats=stats, status=Status(status).label, reason=Status(status), message=message,
+                    method=m.name, warnings=notes, interpolant=work.dense,
+                    te=np.array(te, dtype=float), ye=np.array(ye, dtype=float).reshape(len(ye), n),
+                    ie=np.array(ie, dtype=int))
+
+
+def _solve_implicit_system(system, tspan, y0, m: Method, options: dict) -> Solution:
+    """An :class:`odelab.systems.implicit.ImplicitSystem` (``F(t, x, x') = 0`` from expressions): ode15i from
+    its consistent start (decic again when ``y0`` is not the one it carries: a restart after a reset), with
+    its exact partial derivatives; events of ``(t, y)``, as an experiment file's."""
+    if not m.residual:
+        names = join_names(methods_with(lambda x: True, residual=True), "or")
+        raise InputError(f"this system is fully implicit (der() in its residuals), solved by {names}, from y and y' "
+                         f"together; {m.name} solves y' = f(t, y).", key="method")
+    from odelab.solvers.implicit.decic import DecicError
+
+    given = normalize_options(options, m)
+    tspan_arr = as_tspan(tspan)
+    y0_arr = as_y0(y0)
+    try:
+        y_start, yp_start = system.start(float(tspan_arr[0]), y0_arr, given.get("rtol", 1e-3), given.get("atol", 1e-6))
+    except DecicError as exc:
+        opts = resolve_options(m, given, tspan_arr, y0_arr.size)
+        return _failed_at_start(m, tspan_arr, y0_arr, opts, f"no consistent initial slope at t = {tspan_arr[0]:g}: "
+                                f"{exc.message}", Status.FUN_RAISED)
+    events = given.pop("events", None)
+    if events is not None:
+        def given_events(t, y, yp, *args, _events=events):
+            return _events(t, y, *args)
+
+        given["events"] = given_events
+    given.setdefault("jacobian", system.partials)
+    return solve_residual(system.residual, tspan_arr, y_start, yp_start, m.name, **given)
 
 
 def _checked_rhs(fun, raw, y0: np.ndarray):

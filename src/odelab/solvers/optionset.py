@@ -259,7 +259,7 @@ for _option in (
                  aliases=("step",), toml="number", check=lambda v, ctx: positive("h", v)),
     SolverOption("max_steps", "The largest number of steps before the case stops as failed; the run's own budget "
                  "(--max-steps) caps it.", ("MaxSteps",), default="0 (no limit)", toml="integer", check=_max_steps),
-    SolverOption("max_order", "ode15s's highest order, 1 to 5 (MATLAB's MaxOrder).", ("MaxOrder",), default="5",
+    SolverOption("max_order", "ode15s's and ode15i's highest order, 1 to 5 (MATLAB's MaxOrder).", ("MaxOrder",), default="5",
                  toml="integer"),
     SolverOption("bdf", "ode15s with backward differentiation formulas instead of NDFs (MATLAB's BDF).", ("BDF",),
                  default="false", toml="switch"),

@@ -27,6 +27,8 @@ DRIVERS = {
     "fixed": "odelab.solvers.engine.integrate_fixed: an explicit Runge-Kutta method on a fixed step h",
     "multistep": "odelab.solvers.adams.integrate_ode113: Adams-Bashforth-Moulton PECE (Shampine & Gordon)",
     "implicit": "odelab.solvers.implicit.solve_implicit: odelab's stiff solvers (one module each)",
+    "residual": "odelab.solvers.api.solve_residual: fully implicit F(t, y, y') = 0 from consistent y0 and y'0 "
+                "(odelab.solvers.implicit.ode15i)",
     "delay": "odelab.solvers.dde23.solve_delay: delay equations with constant lags",
     "scipy": "odelab.solvers.scipy_adapter.solve_scipy: SciPy's solve_ivp solver classes, stepped",
 }
@@ -39,6 +41,8 @@ DELAY_OPTIONS = ("rtol", "atol", "max_step", "initial_step", "norm_control", "ma
 IMPLICIT_OPTIONS = ("rtol", "atol", "max_step", "initial_step", "refine", "max_steps", "events", "jacobian",
                     "jpattern", "vectorized", "mass", "args")
 SCIPY_OPTIONS = ("rtol", "atol", "max_step", "initial_step", "max_steps", "args")
+RESIDUAL_OPTIONS = ("rtol", "atol", "max_step", "initial_step", "refine", "max_steps", "events", "jacobian",
+                    "max_order", "args")
 
 MASS_KINDS = ("", "constant", "moving")  # none; a constant M; M, M(t) or M(t, y) (MStateDependence)
 
@@ -55,7 +59,8 @@ class Method:
         The driver that runs it, a key of :data:`DRIVERS`: ``"adaptive"`` (odelab's engine with
         MATLAB's controller), ``"fixed"`` (odelab's engine on a fixed step ``h``), ``"implicit"``
         (:mod:`odelab.solvers.implicit`), ``"multistep"`` (ode113, :mod:`odelab.solvers.adams`),
-        ``"delay"`` (dde23) or ``"scipy"`` (``scipy.integrate`` solver classes). Only the
+        ``"delay"`` (dde23), ``"residual"`` (a fully implicit ``F(t, y, y') = 0``: ode15i) or
+        ``"scipy"`` (``scipy.integrate`` solver classes). Only the
         dispatch in :mod:`odelab.solvers.api` reads it; everything else asks a capability.
     order
         Order of accuracy of the propagated solution; for variable-order methods the
@@ -90,6 +95,9 @@ class Method:
         ``Refine``).
     delays
         It solves delay equations (and only those).
+    residual
+        It solves fully implicit systems ``F(t, y, y') = 0`` (and only those), from ``y0`` and
+        ``y'0`` (MATLAB's ode15i).
     source
         Whose implementation it is: ``"odelab"`` or ``"SciPy"``.
     """
@@ -116,6 +124,7 @@ class Method:
     compiled_events: bool = False
     matlab_defaults: bool = False
     delays: bool = False
+    residual: bool = False
     source: str = "odelab"
 
     def __post_init__(self):
@@ -129,6 +138,8 @@ class Method:
             raise ValueError(f"Method {self.name!r}: `mass` and the option `mass` disagree.")
         if self.events != ("events" in self.options):
             raise ValueError(f"Method {self.name!r}: `events` and the option `events` disagree.")
+        if self.residual != (self.kind == "residual"):
+            raise ValueError(f"Method {self.name!r}: `residual` and the driver kind {self.kind!r} disagree.")
         if self.compiled_events and not (self.compiled and self.events):
             raise ValueError(f"Method {self.name!r}: compiled events need `compiled` and `events`.")
 
@@ -153,7 +164,7 @@ class Method:
         if self.matlab_defaults:
             text += f", refine {self.refine}, max_step 0.1*span"
         if "max_order" in self.options:
-            text += ", max_order 5, NDF (bdf off)"
+            text += ", max_order 5" + (", NDF (bdf off)" if "bdf" in self.options else "")
         if "jacobian" in self.options:
             text += ", Jacobian by finite differences"
         return text
@@ -173,6 +184,8 @@ class Method:
         out = []
         if self.delays:
             out.append("delay equations")
+        if self.residual:
+            out.append("fully implicit F(t, y, y') = 0 (index-1 DAEs), consistent initial values by decic")
         if self.events:
             out.append("events")
         if self.dense_output:
@@ -224,6 +237,11 @@ METHODS: dict[str, Method] = {
         _implicit("ode15s", 5, "1-5", "stiff, DAE",
                   "MATLAB's ode15s: variable-order NDF/BDF (orders 1-5), for stiff problems and index-1 DAEs",
                   dae=True, extra=("max_order", "bdf"), compiled=True),
+        # odelab.solvers.implicit.ode15i: Shampine 2002, BDFs in Lagrangian form, F(t, y, y') = 0
+        Method("ode15i", "residual", 5, "MATLAB's ode15i: variable-order BDF (orders 1-5) for fully implicit "
+               "F(t, y, y') = 0 (ODEs and index-1 DAEs)", orders="1-5", stiff=True,
+               problem="fully implicit, DAE", options=RESIDUAL_OPTIONS, events=True, dense_output=True,
+               dense="its BDF polynomials", matlab_defaults=True, residual=True),
         _implicit("ode23s", 2, "2(3)", "stiff",
                   "MATLAB's ode23s: modified Rosenbrock (2,3) W-method, for stiff problems at crude tolerances",
                   nonnegative=False, compiled=True),  # MATLAB's ode23s has no NonNegative
@@ -292,10 +310,13 @@ def listing(methods: Iterable[Method]) -> list[Method]:
                                           order.get(m.name, len(order))))
 
 
-def methods_with(test: Callable[[Method], bool], *, delays: bool | None = False) -> list[str]:
+def methods_with(test: Callable[[Method], bool], *, delays: bool | None = False,
+                 residual: bool | None = False) -> list[str]:
     """Names of the registered methods that pass ``test``, in :func:`listing` order; ``delays``: only the
-    methods for delay equations (True), only those for ODEs (False, the default), or both (None)."""
-    return [m.name for m in listing(METHODS.values()) if test(m) and (delays is None or m.delays == delays)]
+    methods for delay equations (True), only those for ODEs (False, the default), or both (None);
+    ``residual`` likewise for the methods of fully implicit systems F(t, y, y') = 0."""
+    return [m.name for m in listing(METHODS.values())
+            if test(m) and (delays is None or m.delays == delays) and (residual is None or m.residual == residual)]
 
 
 def join_names(names: Iterable[str], last: str = "and") -> str:
@@ -309,7 +330,7 @@ def dense_output_text() -> str:
     parts: list[str] = []
     run: list[str] = []
     label = ""
-    for m in listing(m for m in METHODS.values() if m.dense_output and not m.delays):
+    for m in listing(m for m in METHODS.values() if m.dense_output and not m.delays and not m.residual):
         if run and m.dense != label:
             parts.append(f"{' or '.join(run)}" + (f" ({label})" if label else ""))
             run = []
@@ -323,7 +344,7 @@ def dense_output_text() -> str:
 # What users type when they mean a suite member: MATLAB names without their letter, other
 # tools' names for the same methods. Checked before the spelling-based suggestion.
 _MEANT = {
-    "ode15": "ode15s", "ode15i": "ode15s", "ode113s": "ode113",
+    "ode15": "ode15s", "ode113s": "ode113",
     "ode11": "ode113", "ode13": "ode113", "ode8": "ode89", "ode87": "ode78", "ode98": "ode89",
     "ode23ts": "ode23t", "ode23st": "ode23s", "ode45s": "ode15s", "stiff": "ode15s", "gear": "ode15s",
     "ndf": "ode15s", "rosenbrock": "ode23s", "trbdf2": "ode23tb", "tr-bdf2": "ode23tb", "adams": "ode113",

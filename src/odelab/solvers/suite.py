@@ -10,10 +10,13 @@ and returns a :class:`~odelab.solution.Solution` whose ``stats`` count what MATL
 
 from __future__ import annotations
 
-from odelab.solution import Solution
-from odelab.solvers.api import solve
+import warnings
 
-__all__ = ["ode15s", "ode23s", "ode23t", "ode23tb", "ode113", "ode78", "ode89"]
+from odelab.exceptions import SolverWarning
+from odelab.solution import Solution
+from odelab.solvers.api import solve, solve_residual
+
+__all__ = ["ode15s", "ode23s", "ode23t", "ode23tb", "ode113", "ode78", "ode89", "ode15i"]
 
 
 def ode15s(fun, tspan, y0, **options) -> Solution:
@@ -102,3 +105,37 @@ def ode89(fun, tspan, y0, **options) -> Solution:
     (``refine`` defaults to 1).
     """
     return solve(fun, tspan, y0, method="ode89", **options)
+
+
+def ode15i(fun, tspan, y0, yp0, **options):
+    """Solve a fully implicit system ``F(t, y, y') = 0`` with MATLAB's ``ode15i``.
+
+    Variable-order (1-5) BDFs in Lagrangian form (Shampine 2002), for ODEs and DAEs of index 1.
+    ``fun(t, y, yp)`` returns the residual (one per state); ``y0`` and ``yp0`` must be consistent,
+    ``F(t0, y0, yp0) = 0`` (:func:`odelab.decic` makes them so). Options (MATLAB's names too):
+    ``rtol``/``RelTol`` (1e-3), ``atol``/``AbsTol`` (1e-6), ``max_step`` (0.1 |tf - t0|),
+    ``initial_step``, ``refine`` (1), ``max_steps``, ``max_order``/``MaxOrder`` (5), ``jacobian``
+    (a function ``J(t, y, yp) -> (dF/dy, dF/dy')`` or a pair of constant matrices, None for finite
+    differences; default both by MATLAB's ``numjac``), ``events`` (``events(t, y, yp) -> (value,
+    isterminal, direction)``), ``args``. ``deval``/``sol(t)`` evaluate the BDF polynomials.
+
+    Examples
+    --------
+    Weissinger's equation, MATLAB's ode15i example (exact solution ``sqrt(t^2 + 1/2)``):
+
+    >>> import numpy as np, odelab
+    >>> F = lambda t, y, yp: t*y**2*yp**3 - y**3*yp**2 + t*(t**2 + 1)*yp - t**2*y
+    >>> y0, yp0, _ = odelab.decic(F, 1, np.sqrt(1.5), [1], 0, [0])
+    >>> sol = odelab.ode15i(F, [1, 10], y0, yp0)
+    >>> bool(abs(sol.y[-1, 0] - np.sqrt(100.5)) < 1e-2)
+    True
+    """
+    sol = solve_residual(fun, tspan, y0, yp0, "ode15i", **options)
+    from odelab.solvers.plausibility import PREFIX
+
+    if sol.status == "failed":
+        warnings.warn(sol.message, SolverWarning, stacklevel=2)
+    for note in sol.warnings:
+        if note.startswith(PREFIX):  # a result that cannot be right, as ode15s's are checked
+            warnings.warn(note, SolverWarning, stacklevel=2)
+    return sol

@@ -133,7 +133,7 @@ class NonlinearSystem:
         if output is not None and not callable(output):
             raise InputError(f"`output` must be callable as output(t, x, u) or None; got {output!r}.")
         self.states = validate_names(states, "states", source=source)
-        if not self.states:
+        if not self.states and output is None:  # a static system (y = g(t, u): a diagram of gains) has none
             raise InputError("`states` must name at least one state.", source=source, key="states")
         self.inputs = validate_names(inputs, "inputs", source=source)
         clash = sorted(set(self.states) & set(self.inputs))

@@ -44,13 +44,19 @@ def resolve_extras(method, opts, n: int) -> dict:
     if "max_order" in opts:
         k = opts["max_order"]
         if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 1 <= k <= 5:
-            raise InputError(f"`max_order` must be 1, 2, 3, 4 or 5 (ode15s's MaxOrder); got {k!r}.", key="max_order")
+            raise InputError(f"`max_order` must be 1, 2, 3, 4 or 5 ({method.name}'s MaxOrder); got {k!r}.",
+                             key="max_order")
         out["max_order"] = int(k)
     if "bdf" in opts:
         out["bdf"] = as_bool("bdf", opts["bdf"])
     if "vectorized" in opts:
         out["vectorized"] = as_bool("vectorized", opts["vectorized"])
     jac = opts.get("jacobian")
+    if method.residual:  # ode15i: J(t, y, yp) -> (dF/dy, dF/dy'), or the pair of constant matrices
+        from odelab.solvers.implicit.residual import check_jacobian_option
+
+        out["jacobian"] = check_jacobian_option(jac, n)
+        return out
     if jac is not None:
         out["jacobian"] = jac if callable(jac) else _square("jacobian", jac, n, "df/dy (constant) or a callable J(t, y)")
     if opts.get("jpattern") is not None:

@@ -649,4 +649,5 @@ def block_class(type_name: str) -> type[Block]:
 
 # The block families in their own modules register themselves (each imports only base.py);
 # importing them here is what fills BLOCKS.
-from odelab.systems.diagram import discrete, ratelimit, switching, tables, transport  # noqa: E402,F401
+from odelab.systems.diagram import (derivative, discrete, noise, ratelimit, stop, switching, tables,  # noqa: E402,F401
+                                   transport)

@@ -40,9 +40,6 @@ class CompiledDiagram:
         self.wiring = wiring
         blocks = wiring.blocks
         holders = [n for n, b in blocks.items() if b.nstates]
-        if not holders:
-            raise DiagramError("the diagram has no block with state (integrator, state-space, transfer-fcn, a "
-                               "discrete block): there is nothing to integrate.", key="blocks")
         if states is not None:
             for i, name in enumerate(states):
                 if name not in blocks or not blocks[name].nstates:
@@ -66,12 +63,14 @@ class CompiledDiagram:
             names.extend(b.state_names(name))
             x0.append(b.initial_state())
         self.states = tuple(names)
-        self.x0 = np.concatenate(x0)
+        self.x0 = np.concatenate(x0) if x0 else np.zeros(0)
         self.inputs = tuple(n for n, b in blocks.items() if b.SOURCE)
         self.signals = tuple(sg.Ramp(slope=1.0, start=float(t0), initial=float(t0)) if isinstance(blocks[n], Clock)
                              else blocks[n].signal for n in self.inputs)
         self.outputs = tuple(wiring.outputs)
-        self.linear = all(b.linear for b in blocks.values())
+        # a diagram without state is evaluated at its output times (run.backend.run_stateless), not integrated:
+        # it has no state-space model of its own
+        self.linear = bool(names) and all(b.linear for b in blocks.values())
         self.zero_crossing = bool(zero_crossing)  # [solver] zero_crossing: off for every block
         self._order = [n for n in wiring.order if not blocks[n].SOURCE]
         self._system = None
@@ -150,8 +149,7 @@ class CompiledDiagram:
         h = 1e-30
         for _ in range(50):
             F, vals = self._residual(t, x, u, dtype is complex, cut, z)
-            scale = 1.0 + np.max(np.abs(z))
-            if np.all(np.isfinite(F)) and np.max(np.abs(F), initial=0.0) <= 1e-13 * scale:
+            if np.all(np.isfinite(F)) and self._converged(F, z):
                 self._z_last = np.real(z).copy() if z.ndim == 1 else None
                 return vals
             J = np.empty((m, m) + batch)
@@ -172,6 +170,18 @@ class CompiledDiagram:
         raise AlgebraicLoopError(self._loop_text(t, "Newton's method did not converge in 50 iterations: the loop "
                                                     "has no solution there"))
 
+    @staticmethod
+    def _converged(F, z) -> bool:
+        """Newton's test on the loop's residual: the real part against the solution's size, and (a complex step,
+        linearising) the imaginary part against the imaginary part's own size. The imaginary parts are 1e-30
+        small: tested against 1 + |z| they would pass before Newton solved for them, and the derivative through
+        the loop would come out as zero (issue 41: L(s) = 0 through a solved loop)."""
+        real_ok = np.max(np.abs(np.real(F)), initial=0.0) <= 1e-13 * (1.0 + np.max(np.abs(np.real(z)), initial=0.0))
+        if not np.iscomplexobj(F):
+            return bool(real_ok)
+        imag = np.max(np.abs(np.imag(F)), initial=0.0)
+        return bool(real_ok and (imag == 0.0 or imag <= 1e-13 * np.max(np.abs(np.imag(z)), initial=0.0)))
+
     def _loop_text(self, t, why):
         where = f"t = {float(np.ravel(np.real(t))[0]):.10g}" if np.size(t) == 1 else "some output point"
         return f"the algebraic loop {'; '.join(self.wiring.loops)} at {where}: {why}"
@@ -188,6 +198,8 @@ class CompiledDiagram:
                     k = list(self.slices).index(n)
                     parts[k] = b.derivative(t, x[self.slices[n]], [vals[p] for p in w.sources[n]],
                                             slope=self.input_slope(n, t, x, u, np.concatenate(parts)))
+        if not parts:  # a diagram without state (gains from sources to outputs): nothing moves
+            return np.zeros((0,) + np.shape(t)) if np.ndim(t) else np.zeros(0)
         return np.concatenate(parts)
 
     def input_slope(self, name: str, t, x, u, xdot=None) -> float:
@@ -351,6 +363,42 @@ class CompiledDiagram:
         system.complex_step_dynamics = lambda t, x, u: dynamics(t, x, u, True)
         system.complex_step_output = lambda t, x, u: output(t, x, u, True)
         return system
+
+    def output_times(self, tspan, max_step: float | None = None):
+        """A diagram without state, evaluated as Simulink does: (t, u) at its output times. ``tspan`` of two
+        entries: every ``max_step`` (Simulink's auto: the span over 50) and at the sources' breakpoints, each
+        listed twice (the value just before the jump, then after); a longer ``tspan``: its times."""
+        tspan = np.asarray(tspan, dtype=float).reshape(-1)
+        if tspan.size > 2:
+            t = tspan
+            u = np.array([[s(tt) for s in self.signals] for tt in t]).reshape(t.size, len(self.signals))
+            return t, u
+        t0, tf = float(tspan[0]), float(tspan[-1])
+        span = tf - t0
+        h = abs(span) / 50 if not max_step or not np.isfinite(max_step) else float(max_step)
+        n = max(1, int(np.ceil(abs(span) / h - 1e-9))) if span else 0
+        grid = [t0 + span * k / n for k in range(n)] + [tf] if n else [t0]
+        jumps = sorted({float(b) for s in self.signals for b in s.breakpoints(min(t0, tf), max(t0, tf))
+                        if min(t0, tf) < b < max(t0, tf)})
+        rows: list[tuple[float, float]] = [(tt, tt) for tt in grid if tt not in jumps]
+        rows += [(b, np.nextafter(b, -np.inf if span > 0 else np.inf)) for b in jumps] + [(b, b) for b in jumps]
+        rows.sort(key=lambda r: (r[0] if span >= 0 else -r[0], r[1] == r[0]))
+        t = np.array([r[0] for r in rows])
+        u = np.array([[s(at) for s in self.signals] for _, at in rows]).reshape(t.size, len(self.signals))
+        return t, u
+
+    def first_stop(self, t, u) -> tuple[int, str] | None:
+        """(row, block) of the first output time at which a stop block's input is nonzero (a diagram without
+        state, evaluated at its output times), or None."""
+        stops = [n for n, b in self.wiring.blocks.items() if getattr(b, "STOPS", False)]
+        if not stops:
+            return None
+        for i in range(np.size(t)):
+            vals = self._ports(float(t[i]), np.zeros(0), np.asarray(u[i], dtype=float), False)
+            for n in stops:
+                if self.wiring.blocks[n].stopped([vals[p] for p in self.wiring.sources[n]]):
+                    return i, n
+        return None
 
     def simulate(self, tspan, *, method: str = "ode45", x0=None, **options):
         """Simulate the diagram from its blocks' initial states (or ``x0``) with its sources."""

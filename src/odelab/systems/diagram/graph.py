@@ -176,7 +176,7 @@ def wire(blocks: Mapping[str, Block], outputs: Mapping[str, str], algebraic_loop
 
     used = {src for feeds in sources.values() for src, _ in feeds} | {src for src, _ in out_ports.values()}
     for name in blocks:
-        if name not in used:
+        if name not in used and blocks[name].ports():  # a block without outputs (stop) is a sink
             raise DiagramError(f"block {name!r} is not connected: no block takes its output and it is not one of "
                                "`system.outputs`; connect it (input = \"" + name + "\") or remove it.",
                                key=f"blocks.{name}")

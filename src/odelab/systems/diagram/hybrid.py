@@ -48,7 +48,8 @@ def needs_hybrid(diagram, zero_crossing: bool = True) -> bool:
     """Whether a compiled diagram needs this driver (switching blocks with detection on, a
     relay, or discrete blocks)."""
     blocks = diagram.wiring.blocks.values()
-    return any(b.DISCRETE or b.STATEFUL_MODE or (zero_crossing and b.zero_crossing) for b in blocks)
+    return any(b.DISCRETE or b.STATEFUL_MODE or getattr(b, "STOPS", False) or (zero_crossing and b.zero_crossing)
+               for b in blocks)
 
 
 def _locates(method: str) -> bool:
@@ -151,7 +152,9 @@ class _HybridRun:
         self.user_te: list[float] = []
         self.user_ye: list[np.ndarray] = []
         self.user_ie: list[int] = []
-        self.finished = False  # a terminal user event ended the run
+        self.finished = False  # a terminal user event (or a stop block) ended the run
+        self.stops = [n for n, b in blocks.items() if getattr(b, "STOPS", False)]
+        self.stopped_by = ""
         self.rows_t: list[np.ndarray] = []
         self.rows_x: list[np.ndarray] = []
         self.nsteps = self.nfevals = 0
@@ -273,6 +276,8 @@ class _HybridRun:
             opts["events"] = ev
         if sw.stepped:
             opts["output_fcn"] = _stop_when_changed(sw.stepped_check(u), start, x)
+        if self.stops:
+            opts["output_fcn"] = _stop_block_watch(self.stop_check(u), opts.get("output_fcn"), x.size)
         rest = grid_user[(grid_user > start) if forward else (grid_user < start)]
         grid = np.concatenate([[start], rest, [b]])
 
@@ -297,6 +302,8 @@ class _HybridRun:
         if zc_rows:  # the first located switch ends the stretch (terminal or not)
             return self.switched(sol, zc_rows, ie_all, keep, start, b, u, before)
         t_end = float(sol.t[-1])
+        if self.stops and self.stop_check(u)(t_end, sol.y[-1]):
+            return self.stopped(sol, keep, t_end, u)
         if t_end != b:  # a stepped relay stopped the solver at a step's end
             return self.relay_stopped(sol, keep, t_end, b, u)
         at_b = keep & (sol.t == b)
@@ -352,6 +359,30 @@ class _HybridRun:
         if self.dense or (t_sw == b and np.any(self.user == b)):
             self.add(t_sw, self.x)
         return None if t_sw == b else t_sw
+
+    def stop_check(self, u):
+        """Whether a stop block's input is nonzero at (t, x): the run ends there (Simulink's Stop Simulation)."""
+        diagram = self.diagram
+
+        def check(t, x):
+            x = np.asarray(x, dtype=float).reshape(-1)
+            vals = diagram._ports(float(t), x, u(float(t)), False)
+            for n in self.stops:
+                if self.blocks[n].stopped([vals[p] for p in diagram.wiring.sources[n]]):
+                    self.stopped_by = n
+                    return True
+            return False
+
+        return check
+
+    def stopped(self, sol, keep, t_end, u):
+        """A stop block's input became nonzero in the step that ended at ``t_end``: the run ends there."""
+        self.add(sol.t[keep], sol.y[keep])
+        self.x = np.asarray(sol.y[-1], dtype=float)
+        self.message = (f"stopped at t = {t_end:.10g} by the stop block `{self.stopped_by}` (its input became nonzero "
+                        "in the step that ended there, as Simulink's Stop Simulation block)")
+        self.finished = True
+        return None
 
     def relay_stopped(self, sol, keep, t_end, b, u):
         """A stepped relay's output_fcn stopped the solver at a step's end: switch it there."""
@@ -425,6 +456,19 @@ def _stop_when_changed(changed, start, x):
     return stop_fcn
 
 
+def _stop_block_watch(check, other, nx):
+    """An OutputFcn that stops the solver at the end of the first step after which a stop block's input is nonzero
+    (and also when ``other``, a stepped relay's, asks)."""
+    def stop_fcn(tt, yy, flag):
+        if flag == "" and np.size(tt):
+            t_last = float(np.atleast_1d(tt)[-1])
+            y_last = np.asarray(yy).reshape(-1, nx)[-1]
+            return bool(check(t_last, y_last)) or bool(other(tt, yy, flag) if other else False)
+        return bool(other(tt, yy, flag)) if other else False
+
+    return stop_fcn
+
+
 def _combined(zc, n_zc, events):
     """One events function: the blocks' switching functions, then the user's events."""
     if events is None:
@@ -486,7 +530,7 @@ def _discrete_hit(diagram, t, x, u, names):
         vals = diagram._ports(t, x, u, False)
         ins = [vals[p] for p in diagram.wiring.sources[n]]
         sl = diagram.slices[n]
-        x[sl] = b.hit_output(x[sl], ins)
+        x[sl] = b.hit_output_at(t, x[sl], ins) if getattr(b, "TIMED", False) else b.hit_output(x[sl], ins)
         pending.append((n, ins))
     for n, ins in pending:
         sl = diagram.slices[n]

@@ -1,0 +1,130 @@
+"""MATLAB ODE files (``.m``): read, never run, and written as an experiment file.
+
+:func:`read` is the :mod:`odelab.formats` reader of ``.m`` files: a driver script (or a driver
+function, or a right-hand side alone with ``--call``) becomes the experiment its solver calls
+describe, with the notes of what was translated, ignored, or could not be (the gaps).
+:func:`workspace` evaluates the constant assignments of workspace scripts (``m = 2; k = 3;
+A = [0 1; -k/m -b/m];``), as a Simulink model's reader needs them.
+
+The pieces: :mod:`.lexer` and :mod:`.parser` (the MATLAB subset ODE code uses, to a syntax
+tree), :mod:`.interp` with :mod:`.evaluate`, :mod:`.branches` and :mod:`.builtins` (reading
+that tree on symbolic values, :mod:`.values`), :mod:`.calls` and :mod:`.cases` (each solver
+call a case), :mod:`.translate` (the experiment file).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from odelab.formats.base import Document, ImportOptions, Note
+
+__all__ = ["read", "workspace", "plain_value"]
+
+
+def read(path: Path, options: ImportOptions | None = None) -> Document:
+    """The :mod:`odelab.formats` reader of ``.m`` files (see :mod:`.translate`).
+
+    Raises
+    ------
+    ExperimentError
+        A file odelab cannot read at all, or one that would run commands (``system``, ``eval``, ``!``):
+        one message naming the file and the line.
+    """
+    from odelab.formats.matlab.source import read_source
+    from odelab.formats.matlab.translate import translate
+
+    raw = read_source(Path(path))
+    return translate(Path(path), raw, options or ImportOptions())
+
+
+def plain_value(value: Any) -> Any:
+    """A workspace value as plain Python: a float, a numpy array, a str, a dict (struct), a list (cell);
+    None for what is not a constant (a function handle, a value odelab cannot know)."""
+    from odelab.formats.matlab.values import Arr, Cell, Str, Struct
+
+    if isinstance(value, Arr):
+        numbers = value.numbers()
+        if numbers is None:
+            return None
+        if value.is_char:
+            return "".join(chr(int(c)) for c in numbers.reshape(-1))
+        return float(numbers[0, 0]) if value.size == 1 else np.array(numbers)
+    if isinstance(value, Str):
+        return value.text
+    if isinstance(value, Struct):
+        out = {k: plain_value(v) for k, v in value.fields.items()}
+        return {k: v for k, v in out.items() if v is not None}
+    if isinstance(value, Cell):
+        return [plain_value(v) for v in value.items]
+    return None
+
+
+def workspace(paths: list[Path], sets=()) -> tuple[dict[str, Any], list[Note]]:
+    """The variables that MATLAB scripts assign, evaluated without running them.
+
+    Parameters
+    ----------
+    paths
+        ``.m`` scripts, read in order in one workspace (a later assignment wins).
+    sets
+        ``(name, text)`` pairs (``--set k=5``): each text read as a MATLAB expression; the name keeps
+        that value even where a script assigns it.
+
+    Returns
+    -------
+    values, notes
+        ``name -> value`` (a float, a numpy array, a str, a dict for a struct, a list for a cell array)
+        for every variable with a constant value, and the notes: what was not read (a plot, a
+        ``load`` of a file odelab does not read, ``rand``) and which variables were left unknown.
+
+    Raises
+    ------
+    ExperimentError
+        A script odelab refuses (it calls ``system``, ``eval``...), or cannot read at all.
+    """
+    from odelab.formats.base import IGNORED
+    from odelab.formats.matlab.machine import make_interpreter
+    from odelab.formats.matlab.parser import parse_text
+    from odelab.formats.matlab.scope import Notes, Scope
+    from odelab.formats.matlab.source import decode, read_source
+    from odelab.formats.matlab.translate import Siblings, parse_sets
+    from odelab.formats.matlab.values import Unknown
+
+    paths = [Path(p) for p in paths]
+    notes = Notes(main="")
+    values: dict[str, Any] = {}
+    if not paths and not sets:
+        return values, []
+    first = parse_text(decode(read_source(paths[0]), str(paths[0])), str(paths[0])) if paths else \
+        parse_text("x = 0;", "--set")
+    interp = make_interpreter(first, notes, loader=Siblings(paths[0].parent, first, paths[0]) if paths else None)
+    interp.pinned = parse_sets(tuple(sets), interp)
+    scope = Scope(str(paths[0]) if paths else "--set", mode="script")
+    for k, path in enumerate(paths):
+        source = first if k == 0 else parse_text(decode(read_source(path), str(path)), str(path))
+        interp.source = source
+        scope.file = str(path)
+        if source.script is None:
+            notes.add(0, path.name, IGNORED, "a function file, not a script: it assigns no workspace variable",
+                      path.name)
+            continue
+        interp.run_block(source.script, scope)
+    for name, value in interp.pinned.items():
+        scope.vars.setdefault(name, value)
+    for name, value in scope.vars.items():
+        plain = plain_value(value)
+        if plain is None:
+            why = value.reason if isinstance(value, Unknown) else "not a constant (a function handle or a solver's output)"
+            notes.add(getattr(value, "line", 0), name, IGNORED, f"left unknown: {why}",
+                      Path(getattr(value, "file", "") or "").name)
+            continue
+        values[name] = plain
+    for name in scope.globals:
+        if name in interp.globals and name not in values:
+            plain = plain_value(interp.globals[name])
+            if plain is not None:
+                values[name] = plain
+    return values, list(notes.rows)
