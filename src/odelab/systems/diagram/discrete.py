@@ -311,6 +311,19 @@ class PID(Block):
         e = u[0]
         return np.concatenate([e, N * (D * e - x[1:2])])
 
+    def generate_outputs(self, g, name, ins):  # as outputs(): I x_I - N f, then + (P + N D) e
+        P, I, D, N = self.gains
+        text = f"(({g.number(I)} * {g.state(name, 0)}) - ({g.number(N)} * {g.state(name, 1)}))"
+        if self.feedthrough:
+            text = f"({text} + ({g.number(P + N * D)} * {ins[0]}))"
+        return [g.var(text)]
+
+    def generate_derivative(self, g, name, ins):  # as derivative(): e, N (D e - f)
+        P, I, D, N = self.gains
+        e = ins[0]
+        g.derivative(name, 0, e)
+        g.derivative(name, 1, f"({g.number(N)} * (({g.number(D)} * {e}) - {g.state(name, 1)}))")
+
     def label(self, name):
         P, I, D, N = self.gains
         return f"{name}\nPID(s) P {P:g}, I {I:g}, D {D:g}, N {N:g}"
