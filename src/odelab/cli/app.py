@@ -33,6 +33,8 @@ MAX_STEPS_HELP = ("Budget of steps per solve: an adaptive solve stops there, a f
 LIMIT_HELP = ("Raise (or lower) a work or memory budget, NAME=N: points (2000000 output points per case), refine "
               "(100), cases (1000 per file), amplitudes (100), table_rows (10000), events (10000 per case), states "
               "(5000 per system); 0: no limit. Repeatable.")
+NATIVE_HELP = ("Allow [system] kind = \"fmu\" files: simulating an FMU runs the machine code inside it, with your "
+               "permissions; give this only for FMUs you trust.")
 
 
 class _Command(typer.core.TyperCommand):
@@ -115,6 +117,7 @@ def run(
     validate_with: Annotated[Optional[Path], typer.Option(
         "--validate-with", metavar="CSV", help="Check each [fit]'s fitted model against a second data set (read as "
         "[data] reads its file).", show_default=False)] = None,
+    allow_native: Annotated[bool, typer.Option("--allow-native", help=NATIVE_HELP)] = False,
 ) -> None:
     """Run experiments: solve every case, print the error tables and store the results."""
     import warnings
@@ -140,7 +143,8 @@ def run(
         err.print("[bold red]error:[/] `--scheduler` is the address of a Dask scheduler: add `--executor dask`.")
         raise typer.Exit(EXIT_INPUT)
     config = RunConfig(runs=runs, store=store, mat=mat, max_steps=max_steps, limits=limits, backend=backend,
-                       jobs=jobs, executor=executor, scheduler=scheduler, validate_with=validate_with)
+                       jobs=jobs, executor=executor, scheduler=scheduler, validate_with=validate_with,
+                       allow_native=allow_native)
     _draw_run(run_files(paths, config), out, err, runs=runs, json_out=json_out, table=table or trajectories)
 
 
@@ -406,6 +410,44 @@ def validate(
 
 
 @app.command(cls=_Command)
+def export(
+    file: Annotated[Path, typer.Argument(help="The experiment file.", show_default=False, metavar="FILE.toml")],
+    case: Annotated[Optional[str], typer.Option("--case", help="The case to export (default: the first).",
+                                                show_default=False, metavar="NAME")] = None,
+    output: Annotated[Optional[Path], typer.Option("-o", "--output", help="The FMU to write (default: the "
+                                                   "experiment's name, .fmu, in the current folder).",
+                                                   show_default=False, metavar="MODEL.fmu")] = None,
+    fmi: Annotated[int, typer.Option("--fmi", help="The FMI version: 2 (3 is not written yet).",
+                                     metavar="2|3")] = 2,
+) -> None:
+    """Export a case as an FMU (FMI 2.0, Model Exchange and Co-Simulation) for other simulation tools."""
+    from odelab.exceptions import InputError
+    from odelab.experiment.loader import load_experiment
+    from odelab.fmi import export as export_fmu
+
+    out, err = _consoles()
+    try:
+        experiment = load_experiment(file)
+        target = output if output is not None else Path(f"{experiment.name}.fmu")
+        done = export_fmu(experiment, target, case=case, fmi=fmi)
+    except InputError as exc:
+        err.print(f"[bold red]error:[/] {_escape(_error_text(exc))}")
+        raise typer.Exit(EXIT_INPUT) from None
+    except OSError as exc:
+        err.print(f"[bold red]error:[/] cannot write the FMU: {_escape(str(exc))}")
+        raise typer.Exit(EXIT_INPUT) from None
+    m = done.model
+    chosen = case or experiment.cases[0].name
+    more = f" (the first of {len(experiment.cases)}; --case picks another)" if case is None and \
+        len(experiment.cases) > 1 else ""
+    out.print(f"wrote {_escape(str(target))}: case {_escape(chosen)}{_escape(more)}, FMI 2.0 Model Exchange and "
+              f"Co-Simulation, {len(m.states)} state{'s' if len(m.states) != 1 else ''}, {len(m.outputs)} "
+              f"output{'s' if len(m.outputs) != 1 else ''}, {len(m.parameters)} tunable parameter"
+              f"{'s' if len(m.parameters) != 1 else ''}; compiled with {_escape(Path(done.compiler).name)} in "
+              f"{done.compile_seconds:.2f} s")
+
+
+@app.command(cls=_Command)
 def new(
     file: Annotated[Path, typer.Argument(help="The experiment file to write.", show_default=False, metavar="FILE")],
     kind: Annotated[str, typer.Option("--kind", help="ode, state-space, diagram, network, python, sweep or study (every "
@@ -446,6 +488,8 @@ def grade(
                                                "`function` (it runs the students' code).")] = False,
     backend: Annotated[str, typer.Option("--backend", metavar="NAME", help="python (the same numbers on every "
                                          "machine and run), auto or compiled.")] = "python",
+    allow_native: Annotated[bool, typer.Option("--allow-native", help="Load submissions' FMUs (kind = \"fmu\"): "
+                                               "it runs the machine code inside them.")] = False,
 ) -> None:
     """Grade a class's experiment files against a reference: summary.csv, feedback, results.json."""
     import warnings
@@ -463,7 +507,7 @@ def grade(
 
     try:
         grades = grade_class(rubric, submissions, limits=limits, max_steps=max_steps, jobs=jobs, backend=backend,
-                             allow_python=allow_python)
+                             allow_python=allow_python, allow_native=allow_native)
         written = write_grades(grades, out)
     except InputError as exc:
         err.print(f"[bold red]error:[/] {_escape(_error_text(exc))}")

@@ -44,6 +44,7 @@ class Problem:
     data: Any = None  # [data]: an experiment.data.MeasuredData, the case's reference
     fit: Any = None  # the summary of the experiment's [fit] (a plain dict), once it has been fitted
     network: Any = None  # the derived odelab.systems.network.Network of a kind = "network" system
+    fmu: Any = None  # kind = "fmu": an odelab.fmi.simulate.FmuRun (the FMU, its interface, values, signals)
 
 
 @dataclass(frozen=True, eq=False)
@@ -89,3 +90,4 @@ class Built:
     compiled: Any = None  # CompiledSystem for the compiled backend (expression systems without inputs)
     jacobian: Any = None  # exact df/dx for the stiff solvers: J(t, x) or a constant matrix
     network: Any = None  # the derived Network of a kind = "network" system
+    fmu: Any = None  # kind = "fmu": an odelab.fmi.simulate.FmuRun

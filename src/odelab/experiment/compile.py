@@ -114,9 +114,16 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
         options=options, output_fn=built.output_fn, input_fn=input_fn, exact_fn=exact_fn, reference=kind,
         reference_solver=(ref.solver, float(ref.rtol), float(ref.atol)), system=built.system, signals=signals,
         linearize=model.linearize, parameters=params, diagram=built.diagram, events=events, backend=backend,
-        compiled=fast, analysis=analysis, data=data, network=built.network,
+        compiled=fast, analysis=analysis, data=data, network=built.network, fmu=_bound_fmu(built.fmu, signals),
     )
     return problem, resolved
+
+
+def _bound_fmu(run, signals):
+    """An FMU case's run with its inputs' signals bound (kind = "fmu")."""
+    if run is not None:
+        run.signals = tuple(signals)  # built for this case alone: its output_fn reads this run
+    return run
 
 
 def _build_system(model: schema.Experiment, path: Path, params: dict, params_key: tuple, limits: Limits,
@@ -159,6 +166,13 @@ def _build_system(model: schema.Experiment, path: Path, params: dict, params_key
         from odelab.experiment.kinds.network import build_network
 
         built = build_network(model, params)
+    elif system.kind == "fmu":
+        from odelab.experiment.kinds.fmu import build_fmu
+
+        built = build_fmu(model, params, path, limits)
+    elif system.file is not None or system.interface is not None:
+        key = "system.file" if system.file is not None else "system.interface"
+        raise ExperimentError(f"`{key}` is for an FMU: add kind = \"fmu\" under [system], or remove it.", key=key)
     elif model.elements is not None:
         raise ExperimentError("[elements] is given but the system is not a network: add kind = \"network\" under "
                               "[system].", key="elements")

@@ -50,7 +50,7 @@ NOTES: dict[str, str] = {
     "system": "What is integrated: equations, a state-space model, a block diagram or a Python function.",
     "system.kind": "The kind of system: `ode` (states and [system.equations]), `state-space` (A, B, C, D), "
                    "`diagram` ([blocks]), `network` ([elements]: odelab derives the equations), `implicit` "
-                   "([system.residuals]: F(t, x, x') = 0, solved by ode15i).",
+                   "([system.residuals]: F(t, x, x') = 0, solved by ode15i), `fmu` (an FMU through FMPy: `file`).",
     "system.states": "The state names, in order (the order of y in MATLAB).",
     "system.equations": "d(state)/dt for each state, in the expression language.",
     "system.equations.<name>": "The right-hand side of d(<name>)/dt: an expression of t, the states, the inputs "
@@ -65,6 +65,12 @@ NOTES: dict[str, str] = {
                                "parameters.",
     "system.function": "A Python function `def f(t, y)`, written \"file.py:name\" relative to the experiment file, "
                        "as a MATLAB function file (runs code: refused by `odelab grade` unless allowed).",
+    "system.file": "kind = \"fmu\": the FMU (FMI 2.0 or 3.0), relative to the experiment file. Its states, inputs, "
+                   "outputs and parameters are its own; loading it runs its machine code, so `odelab run` needs "
+                   "--allow-native (see docs/fmi.md).",
+    "system.interface": "kind = \"fmu\": `model-exchange` (default when offered: odelab's solvers step it, events "
+                        "by its event indicators) or `co-simulation` (the FMU steps itself at the communication "
+                        "step: [solver] h, else its DefaultExperiment's stepSize).",
     "system.inputs": "The input names (u); each needs an [inputs.<name>] signal.",
     "system.outputs": "Outputs: a table of expressions (`y = \"q*x\"`), the names of state-space outputs, or, for "
                       "a diagram, output name = block name.",

@@ -31,7 +31,9 @@ class _Section(BaseModel):
 class System(_Section):
     """[system]: what is integrated."""
 
-    kind: Literal["ode", "state-space", "diagram", "network", "implicit"] = "ode"
+    kind: Literal["ode", "state-space", "diagram", "network", "implicit", "fmu"] = "ode"
+    file: StrictStr | None = None  # kind = "fmu": the FMU (experiment/kinds/fmu.py)
+    interface: Literal["model-exchange", "co-simulation"] | None = None  # kind = "fmu"
     states: list[StrictStr] | None = None
     equations: dict[str, Value] | None = None
     residuals: dict[str, Value] | None = None  # kind = "implicit": F(t, x, der(x)) = 0 (experiment/kinds/implicit.py)

@@ -171,7 +171,7 @@ def _run(cases: list, *, jobs, max_steps, backend, executor, on_done=None):
 def grade_class(rubric: Rubric | str | Path, submissions: str | Path | None = None, *,
                 limits: Limits = DEFAULT_LIMITS, max_steps: int | None = 1_000_000, jobs: int | None = None,
                 executor: str = "process", backend: str = "python", allow_python: bool = False,
-                on_done: Callable[[int, int], None] | None = None) -> ClassGrade:
+                allow_native: bool = False, on_done: Callable[[int, int], None] | None = None) -> ClassGrade:
     """Grade every student of ``submissions`` (default: the rubric's ``submissions``) against the rubric.
 
     ``backend`` defaults to "python": the engine ``auto`` would choose depends on the machine's
@@ -210,7 +210,7 @@ def grade_class(rubric: Rubric | str | Path, submissions: str | Path | None = No
     for s, student in enumerate(students):
         grade = StudentGrade(student.name, [], notes=list(student.notes))
         grades.append(grade)
-        matches = _match_student(student, wanted, experiments, limits, allow_python)
+        matches = _match_student(student, wanted, experiments, limits, (allow_python, allow_native))
         for e in wanted:
             m = matches[e]
             if m.experiment is not None:
@@ -326,7 +326,7 @@ def _normal_title(text: str | None) -> str | None:
 
 
 def _match_student(student: Student, wanted: list[str], experiments: dict, limits: Limits,
-                   allow_python: bool) -> dict[str, _Match]:
+                   allow: tuple[bool, bool]) -> dict[str, _Match]:
     """Each wanted reference experiment's match among the student's files: by name, by title, by system."""
     matches = {e: _Match() for e in wanted}
     loaded: dict[int, list | InputError] = {}  # file index -> its experiments, or why it cannot be loaded
@@ -334,7 +334,7 @@ def _match_student(student: Student, wanted: list[str], experiments: dict, limit
 
     def load(i: int):
         if i not in loaded:
-            loaded[i] = _load_student_file(student, student.files[i], limits, allow_python)
+            loaded[i] = _load_student_file(student, student.files[i], limits, *allow)
         return loaded[i]
 
     def take(e: str, i: int, exp_name: str, how: str) -> None:
@@ -418,7 +418,8 @@ def _shown(student: Student, f: StudentFile) -> str:
     return f.path.relative_to(student.folder).as_posix()
 
 
-def _load_student_file(student: Student, f: StudentFile, limits: Limits, allow_python: bool):
+def _load_student_file(student: Student, f: StudentFile, limits: Limits, allow_python: bool,
+                       allow_native: bool = False):
     """A student's file loaded as ``odelab run`` loads it, confined to their folder; or the InputError why not."""
     from odelab.exceptions import ExperimentError
     from odelab.experiment.loader import load_experiments
@@ -433,8 +434,16 @@ def _load_student_file(student: Student, f: StudentFile, limits: Limits, allow_p
         return ExperimentError(f"`{key}` is {value!r}, a Python function; grading never runs a submission's code. "
                                "Write the system as [system.equations] (or a state-space model); the instructor can "
                                "allow Python with `odelab grade --allow-python`.", source=shown, key=key)
+    system = f.data.get("system") if isinstance(f.data, dict) else None
+    if isinstance(system, dict) and system.get("kind") == "fmu" and not allow_native:
+        return ExperimentError(f"`system.file` is {system.get('file')!r}, an FMU; grading never runs a submission's "
+                               "machine code. Write the system as [system.equations] (or a state-space model); the "
+                               "instructor can allow FMUs with `odelab grade --allow-native`.", source=shown,
+                               key="system.file")
+    from odelab.fmi.native import allow_native as native
+
     try:
-        with confined_to(student.folder):
+        with confined_to(student.folder), native(allow_native):
             return load_experiments(f.path, limits=limits)
     except InputError as exc:
         # paths in the message relative to the student's folder: the feedback does not depend on

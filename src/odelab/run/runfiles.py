@@ -44,6 +44,7 @@ class RunConfig:
     scheduler: str | None = None
     validate_with: Path | None = None
     import_options: ImportOptions | None = None  # --workspace, --set, --call for MATLAB and Simulink files
+    allow_native: bool = False  # --allow-native: files may load FMUs (their binaries run in this process)
 
     @property
     def budgets(self) -> Limits:
@@ -172,13 +173,15 @@ def load_files(paths: list[Path], config: RunConfig) -> tuple[list, list[str]]:
     """The experiments of ``paths`` (fitted where they have a [fit]) and one error line per one that cannot run."""
     from odelab.experiment.loader import load_experiments
     from odelab.experiment.naming import check_experiment_names
+    from odelab.fmi.native import allow_native
 
     files, problems = expand_paths(paths)
     bad = [f"{p}: {why}" for p, why in problems]
     loaded = []
     for file in files:
         try:
-            loaded.extend(load_experiments(file, limits=config.budgets, options=config.import_options))
+            with allow_native(config.allow_native):
+                loaded.extend(load_experiments(file, limits=config.budgets, options=config.import_options))
         except InputError as exc:
             bad.append(error_text(exc))
     for exp, exc in check_experiment_names(loaded):  # two files that would share a results folder

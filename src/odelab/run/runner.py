@@ -28,6 +28,10 @@ def _integrate(problem, tspan, method, options, backend="python") -> Integration
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SolverWarning)
+        if getattr(problem, "fmu", None) is not None:  # kind = "fmu": odelab's solvers step the FMU
+            from odelab.fmi.simulate import run_fmu
+
+            return Integration(*run_fmu(problem, tspan, method, options))
         if problem.diagram is not None and not problem.diagram.states:
             from odelab.run.backend import run_stateless
 
