@@ -37,6 +37,13 @@ NATIVE_HELP = ("Allow [system] kind = \"fmu\" files: simulating an FMU runs the 
                "permissions; give this only for FMUs you trust.")
 
 
+WORKSPACE_HELP = ("A MATLAB script that assigns the workspace variables a MATLAB or Simulink file uses (read, never "
+                  "run); repeatable, read in order.")
+SET_HELP = "Set a workspace variable or parameter of a MATLAB or Simulink file, NAME=VALUE (a MATLAB value). Repeatable."
+CALL_HELP = ("The solver call for a MATLAB function file that has none, as typed at MATLAB's prompt: "
+             "\"[t,y] = ode23(@eq1, [0 pi], 2)\".")
+
+
 class _Command(typer.core.TyperCommand):
     """A command whose arguments show their metavar as written (``FILES...``), not Typer's ``<list[Path]>``."""
 
@@ -118,6 +125,11 @@ def run(
         "--validate-with", metavar="CSV", help="Check each [fit]'s fitted model against a second data set (read as "
         "[data] reads its file).", show_default=False)] = None,
     allow_native: Annotated[bool, typer.Option("--allow-native", help=NATIVE_HELP)] = False,
+    workspace: Annotated[Optional[list[Path]], typer.Option(
+        "--workspace", metavar="SCRIPT.m", help=WORKSPACE_HELP, show_default=False)] = None,
+    sets: Annotated[Optional[list[str]], typer.Option("--set", metavar="NAME=VALUE", help=SET_HELP,
+                                                      show_default=False)] = None,
+    call: Annotated[Optional[str], typer.Option("--call", metavar="CALL", help=CALL_HELP, show_default=False)] = None,
 ) -> None:
     """Run experiments: solve every case, print the error tables and store the results."""
     import warnings
@@ -144,8 +156,24 @@ def run(
         raise typer.Exit(EXIT_INPUT)
     config = RunConfig(runs=runs, store=store, mat=mat, max_steps=max_steps, limits=limits, backend=backend,
                        jobs=jobs, executor=executor, scheduler=scheduler, validate_with=validate_with,
-                       allow_native=allow_native)
+                       allow_native=allow_native, import_options=_import_options(workspace, sets, call, err))
     _draw_run(run_files(paths, config), out, err, runs=runs, json_out=json_out, table=table or trajectories)
+
+
+def _import_options(workspace, sets, call, err, output=None):
+    """--workspace, --set and --call for the readers of MATLAB and Simulink files (a bad --set is exit 2)."""
+    from odelab.formats.base import ImportOptions
+
+    pairs = []
+    for text in sets or []:
+        name, sep, value = text.partition("=")
+        if not sep or not name.strip() or not value.strip():
+            err.print(f"[bold red]error:[/] `--set {_escape(text)}`: write NAME=VALUE, e.g. --set k=2.")
+            raise typer.Exit(EXIT_INPUT)
+        pairs.append((name.strip(), value.strip()))
+    if not (workspace or pairs or call or output):
+        return None
+    return ImportOptions(workspace=tuple(workspace or ()), sets=tuple(pairs), call=call, output=output)
 
 
 def _limits(max_steps: int, limit: list[str] | None, err):
@@ -529,6 +557,77 @@ def grade(
     out_console.print(f"wrote {_escape(str(written[0]))}, results.json, summary.html and "
                       f"{len(grades.students)} feedback file{'s' if len(grades.students) != 1 else ''} in "
                       f"{_escape(str(out))}/")
+
+
+@app.command("import", cls=_Command)
+def import_(
+    paths: Annotated[list[Path], typer.Argument(help="MATLAB (.m) or Simulink (.slx, .mdl) files.",
+                                                show_default=False, metavar="FILES...")],
+    out: Annotated[Optional[Path], typer.Option("--out", "-o", metavar="DIR", show_default="beside each file",
+                                                help="The folder to write NAME.toml to.")] = None,
+    workspace: Annotated[Optional[list[Path]], typer.Option(
+        "--workspace", metavar="SCRIPT.m", help=WORKSPACE_HELP, show_default=False)] = None,
+    sets: Annotated[Optional[list[str]], typer.Option("--set", metavar="NAME=VALUE", help=SET_HELP,
+                                                      show_default=False)] = None,
+    call: Annotated[Optional[str], typer.Option("--call", metavar="CALL", help=CALL_HELP, show_default=False)] = None,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite a NAME.toml that odelab import did not write.")]
+    = False,
+) -> None:
+    """Write the experiment file of a MATLAB or Simulink file and show what was translated (never runs it).
+
+    Exit 0: everything translated; 1: written with gaps to fill in (marked GAP:); 2: nothing usable."""
+    from odelab.cli.import_view import print_import
+    from odelab.exceptions import InputError
+    from odelab.formats import read
+
+    out_console, err = _consoles()
+    code = EXIT_OK
+    for path in paths:
+        target_dir = out if out is not None else path.parent
+        options = _import_options(workspace, sets, call, err, output=target_dir)
+        try:
+            doc = read(path, options)
+        except InputError as exc:
+            err.print(f"[bold red]error:[/] {_escape(_error_text(exc))}")
+            code = EXIT_INPUT
+            continue
+        if not doc.imported:
+            err.print(f"[bold red]error:[/] {_escape(str(path))}: is already an experiment file; `odelab import` "
+                      "translates MATLAB and Simulink files.")
+            code = EXIT_INPUT
+            continue
+        target = target_dir / f"{path.stem}.toml"
+        problem = _write_import(target, doc.text, force)
+        if problem:
+            err.print(f"[bold red]error:[/] {_escape(str(target))}: {_escape(problem)}")
+            code = EXIT_INPUT
+            continue
+        print_import(out_console, str(path), str(target), doc.notes)
+        if doc.gaps and code == EXIT_OK:
+            code = EXIT_FAILED
+    raise typer.Exit(code)
+
+
+def _write_import(target: Path, text: str, force: bool) -> str | None:
+    """Write the imported experiment file; why not (it would replace a file odelab import did not write)."""
+    import os
+
+    if target.exists() and not force:
+        try:
+            with open(target, encoding="utf-8", errors="replace") as fh:
+                first = fh.readline()
+        except OSError:
+            first = ""
+        if not first.startswith("# Imported from "):
+            return "exists and was not written by `odelab import`; give another folder with -o or --force."
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        tmp = target.with_name(f".{target.name}.tmp")
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, target)
+    except OSError as exc:
+        return f"cannot be written: {exc.strerror or exc}."
+    return None
 
 
 @app.command(cls=_Command)

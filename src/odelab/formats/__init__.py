@@ -16,7 +16,7 @@ from pathlib import Path
 from odelab.formats.base import GAP, IGNORED, TRANSLATED, Document, ImportOptions, Note
 
 __all__ = ["READERS", "FOLDER_SUFFIXES", "Document", "ImportOptions", "Note", "TRANSLATED", "IGNORED", "GAP",
-           "read", "reader_name", "is_experiment_file"]
+           "read", "reader_name", "is_experiment_file", "is_experiment"]
 
 #: suffix -> (the reader's module, what the format is called in messages)
 READERS: dict[str, tuple[str, str]] = {
@@ -38,6 +38,18 @@ def reader_name(path: Path) -> str:
 def is_experiment_file(path: Path) -> bool:
     """A file whose suffix names a format odelab reads."""
     return Path(path).suffix.lower() in READERS
+
+
+def is_experiment(path: Path) -> bool:
+    """Whether a file of a format odelab reads describes an experiment by itself (for ``odelab grade``, which
+    finds a student's files in a folder): every ``.toml``; a MATLAB file that calls a solver (not a function file
+    another one calls). A reader module decides with its own ``is_experiment(path)``, if it has one."""
+    path = Path(path)
+    if not is_experiment_file(path):
+        return False
+    module = importlib.import_module(reader_name(path))
+    check = getattr(module, "is_experiment", None)
+    return True if check is None else bool(check(path))
 
 
 def read(path: str | Path, options: ImportOptions | None = None) -> Document:

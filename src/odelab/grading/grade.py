@@ -73,9 +73,12 @@ def _reference_files(rubric: Rubric) -> list[Path]:
     files: list[Path] = []
     for path in rubric.reference:
         if path.is_dir():
-            found = sorted(p for p in path.glob("*.toml") if p.is_file())
+            from odelab.formats import is_experiment
+
+            found = sorted(p for p in path.iterdir() if p.is_file() and is_experiment(p))
             if not found:
-                raise RubricError(f"`reference` is {str(path)!r}, a folder with no *.toml experiment files.",
+                raise RubricError(f"`reference` is {str(path)!r}, a folder with no experiment files (*.toml, or "
+                                  "MATLAB or Simulink files).",
                                   source=str(rubric.path), key="reference")
             files.extend(found)
         elif path.is_file():

@@ -86,7 +86,11 @@ def find_students(submissions: Path) -> list[Student]:
 
 
 def _is_toml(entry) -> bool:
-    return entry.name.endswith(".toml") and not entry.name.startswith(".") and entry.is_file(follow_symlinks=False)
+    """An experiment file of a format odelab reads (.toml, a MATLAB driver .m, a Simulink model)."""
+    from odelab.formats import is_experiment
+
+    return (not entry.name.startswith(".") and entry.is_file(follow_symlinks=False)
+            and is_experiment(Path(entry.path)))
 
 
 def _has_toml(entry) -> bool:
@@ -104,7 +108,7 @@ def _collect(student: Student) -> None:
     for here, dirs, files in os.walk(student.folder, followlinks=False):
         depth = len(Path(here).relative_to(student.folder).parts)
         dirs[:] = sorted(d for d in dirs if not d.startswith(".") and depth < _MAX_DEPTH)
-        found.extend(Path(here) / f for f in sorted(files) if f.endswith(".toml") and not f.startswith("."))
+        found.extend(Path(here) / f for f in sorted(files) if not f.startswith(".") and _is_experiment(Path(here) / f))
     found.sort(key=lambda p: p.relative_to(student.folder).as_posix())
     if len(found) > MAX_FILES:
         student.notes.append(f"the submission has {len(found)} experiment files; only the first {MAX_FILES} (by "
@@ -123,12 +127,24 @@ def _collect(student: Student) -> None:
             item.error = ExperimentError("is a symbolic link to a file outside the submission's folder; it was not "
                                          "read. Hand in the file itself.", source=shown)
             continue
-        from odelab.formats.toml import read_toml
+        from odelab.experiment.userfiles import confined_to
+        from odelab.formats import read
 
         try:
-            item.data, _ = read_toml(path)
+            with confined_to(student.folder):
+                doc = read(path)
         except InputError as exc:
             item.error = ExperimentError(exc.message, source=shown, key=exc.key)
+            continue
+        item.data = doc.data
+        if doc.gaps:
+            item.error = ExperimentError(doc.gaps_message(), source=shown)
+
+
+def _is_experiment(path: Path) -> bool:
+    from odelab.formats import is_experiment
+
+    return not path.is_symlink() and is_experiment(path) if path.suffix.lower() != ".toml" else True
 
 
 def python_keys(data: Any, prefix: str = "") -> list[tuple[str, Any]]:

@@ -14,6 +14,7 @@ call a case), :mod:`.translate` (the experiment file).
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +22,24 @@ import numpy as np
 
 from odelab.formats.base import Document, ImportOptions, Note
 
-__all__ = ["read", "workspace", "plain_value"]
+__all__ = ["read", "workspace", "plain_value", "is_experiment"]
+
+_SOLVER_CALL = re.compile(r"\bode(?:45|23|113|78|89|15s|23s|23t|23tb)\s*\(")
+
+
+def is_experiment(path: Path) -> bool:
+    """A MATLAB file that calls a solver (a driver), or a script; not a function file that a driver calls."""
+    try:
+        with open(path, "rb") as fh:
+            raw = fh.read(1_000_001)
+    except OSError:
+        return True  # reading it says what is wrong
+    text = raw.decode("utf-8", errors="replace")
+    code = "\n".join(line.split("%")[0] for line in text.splitlines())
+    if _SOLVER_CALL.search(code):
+        return True
+    first = next((line.strip() for line in code.splitlines() if line.strip()), "")
+    return not first.startswith("function")
 
 
 def read(path: Path, options: ImportOptions | None = None) -> Document:

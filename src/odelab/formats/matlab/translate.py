@@ -93,6 +93,9 @@ def _title(text: str, path: Path) -> str:
         stripped = line.strip()
         if stripped.startswith(("%", "#")) and not stripped.startswith(("%{", "%%%")):
             words = stripped.lstrip("%#").strip()
+            first, _, rest = words.partition(" ")
+            if first.upper() == path.stem.upper() and rest.strip():
+                words = rest.strip()  # MATLAB's H1 line starts with the name in capitals
             if len(words) > 3:
                 return words[:100]
     return f"{path.name} (MATLAB)"
