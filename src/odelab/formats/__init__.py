@@ -22,6 +22,8 @@ __all__ = ["READERS", "FOLDER_SUFFIXES", "Document", "ImportOptions", "Note", "T
 READERS: dict[str, tuple[str, str]] = {
     ".toml": ("odelab.formats.toml", "an experiment file"),
     ".m": ("odelab.formats.matlab", "a MATLAB file"),
+    ".slx": ("odelab.formats.simulink", "a Simulink model"),
+    ".mdl": ("odelab.formats.simulink", "a Simulink model"),
 }
 
 #: What ``odelab run FOLDER`` picks up in a folder: experiment files only (a MATLAB folder holds
