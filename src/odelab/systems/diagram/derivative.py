@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from odelab.systems.diagram.base import Block, BlockError, Key, _scalar, controller_canonical, register
+from odelab.systems.diagram.base import Block, BlockError, Key, _scalar, register
 
 __all__ = ["Derivative"]
 
@@ -31,10 +31,11 @@ class Derivative(Block):
         if not c > 0:
             raise BlockError(f"`coefficient` must be a positive time in seconds; got {c:g}.", key="coefficient")
         self.c = c
-        A, B, C, D = controller_canonical(np.array([1.0, 0.0]), np.array([c, 1.0]))
-        self.A, self.B, self.C, self.D = A, B, C, D
+        # z' = (u - z)/c, y = (u - z)/c: the state z follows u (its size, not 1/c^2 times smaller, so the solver's
+        # absolute tolerance on it costs y only atol/c); z(t0) = u(t0) starts y at 0
+        self.A, self.B, self.C, self.D = (np.array([[v]]) for v in (-1 / c, 1 / c, -1 / c, 1 / c))
         self.nstates = 1
-        self.x0 = np.array([c * _scalar(self, "initial")])  # y(t0) = C x0 + D u0 = 0
+        self.x0 = np.array([_scalar(self, "initial")])
 
     def state_names(self, name):
         return [f"{name}.x1"]
