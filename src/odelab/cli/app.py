@@ -233,6 +233,9 @@ def _draw_events(events, out, err, *, runs, json_out: bool, table: bool) -> int:
             if isinstance(event, rf.FileError):
                 where = f" (case {_escape(repr(event.case))})" if event.case is not None else ""
                 err.print(f"[bold red]error:[/] {_escape(event.message)}{where}")
+            elif isinstance(event, rf.Notice):
+                err.print(f"[yellow]warning:[/] {_escape(event.message)}")
+                report_json.setdefault("warnings", []).append(event.message)
             elif isinstance(event, rf.Fatal):
                 err.print(f"[bold red]error:[/] {_escape(event.message)}")
                 return EXIT_INPUT

@@ -32,12 +32,14 @@ def _dask(*args: str) -> list[str]:
 
 
 @contextmanager
-def dask_processes(workers: int, folder: Path, *, timeout: float = 60.0) -> Iterator[str]:
+def dask_processes(workers: int, folder: Path, *, timeout: float = 60.0,
+                   worker_env: dict[str, str] | None = None) -> Iterator[str]:
     """Start ``dask scheduler`` and ``workers`` ``dask worker`` processes; yield the scheduler's address.
 
     ``folder`` holds the scheduler file, the workers' scratch folders and each process's log
-    (``scheduler.log``, ``worker-N.log``: read them when a start fails). Raises RuntimeError
-    if the cluster is not up within ``timeout`` seconds."""
+    (``scheduler.log``, ``worker-N.log``: read them when a start fails); ``worker_env`` is added
+    to the workers' environment. Raises RuntimeError if the cluster is not up within ``timeout``
+    seconds."""
     from odelab.run.lifeline import tied_command
 
     folder = Path(folder)
@@ -48,11 +50,11 @@ def dask_processes(workers: int, folder: Path, *, timeout: float = 60.0) -> Iter
     procs: list[subprocess.Popen] = []
     logs = []
 
-    def start(argv: list[str], log: str) -> subprocess.Popen:
+    def start(argv: list[str], log: str, extra: dict[str, str] | None = None) -> subprocess.Popen:
         out = open(folder / log, "wb")
         logs.append(out)
         proc = subprocess.Popen(tied_command(argv), stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
-                                env=env, cwd=folder)
+                                env={**env, **(extra or {})}, cwd=folder)
         procs.append(proc)
         return proc
 
@@ -72,7 +74,8 @@ def dask_processes(workers: int, folder: Path, *, timeout: float = 60.0) -> Iter
                 time.sleep(0.05)
         for i in range(workers):
             start(_dask("worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard", "--host", "127.0.0.1",
-                        "--name", f"worker-{i}", "--local-directory", str(folder / f"worker-{i}")), f"worker-{i}.log")
+                        "--name", f"worker-{i}", "--local-directory", str(folder / f"worker-{i}")), f"worker-{i}.log",
+                  worker_env)
         _wait_for_workers(address, workers, procs, max(deadline - time.monotonic(), 1.0))
         yield address
     finally:

@@ -32,7 +32,7 @@ from typing import Callable, Iterable, Iterator
 
 from odelab.exceptions import InputError
 
-__all__ = ["EXECUTORS", "CaseError", "POOL_WORTHWHILE", "case_cost", "default_jobs", "run_cases", "schedule", "small_work"]
+__all__ = ["EXECUTORS", "CaseError", "ClusterLost", "POOL_WORTHWHILE", "case_cost", "default_jobs", "run_cases", "schedule", "small_work"]
 
 EXECUTORS = ("serial", "process", "dask")
 
@@ -175,7 +175,7 @@ def _init_worker(parent: int) -> None:
 def run_cases(cases: Iterable, *, executor: str = "serial", jobs: int | None = None, scheduler: str | None = None,
               max_steps: int | None = None, on_done: Callable[[int, int], None] | None = None,
               backend: str | None = None, on_result: Callable[[object], None] | None = None,
-              limits=None, import_options=None) -> Iterator:
+              limits=None, import_options=None, on_note: Callable[[str], None] | None = None) -> Iterator:
     """Run ``cases``; returns an iterator of each one's :class:`CaseResult` (or :class:`CaseError`), in case order.
 
     A process pool is started (its workers forked) before this returns; the cases run as the
@@ -196,6 +196,15 @@ def run_cases(cases: Iterable, *, executor: str = "serial", jobs: int | None = N
     import_options
         The :class:`~odelab.formats.ImportOptions` an imported file (MATLAB, Simulink) was read with:
         a Dask worker reads it again with them.
+    on_note
+        Called with a sentence when something happened to the run that the user should know and
+        that did not change its results (a Dask worker lost mid-run: its cases ran again).
+
+    Raises
+    ------
+    ClusterLost
+        The Dask scheduler went away mid-run (its process died, or it stopped answering for
+        :data:`DASK_SILENT_SECONDS`); the cases that finished travel on it as ``finished``.
     """
     cases = list(cases)
     if executor not in EXECUTORS:
@@ -219,7 +228,7 @@ def run_cases(cases: Iterable, *, executor: str = "serial", jobs: int | None = N
         return _run_serial(cases, opts, done)
     if executor == "process":
         return _run_pool(cases, jobs, opts, done)
-    return _run_dask(cases, jobs, scheduler, opts, done, limits, import_options)
+    return _run_dask(cases, jobs, scheduler, opts, done, limits, import_options, on_note)
 
 
 def _run_serial(cases, opts, done):
@@ -348,19 +357,32 @@ def _in_order(cases, groups, result_of, done, wait_some):
         raise
 
 
-def _run_dask(cases, jobs, scheduler, opts, done, limits=None, import_options=None):
+def _run_dask(cases, jobs, scheduler, opts, done, limits=None, import_options=None, on_note=None):
     try:
         from distributed import Client, LocalCluster, wait
     except ImportError:
         raise InputError("`--executor dask` needs Dask's distributed package: pip install 'odelab[dask]'.",
                          key="executor") from None
     _seed(cases)  # an in-process worker finds them here; others load the files
-    return _dask_results(cases, jobs, scheduler, opts, done, Client, LocalCluster, wait, limits, import_options)
+    return _dask_results(cases, jobs, scheduler, opts, done, Client, LocalCluster, wait, limits, import_options,
+                         on_note)
 
 
 #: How long to wait for a Dask scheduler to answer, and for it to have a worker.
 DASK_CONNECT_SECONDS = 10.0
 DASK_WORKERS_SECONDS = 30.0
+
+#: While cases run on a cluster the run looks at it every DASK_POLL_SECONDS (workers that left
+#: or joined); when no case has finished for DASK_PROBE_SECONDS it asks the scheduler to answer,
+#: and one that does not within DASK_SILENT_SECONDS is lost. A scheduler whose process dies is
+#: noticed at once (its connection closes).
+DASK_POLL_SECONDS = 1.0
+DASK_PROBE_SECONDS = 10.0
+DASK_SILENT_SECONDS = 30.0
+
+
+class ClusterLost(InputError):
+    """The Dask scheduler went away mid-run: the cases that finished are on ``finished``."""
 
 
 #: A Dask task runs a batch of consecutive cases (in :func:`schedule`'s order) of at most this
@@ -383,14 +405,20 @@ def _run_batch(items: list, opts: dict, limits=None, import_options=None) -> lis
     return [_run_remote(*item, opts, limits, import_options) for item in items]
 
 
-def _dask_results(cases, jobs, scheduler, opts, done, Client, LocalCluster, wait, limits=None, import_options=None):
+def _dask_results(cases, jobs, scheduler, opts, done, Client, LocalCluster, wait, limits=None, import_options=None,
+                  on_note=None):
+    import time
+
     cluster = None
     if scheduler:
         client = _dask_client(scheduler, Client)
     else:
         cluster, client = _local_cluster(jobs, Client, LocalCluster)
+    watch = _ClusterWatch(client, f"the Dask scheduler at {scheduler!r}" if scheduler else "the local Dask cluster",
+                          on_note)
     futures: list = []
     try:
+        watch.check_versions(set(client.scheduler_info(n_workers=-1)["workers"]))
         threads = sum(client.nthreads().values()) or jobs
         groups = []
         batches = dask_batches(schedule(cases), threads)
@@ -400,15 +428,126 @@ def _dask_results(cases, jobs, scheduler, opts, done, Client, LocalCluster, wait
                                    priority=len(batches) - rank)
             futures.append(future)
             groups.append((future, batch))
-        yield from _in_order(cases, groups, lambda f: f.result(), done,
-                             lambda pending: wait(list(pending), return_when="FIRST_COMPLETED").done)
+
+        def wait_some(pending):
+            while True:
+                try:
+                    finished = wait(list(pending), timeout=DASK_POLL_SECONDS, return_when="FIRST_COMPLETED").done
+                except TimeoutError:
+                    watch.look(time.monotonic(), progressed=False)
+                    continue
+                watch.look(time.monotonic(), progressed=True)
+                return finished
+
+        try:
+            yield from _in_order(cases, groups, lambda f: f.result(), done, wait_some)
+        except Exception as exc:  # noqa: BLE001 - what the cluster raises when its scheduler is gone
+            if isinstance(exc, InputError) or not watch.lost(exc):
+                raise
+            raise watch.lost_error(getattr(exc, "finished", [])) from None
     except BaseException:
-        client.cancel(futures)
+        _cancel_quietly(client, futures)
         raise
     finally:
-        client.close()
+        _close_quietly(client)
         if cluster is not None:
             cluster.close()
+
+
+class _ClusterWatch:
+    """What the run sees of its cluster while it waits: workers that leave (their cases run again on
+    the others: said once per worker), workers that join (their odelab checked), a scheduler gone."""
+
+    def __init__(self, client, where: str, on_note) -> None:
+        self.client, self.where, self.on_note = client, where, on_note
+        self.known: dict[str, str] = {}  # worker address -> its name
+        self.last = None  # when a case last finished (monotonic seconds), None before the first look
+        self.looked = -math.inf  # when the workers were last looked at
+        self.said: set[str] = set()
+
+    def check_versions(self, addresses: set[str]) -> None:
+        """Refuse workers whose odelab is not this process's (the results would mix versions)."""
+        from odelab import __version__
+
+        info = self.client.get_versions(packages=["odelab"])
+        for address in sorted(addresses):
+            worker = info["workers"].get(address) or {}
+            theirs = (worker.get("packages") or {}).get("odelab") if isinstance(worker, dict) else None
+            if theirs != __version__:
+                shown = f"odelab {theirs}" if theirs else "no odelab installed"
+                raise InputError(f"the Dask worker {address} of {self.where} has {shown}, and this process runs "
+                                 f"odelab {__version__}: every worker must run the same odelab, or the results would "
+                                 f"mix versions. Install odelab {__version__} in the workers' environment (pip install "
+                                 f"odelab=={__version__}) and restart them.", key="scheduler")
+        workers = self.client.scheduler_info(n_workers=-1)["workers"]
+        self.known.update({a: str(workers.get(a, {}).get("name", a)) for a in addresses})
+
+    def look(self, now: float, progressed: bool) -> None:
+        """After each wait (at most every DASK_POLL_SECONDS): workers that left or joined; and when
+        nothing has finished for DASK_PROBE_SECONDS, a probe of the scheduler."""
+        if self.last is None or progressed:
+            self.last = now
+        if now - self.looked < DASK_POLL_SECONDS:
+            return
+        self.looked = now
+        try:
+            current = set(self.client.scheduler_info(n_workers=-1)["workers"])
+        except Exception:  # noqa: BLE001 - the scheduler's state as last sent; a lost one is found below
+            current = set(self.known)
+        for address in sorted(set(self.known) - current - self.said):
+            self.said.add(address)
+            if self.on_note is not None:
+                self.on_note(f"the Dask worker {self.known[address]} ({address}) left {self.where} mid-run; the "
+                             "cases it was running ran again on the other workers (the results are the same).")
+        joined = current - set(self.known)
+        if joined:
+            self.check_versions(joined)
+        if now - self.last >= DASK_PROBE_SECONDS:
+            try:
+                self.client.sync(self.client.scheduler.identity, callback_timeout=DASK_SILENT_SECONDS)
+            except Exception as exc:  # noqa: BLE001 - any failure to answer is a lost scheduler
+                if self.lost(exc) or isinstance(exc, (TimeoutError, OSError)):
+                    raise self.lost_error([]) from None
+                raise
+            self.last = now
+
+    def lost(self, exc: BaseException) -> bool:
+        """Whether ``exc`` says the scheduler is gone (a cancelled wait, a closed connection)."""
+        import asyncio
+        import concurrent.futures
+
+        names = {type(e).__name__ for e in (exc, exc.__cause__, exc.__context__) if e is not None}
+        return (isinstance(exc, (asyncio.CancelledError, concurrent.futures.CancelledError, OSError, TimeoutError))
+                or bool(names & {"FuturesCancelledError", "FutureCancelledError", "CancelledError", "CommClosedError"})
+                or self.client.status in ("closing", "closed", "connecting"))
+
+    def lost_error(self, finished) -> ClusterLost:
+        error = ClusterLost(f"lost {self.where} mid-run: its process ended, or it did not answer for "
+                            f"{DASK_SILENT_SECONDS:g} s. Start it again and run the experiment again.",
+                            key="scheduler")
+        error.finished = list(finished)
+        return error
+
+
+def _cancel_quietly(client, futures) -> None:
+    try:
+        client.cancel(futures)
+    except Exception:  # noqa: BLE001 - a client without its scheduler cannot cancel; nothing runs then
+        pass
+
+
+def _close_quietly(client) -> None:
+    import logging
+
+    quiet = logging.getLogger("distributed.client")
+    level = quiet.level
+    quiet.setLevel(logging.CRITICAL)  # "Failed to reconnect to scheduler" after a lost one: said once, by us
+    try:
+        client.close(timeout=DASK_CONNECT_SECONDS)
+    except Exception:  # noqa: BLE001 - closing a client whose scheduler died
+        pass
+    finally:
+        quiet.setLevel(level)
 
 
 def _dask_client(scheduler: str, Client):

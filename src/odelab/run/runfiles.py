@@ -22,7 +22,8 @@ if TYPE_CHECKING:
     from odelab.formats import ImportOptions
 
 __all__ = ["RunConfig", "run_files", "FileRun", "expand_paths", "error_text", "Terminated", "Event", "FileError",
-           "Started", "References", "ExperimentStarted", "CaseDone", "ExperimentDone", "Fatal", "Finished"]
+           "Started", "References", "ExperimentStarted", "CaseDone", "ExperimentDone", "Notice", "Fatal",
+           "Finished"]
 
 
 class Terminated(BaseException):
@@ -99,6 +100,13 @@ class ExperimentDone(Event):
 
     experiment: Any
     results: list = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Notice(Event):
+    """Something that happened to the run and did not change its results (a Dask worker lost mid-run)."""
+
+    message: str
 
 
 @dataclass(frozen=True)
@@ -315,11 +323,12 @@ class FileRun:
 
             # in this process, before a pool forks (the workers inherit them)
             yield References(lambda progress: prepare(cases, config.max_steps or None, progress=progress))
+        notes: list[str] = []
         try:  # a process pool forks its workers here, before the caller starts drawing
             stream = run_cases(cases, executor=config.executor, jobs=config.jobs, scheduler=config.scheduler,
                                max_steps=config.max_steps or None, on_done=on_done, backend=config.backend,
                                on_result=on_result, limits=config.budgets,
-                               import_options=config.import_options)
+                               import_options=config.import_options, on_note=notes.append)
             iterator = iter(stream)
         except InputError as exc:
             yield Fatal(error_text(exc))
@@ -334,9 +343,18 @@ class FileRun:
                 for case in exp.cases:
                     try:
                         result = next(iterator)
-                    except InputError as exc:  # a Dask scheduler that cannot be reached
-                        yield Fatal(error_text(exc))
+                    except InputError as exc:  # a Dask scheduler that cannot be reached, or lost mid-run
+                        yield from (Notice(n) for n in notes)
+                        if config.store:
+                            self.finished += self._store_interrupted(loaded, exp, results,
+                                                                     getattr(exc, "finished", ()))
+                        stored_text = (f" {self.finished} of {self.total} case{'s' if self.total != 1 else ''} "
+                                       f"finished{' and are stored' if config.store else ''}." if self.finished
+                                       else " No case had finished.")
+                        yield Fatal(error_text(exc) + stored_text)
                         return
+                    while notes:
+                        yield Notice(notes.pop(0))
                     if isinstance(result, CaseError):  # found only when running, e.g. no equilibrium for an input
                         message = error_text(result.error.located(source=str(case.source)))
                         bad.append(message)
