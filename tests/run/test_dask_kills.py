@@ -81,6 +81,24 @@ def _wait_for(path: Path, timeout: float = 120.0) -> None:
         time.sleep(0.1)
 
 
+def _busy_worker(address: str, timeout: float = 600.0) -> str:
+    """The name (0, 1...) of a worker with tasks of the run in hand, once some tasks have finished."""
+    from distributed import Client
+
+    deadline = time.monotonic() + timeout
+    with Client(address, timeout=30) as client:
+        while True:
+            assert time.monotonic() < deadline, "the run's tasks never reached the workers"
+            counts = client.run_on_scheduler(lambda dask_scheduler: (
+                sum(ts.state == "memory" for ts in dask_scheduler.tasks.values()),
+                {ws.name: len(ws.processing) for ws in dask_scheduler.workers.values()}))
+            done, processing = counts
+            busy = [name for name, n in processing.items() if n]
+            if done >= 2 and busy:
+                return str(busy[0]).removeprefix("worker-")
+            time.sleep(0.05)
+
+
 def _results(rows):
     return [{k: v for k, v in r.items() if k != "elapsed_s"} for r in rows]
 
@@ -114,9 +132,10 @@ def test_a_worker_killed_mid_study_is_said_and_the_10000_results_equal_serial(tm
         assert len(workers) == 2
         run = _odelab("run", "grid.toml", "--executor", "dask", "--scheduler", address, "--limit", "cases=10000",
                       "--runs", "dask", cwd=tmp_path)
-        _wait_for(tmp_path / "dask" / "grid" / "sweep.csv")
-        os.kill(workers[0], signal.SIGKILL)
-        out, err = run.communicate(timeout=600)
+        busy = _busy_worker(address)  # a worker running the study's tasks, with more waiting
+        (pid,) = [p for p in workers if f"worker-{busy}".encode() in Path(f"/proc/{p}/cmdline").read_bytes()]
+        os.kill(pid, signal.SIGKILL)
+        out, err = run.communicate(timeout=900)
     assert run.returncode == 0 and "Traceback" not in err, err
     assert "warning: the Dask worker worker-" in err and "left the Dask scheduler" in err
     assert "ran again on the other workers" in err
