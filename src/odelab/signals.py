@@ -288,8 +288,9 @@ class SignalKey:
 
     ``default`` None makes the key required. ``kind`` says how the file gives it: ``"number"``
     (a number or an expression of the parameters, evaluated when the file is loaded),
-    ``"text"`` (a string such as a file name) or ``"expression"`` (an expression of t and the
-    parameters). ``unit`` is "t" for a time, "u" for the signal's own unit, or a fixed unit.
+    ``"text"`` (a string such as a file name), ``"expression"`` (an expression of t and the
+    parameters) or ``"numbers"`` (a list of numbers: a table's samples). ``unit`` is "t" for a time,
+    "u" for the signal's own unit, or a fixed unit.
     """
 
     default: Any = None
@@ -864,7 +865,8 @@ class Table(Signal):
 
     TOML: ClassVar[str] = "table"
     KEYS: ClassVar[Mapping[str, SignalKey]] = {
-        "file": SignalKey(None, kind="text"), "interpolation": SignalKey("linear", kind="text"),
+        "file": SignalKey("", kind="text"), "t": SignalKey((), kind="numbers", unit="t"),
+        "values": SignalKey((), kind="numbers", unit="u"), "interpolation": SignalKey("linear", kind="text"),
         "extrapolation": SignalKey("clip", kind="text")}
 
     t: Any
@@ -875,13 +877,11 @@ class Table(Signal):
 
     @classmethod
     def from_toml(cls, values: Mapping[str, Any], ctx: SignalContext) -> Table:
+        """From a CSV file (``file``) or from the samples themselves (``t`` and ``values``, as MATLAB's
+        ``interp1(tdata, udata, t)`` gives them)."""
         import difflib
 
         key = ctx.key
-        csv_path = ctx.resolve_file(values["file"], f"{key}.file")
-        if not csv_path.is_file():
-            raise InputError(f"`{key}.file`: {values['file']!r} does not exist (looked for {csv_path}).",
-                             key=f"{key}.file")
         for k, allowed_values in (("interpolation", INTERPOLATIONS), ("extrapolation", EXTRAPOLATIONS)):
             if values[k] not in allowed_values:
                 close = difflib.get_close_matches(str(values[k]), allowed_values, n=1)
@@ -889,6 +889,27 @@ class Table(Signal):
                 raise InputError(f"`{key}.{k}` is {values[k]!r}; use one of "
                                  f"{', '.join(repr(a) for a in allowed_values)} (Simulink's names).{hint}",
                                  key=f"{key}.{k}")
+        inline = bool(values.get("t")) or bool(values.get("values"))
+        if values["file"] and inline:
+            raise InputError(f"`{key}` has both `file` and `t`/`values`; keep one: the samples come from the file or "
+                             "from the experiment file.", key=f"{key}.file")
+        if inline:
+            t, u = list(values.get("t") or ()), list(values.get("values") or ())
+            if ctx.max_rows and len(t) > ctx.max_rows:
+                raise InputError(f"`{key}.t` has {len(t):,} samples; the budget is {ctx.max_rows:,} rows per input "
+                                 "table (raise it with `odelab run --limit table_rows=N` if you mean it).",
+                                 key=f"{key}.t")
+            try:
+                return cls(t, u, interpolation=values["interpolation"], extrapolation=values["extrapolation"])
+            except InputError as exc:
+                raise InputError(f"`{key}`: {exc.message[:1].lower() + exc.message[1:]}", key=key) from None
+        if not values["file"]:
+            raise InputError(f"`{key}` needs its samples: `file` (a CSV of t and u) or `t` and `values` (lists of "
+                             "numbers).", key=f"{key}.file")
+        csv_path = ctx.resolve_file(values["file"], f"{key}.file")
+        if not csv_path.is_file():
+            raise InputError(f"`{key}.file`: {values['file']!r} does not exist (looked for {csv_path}).",
+                             key=f"{key}.file")
         try:
             return cls.from_csv(csv_path, max_rows=ctx.max_rows, interpolation=values["interpolation"],
                                 extrapolation=values["extrapolation"])
@@ -901,7 +922,9 @@ class Table(Signal):
 
     @classmethod
     def describe(cls, name: str, values: Mapping[str, Any]) -> str:
-        return f"{name}: table {values.get('file')}"
+        if values.get("file"):
+            return f"{name}: table {values.get('file')}"
+        return f"{name}: table of {len(values.get('t') or ())} samples"
 
     def compiled_reason(self) -> str | None:
         return None

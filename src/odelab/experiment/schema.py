@@ -122,7 +122,7 @@ class Reference(_Section):
 
 
 # How a signal key is given (odelab.signals.SignalKey.kind) -> its type in the schema
-_SIGNAL_KEY_TYPES = {"number": Number, "text": StrictStr, "expression": Value}
+_SIGNAL_KEY_TYPES = {"number": Number, "text": StrictStr, "expression": Value, "numbers": list[Number]}
 _SIGNAL_MODELS: dict[tuple, type[BaseModel]] = {}
 
 

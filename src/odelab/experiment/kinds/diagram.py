@@ -90,9 +90,9 @@ def _source(name: str, spec: dict, path: Path, params: dict[str, float], max_row
                                   key=f"{key}.{k}")
         if k not in SIGNAL_KEYS[kind]:
             given[k] = v  # build_signal names the keys that do not apply
-        elif SIGNALS[kind].KEYS[k].kind != "number":  # a file name, a method's name, an expression of t
-            given[k] = _value("expression" if SIGNALS[kind].KEYS[k].kind == "expression" else "text", v,
-                              f"{key}.{k}", params)
+        elif SIGNALS[kind].KEYS[k].kind != "number":  # a file name, a method's name, an expression of t, samples
+            key_kind = SIGNALS[kind].KEYS[k].kind
+            given[k] = _value(key_kind if key_kind in ("expression", "numbers") else "text", v, f"{key}.{k}", params)
         else:
             given[k] = _value("number", v, f"{key}.{k}", params)
     signal, values = build_signal(kind, given, key=key, path=path, params=params, what="block", max_rows=max_rows)

@@ -41,7 +41,8 @@ box fill area bar barh stairs stem errorbar sgtitle suptitle xlim ylim zlim view
 shg set gca gcf gco print saveas savefig movegui axes patch histogram hist pie polarplot polar fplot ezplot
 odeplot odephas2 odephas3 odeprint linkaxes daspect pbaspect camlight lighting shading rotate3d zoom pan
 animatedline addpoints getframe movie VideoWriter writeVideo open close figure frame xticks yticks zticks
-xticklabels yticklabels caxis clim light material rectangle yyaxis streamline streamslice meshgrid
+xticklabels yticklabels caxis clim light material rectangle yyaxis streamline streamslice meshgrid ishold
+gcbf uicontrol uimenu waitbar datetick
 """.split())
 PRINTING = frozenset("""
 disp fprintf sprintf display num2str mat2str int2str format more diary echo clc home beep fflush

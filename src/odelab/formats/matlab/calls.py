@@ -160,7 +160,7 @@ def _statement_text(interp, scope, line: int) -> str:
 
 
 def _empty(value) -> bool:
-    return value is None or (isinstance(value, Arr) and value.size == 0)
+    return value is None or (isinstance(value, Arr) and value.size == 0) or (isinstance(value, Str) and not value.text)
 
 
 def _ode_file_init(interp, call: SolverCall, tspan, y0, options):

@@ -224,13 +224,36 @@ def _visible(scope, interp) -> dict:
 
 
 def _anon_text(node: n.AnonFn, scope, interp) -> str:
+    """The anonymous function as written (``@(t, y) ...``), up to where it ends on its line."""
     source = interp.file_of(scope.file)
-    if source is not None and 0 < node.line <= len(source.lines):
-        line = source.lines[node.line - 1]
-        at = line.find("@")
-        if at >= 0:
-            return line[at:].strip().rstrip(";")[:80]
-    return f"@({', '.join(node.params)}) ..."
+    if source is None or not 0 < node.line <= len(source.lines):
+        return f"@({', '.join(node.params)}) ..."
+    line = source.lines[node.line - 1]
+    start = line.find("@(")
+    if start < 0:
+        return f"@({', '.join(node.params)}) ..."
+    depth, quote, end = 0, None, len(line)
+    seen_params = False
+    for i in range(start + 1, len(line)):
+        ch = line[i]
+        if quote:
+            quote = None if ch == quote else quote
+        elif ch in "'\"" and depth > 0:
+            quote = ch
+        elif ch in "([{":
+            depth += 1
+        elif ch in ")]}":
+            depth -= 1
+            if depth < 0:
+                end = i
+                break
+            if depth == 0 and not seen_params:
+                seen_params = True
+        elif ch in ",;%" and depth == 0 and seen_params:
+            end = i
+            break
+    text = line[start:end].strip()
+    return text if len(text) <= 80 else text[:77] + "..."
 
 
 def _handle(interp, node: n.FuncHandle, scope):

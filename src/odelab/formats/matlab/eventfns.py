@@ -73,7 +73,10 @@ def build_events(b, namer, names: list[str]) -> None:
         b.gap(("events",), "the events function's isterminal and direction must be constants (one per event)")
         return
     table: dict = {}
-    where = Path(fv.file).name if fv.file else b.file
+    from odelab.formats.matlab.system import definition_site
+
+    file, line, fname = definition_site(b.interp, fv)
+    where = Path(file).name if file else b.file
     for k, name in enumerate(_event_names(fv, count)):
         try:
             when = namer.text(value.item(k))
@@ -82,8 +85,8 @@ def build_events(b, namer, names: list[str]) -> None:
             continue
         entry = {"when": when, "direction": _DIRECTIONS.get(direction[k], "both"), "terminal": terminal[k] != 0}
         table[name] = entry
-        b.comment(("events", name), f"the events function {fv.name or fv.text} ({where} line {fv.line}), value "
-                                    f"{k + 1}")
+        b.comment(("events", name), f"the events function {fname} ({where} line {line})"
+                                    + (f", value {k + 1}" if count > 1 else ""))
     _reset(b, namer, names, table)
     b.spec.tables["events"] = table
 

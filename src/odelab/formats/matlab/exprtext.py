@@ -46,9 +46,15 @@ def identifier(hint: str, reserved: set[str]) -> str:
 
 
 def _reserved_words() -> set[str]:
+    """Names nothing of an imported file may take (a state cannot shadow a constant either)."""
     from odelab.expressions.functions import CONSTANTS, FUNCTIONS
 
     return set(FUNCTIONS) | set(CONSTANTS) | {"t", "lag", "True", "False", "None"}
+
+
+def _parameter_reserved() -> set[str]:
+    """A parameter may shadow `e` (MATLAB has no constant e: the file's `e` is a variable), not `pi` (written as pi)."""
+    return _reserved_words() - {"e"}
 
 
 class Namer:
@@ -61,7 +67,7 @@ class Namer:
     def __init__(self, states: list[str], inputs: list[str] = ()):
         self.states = list(states)
         self.inputs = list(inputs)
-        self.reserved = _reserved_words()
+        self.reserved = _parameter_reserved()
         self.taken = set(self.states) | set(self.inputs)
         self.names: dict[int, str] = {}  # id(ParamDef) -> name
         self.defs: dict[str, ParamDef] = {}

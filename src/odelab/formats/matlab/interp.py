@@ -114,14 +114,47 @@ class Interpreter:
 
     def stmt_assign(self, stmt: n.Assign, scope: Scope) -> None:
         if stmt.multi:
-            nargout = len(stmt.targets)
+            slots = [self.brace_positions(t, scope) for t in stmt.targets]
+            nargout = sum(len(p) if p is not None else 1 for p in slots)
             values = self.eval_multi(stmt.value, scope, nargout)
         else:
+            slots = [None]
             values = [self.eval(stmt.value, scope)]
-        for target, value in zip(stmt.targets, values):
-            if isinstance(target, n.Tilde):
+        k = 0
+        for target, positions in zip(stmt.targets, slots):
+            if positions is not None:  # [varargout{1:3}] = ...: one output per cell
+                for position in positions:
+                    if k < len(values):
+                        self.assign_cell_at(target, position, values[k], scope, stmt.line)
+                    k += 1
                 continue
-            self.assign(target, value, scope, stmt.line)
+            if k >= len(values):
+                break
+            if not isinstance(target, n.Tilde):
+                self.assign(target, values[k], scope, stmt.line)
+            k += 1
+
+    def brace_positions(self, target: n.Expr, scope: Scope) -> list[int] | None:
+        """The cells ``c{1:3}`` names as outputs of a multiple assignment (None: not a brace target)."""
+        if not (isinstance(target, n.Index) and target.brace and isinstance(target.target, n.Id)):
+            return None
+        current = scope.get(target.target.name, self.globals)
+        size = len(current.items) if isinstance(current, Cell) else 0
+        specs = self.index_specs(target.args, Arr(1, size, data=np.zeros((1, size))), scope)
+        if len(specs) != 1 or specs[0] is ops.COLON or specs[0].numbers() is None:
+            raise Unsupported("only c{k} and c{1:n} are translated as outputs")
+        return [int(v) for v in specs[0].numbers().reshape(-1)]
+
+    def assign_cell_at(self, target: n.Index, position: int, value: Any, scope: Scope, line: int) -> None:
+        name = target.target.name
+        current = scope.get(name, self.globals)
+        items = list(current.items) if isinstance(current, Cell) else []
+        if position < 1:
+            raise Unsupported("a cell index must be 1 or more")
+        items += [Arr(0, 0, data=np.zeros((0, 0)))] * max(0, position - len(items))
+        items[position - 1] = value
+        scope.set(name, Cell(1, len(items), items), self.globals)
+        scope.assigned.add(name)
 
     def stmt_expr(self, stmt: n.ExprStmt, scope: Scope) -> None:
         expr = stmt.expr
@@ -206,22 +239,19 @@ class Interpreter:
             scope.assigned.add(base_node.name)
 
     def assign_cell(self, current, target: n.Index, value: Any, scope: Scope) -> Cell:
-        if current is None or (isinstance(current, Arr) and current.size == 0):
-            current = Cell(0, 0, [])
-        if not isinstance(current, Cell):
+        """``c{k} = value``: a new cell array."""
+        if current is not None and not isinstance(current, Cell) and not (isinstance(current, Arr) and current.size == 0):
             raise Unsupported("`{}` assigns to a cell array")
-        specs = self.index_specs(target.args, Arr(current.rows, current.cols, data=np.zeros(current.shape))
-                                 if hasattr(current, "shape") else Arr(current.rows, current.cols,
-                                                                        data=np.zeros((current.rows, current.cols))),
-                                 scope)
-        if len(specs) != 1 or specs[0] is ops.COLON:
+        items = list(current.items) if isinstance(current, Cell) else []
+        specs = self.index_specs(target.args, Arr(1, len(items), data=np.zeros((1, len(items)))), scope)
+        if len(specs) != 1 or specs[0] is ops.COLON or specs[0].size != 1 or specs[0].numbers() is None:
             raise Unsupported("only `c{k} = value` is translated for cell arrays")
-        (k,) = [int(v) for v in specs[0].numbers().reshape(-1)] if specs[0].size == 1 else [None]
-        if k is None:
-            raise Unsupported("only `c{k} = value` is translated for cell arrays")
-        items = list(current.items) + [Arr(0, 0, data=np.zeros((0, 0)))] * max(0, k - len(current.items))
+        k = int(specs[0].numbers()[0, 0])
+        if k < 1:
+            raise Unsupported("a cell index must be 1 or more")
+        items += [Arr(0, 0, data=np.zeros((0, 0)))] * max(0, k - len(items))
         items[k - 1] = value
-        return Cell(1, len(items), items) if current.rows <= 1 else Cell(len(items), 1, items)
+        return Cell(1, len(items), items)
 
     def bind(self, name: str, value: Any, scope: Scope, line: int) -> None:
         """``name = value``: a constant's first assignment outside loops and branches names a parameter."""
@@ -244,11 +274,18 @@ class Interpreter:
         if not isinstance(value, Arr) or value.size == 0:
             return value
         fresh = first and scope.loop_depth == 0 and scope.branch_depth == 0
+        # in a script, a constant a loop (or a later line) assigns again is a parameter too: the cases that use
+        # each value differ in that parameter only (a [[case]] each)
+        in_script_loop = scope.mode == "script" and (scope.loop_depth > 0 or not first) and scope.branch_depth == 0
         if value.size == 1:
             item = value.item(0)
-            if item.num is None or isinstance(item, (Param, Named)):
+            if item.num is None or any(isinstance(leaf, ResultRef) for leaf in item.leaves()):
                 return value
-            if fresh and not any(isinstance(leaf, ResultRef) for leaf in item.leaves()):
+            if in_script_loop:  # a value each pass of a loop changes (a parameter study): a parameter of its own
+                return Arr.scalar(Param(ParamDef(name, Const(item.num), line, scope.file)))
+            if isinstance(item, (Param, Named)):
+                return value
+            if fresh:
                 out = Arr.scalar(Param(ParamDef(name, item, line, scope.file)))
                 out.logical = value.logical
                 return out
@@ -256,14 +293,10 @@ class Interpreter:
                 return Arr.scalar(Const(item.num))  # a constant recomputed in a loop: its value, not its history
             return value
         if fresh and value.size <= MAX_PARAMETER_VECTOR and (value.rows == 1 or value.cols == 1) \
-                and not value.is_char and value.is_constant():
-            items = []
-            for k, item in enumerate(value.all_items()):
-                if isinstance(item, Const):
-                    item = Param(ParamDef(f"{name}_{k + 1}", item, line, scope.file))
-                items.append(item)
-            out = Arr(value.rows, value.cols, items=items, colon=value.colon)
-            return out
+                and not value.is_char and value.source is None and value.data is not None:
+            items = [Param(ParamDef(f"{name}_{k + 1}", item, line, scope.file))
+                     for k, item in enumerate(value.all_items())]
+            return Arr(value.rows, value.cols, items=items, colon=value.colon)
         return value
 
     def track_state_names(self, base_node, args, value, scope, line) -> None:

@@ -44,8 +44,20 @@ _NUMPY = {"+": np.add, "-": np.subtract, "*": np.multiply, "/": np.divide, "^": 
 
 
 def sym_op(op: str, a: Sym, b: Sym) -> Sym:
+    """``a op b`` element by element, without the zeros and ones a constant matrix holds (exact in floating point
+    for finite values: ``x + 0`` is x, ``0*x`` is 0, ``1*x`` is x)."""
     if op == "\\":
         return Op("/", b, a)
+    if op == "*":
+        term = _term(a, b)
+        return Const(0.0) if term is None else term
+    if op == "+":
+        if isinstance(a, Const) and a.value == 0.0:
+            return b
+        if isinstance(b, Const) and b.value == 0.0:
+            return a
+    if op == "-" and isinstance(b, Const) and b.value == 0.0:
+        return a
     return Op(op, a, b)
 
 

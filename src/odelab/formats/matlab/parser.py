@@ -112,8 +112,11 @@ class _Parser:
         script = None
         if not self.is_kw("function"):
             script = self.parse_block(("function",), top=True)
-        while self.is_kw("function"):
-            functions.append(self.parse_function(None))
+        while self.is_kw("function") or (script is not None and self.tok.kind != "eof"):
+            if self.is_kw("function"):
+                functions.append(self.parse_function(None))
+            else:  # Octave: a script's statements may follow the functions it defines
+                script.extend(self.parse_block(("function",), top=True))
             self.skip_separators()
         if self.tok.kind != "eof":
             raise self.error(f"{self._shown(self.tok)} after the last function; a function file holds only "

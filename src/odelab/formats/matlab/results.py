@@ -52,6 +52,10 @@ def index_result(interp, base: SolverOutput, node: n.Index, scope):
         return _state_columns(interp, base, args[0], scope, row=False)
     if kind in ("y", "ye", "ysol") and len(args) == 1 and isinstance(args[0], n.EndIndex):
         return Arr.scalar(ResultRef(base.call, "y_end", _states(base) - 1))
+    if kind in ("ye", "yesol") and len(args) == 1:  # ye(2): a terminal event's state, one row
+        return _state_columns(interp, base, args[0], scope, row=True)
+    if kind == "te" and len(args) == 1 and isinstance(args[0], n.Num) and args[0].value == 1:
+        return Arr.scalar(ResultRef(base.call, "t_end"))
     return _why(base)
 
 

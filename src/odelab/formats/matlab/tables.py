@@ -29,7 +29,7 @@ _METHODS = {"linear": "linear", "previous": "flat", "nearest": "nearest", "splin
 
 
 def _resolve(interp, name: str, scope, line: int) -> Path:
-    folder = Path(scope.file).parent
+    folder = Path(scope.file).resolve().parent
     candidate = Path(name)
     if candidate.is_absolute() or ".." in candidate.parts or "\x00" in name:
         raise Unsupported(f"`{name}` is outside the MATLAB file's folder; copy the data file next to it")

@@ -1,0 +1,3 @@
+function dP = logistic(t, P)
+global r K
+dP = r*P*(1 - P/K);
