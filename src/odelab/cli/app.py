@@ -176,6 +176,28 @@ def _import_options(workspace, sets, call, err, output=None):
     return ImportOptions(workspace=tuple(workspace or ()), sets=tuple(pairs), call=call, output=output)
 
 
+@contextlib.contextmanager
+def _stopped_by_signals(err, what: str):
+    """Ctrl-C (exit 130) and SIGTERM (exit 143) stop the command with one line saying ``what`` of its
+    output (it writes each file whole or not at all), no traceback."""
+    import signal
+
+    from odelab.run.runfiles import Terminated
+
+    def on_term(signum, frame):
+        raise Terminated()
+
+    previous = signal.signal(signal.SIGTERM, on_term)
+    try:
+        yield
+    except (KeyboardInterrupt, Terminated) as exc:
+        word, code = ("interrupted", 130) if isinstance(exc, KeyboardInterrupt) else ("terminated", 143)
+        err.print(f"[bold red]{word}:[/] {what}.")
+        raise typer.Exit(code) from None
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def _limits(max_steps: int, limit: list[str] | None, err):
     """The run's budgets from --max-steps and --limit NAME=N (a bad --limit is a usage error, exit 2)."""
     from dataclasses import replace
@@ -359,8 +381,10 @@ def report(
     warnings.simplefilter("ignore")
     out_console, err = _consoles()
     try:
-        result = build_report(runs, out, formats=fmt, experiments=_experiment_names(experiments) or None,
-                              template_dir=template, jobs=jobs)
+        with _stopped_by_signals(err, "the report was not written; the one in "
+                                 f"{_escape(str(out))}/ is as it was (figures drawn so far may be newer)"):
+            result = build_report(runs, out, formats=fmt, experiments=_experiment_names(experiments) or None,
+                                  template_dir=template, jobs=jobs)
     except InputError as exc:
         err.print(f"[bold red]error:[/] {_escape(_error_text(exc))}")
         raise typer.Exit(EXIT_INPUT) from None
@@ -537,18 +561,16 @@ def grade(
     from odelab.grading import class_document, grade_class, write_grades
 
     try:
-        grades = grade_class(rubric, submissions, limits=limits, max_steps=max_steps, jobs=jobs, backend=backend,
-                             allow_python=allow_python, allow_native=allow_native)
-        written = write_grades(grades, out)
+        with _stopped_by_signals(err, "nothing was written"):
+            grades = grade_class(rubric, submissions, limits=limits, max_steps=max_steps, jobs=jobs, backend=backend,
+                                 allow_python=allow_python, allow_native=allow_native)
+            written = write_grades(grades, out)
     except InputError as exc:
         err.print(f"[bold red]error:[/] {_escape(_error_text(exc))}")
         raise typer.Exit(EXIT_INPUT) from None
     except OSError as exc:
         err.print(f"[bold red]error:[/] cannot write the grades to {_escape(str(out))}: {_escape(str(exc))}")
         raise typer.Exit(EXIT_INPUT) from None
-    except KeyboardInterrupt:
-        err.print("[bold red]interrupted:[/] nothing was written.")
-        raise typer.Exit(130) from None
     if json_out:
         import json
 
