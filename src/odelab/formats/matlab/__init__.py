@@ -54,8 +54,20 @@ def read(path: Path, options: ImportOptions | None = None) -> Document:
     from odelab.formats.matlab.source import read_source
     from odelab.formats.matlab.translate import translate
 
+    from odelab.exceptions import ExperimentError
+
     raw = read_source(Path(path))
-    return translate(Path(path), raw, options or ImportOptions())
+    try:
+        return translate(Path(path), raw, options or ImportOptions())
+    except ExperimentError:
+        raise
+    except (RecursionError, MemoryError):
+        raise ExperimentError("is beyond what odelab's MATLAB reader can read (nested or large beyond its budgets); "
+                              "write the experiment file by hand.", source=str(path)) from None
+    except Exception as exc:  # a construct the reader does not expect: one message, never a traceback
+        raise ExperimentError(f"could not be read by odelab's MATLAB reader (an internal error, {type(exc).__name__}: "
+                              f"{exc}); please report it with the file, and write the experiment file by hand "
+                              "meanwhile.", source=str(path)) from None
 
 
 def plain_value(value: Any) -> Any:

@@ -62,8 +62,7 @@ REFUSED = {"eval": "runs text as MATLAB code", "evalin": "runs text as MATLAB co
            "javaObject": "runs Java", "javaMethod": "runs Java", "mex": "compiles and runs C",
            "loadlibrary": "loads a native library", "calllib": "calls a native library", "delete": "deletes files",
            "rmdir": "deletes folders", "movefile": "moves files", "copyfile": "copies files", "mkdir": "makes folders",
-           "run": "runs a script by its path", "builtin": "calls a function by a computed name",
-           "inline": "compiles text as a function (write an anonymous function @(t, y) ...)"}
+           "run": "runs a script by its path", "builtin": "calls a function by a computed name"}
 RANDOM = frozenset("rand randn randi randperm normrnd unifrnd".split())
 FILE_IO = frozenset("""
 fopen fclose fread fwrite fscanf fgetl fgets textscan xlsread xlsx readtable readcell writetable writematrix
@@ -229,6 +228,13 @@ for _fn in ("sin", "cos", "tan"):
     BUILTINS[_fn + "d"] = _map((lambda f: lambda x: Call(f, (Op("*", x, Op("/", Named("pi", math.pi),
                                                                             Const(180.0))),)))(_fn),
                                (lambda f: lambda x: _NUMPY_OF[f](x * _DEG))(_fn))
+for _fn, _np in (("asin", np.arcsin), ("acos", np.arccos), ("atan", np.arctan)):
+    BUILTINS[_fn + "d"] = _map((lambda f: lambda x: Op("*", Call(f, (x,)), Op("/", Const(180.0),
+                                                                         Named("pi", math.pi))))(_fn),
+                               (lambda g: lambda x: np.rad2deg(g(x)))(_np))
+BUILTINS["atan2d"] = _map(lambda a, b: Op("*", Call("atan2", (a, b)), Op("/", Const(180.0), Named("pi", math.pi))),
+                          lambda a, b: np.rad2deg(np.arctan2(a, b)), (2, 2))
+BUILTINS["stepfun"] = _map(lambda x, x0: Op(">=", x, x0), lambda x, x0: (x >= x0).astype(float), (2, 2))
 BUILTINS["deg2rad"] = _map(lambda x: Op("*", x, Op("/", Named("pi", math.pi), Const(180.0))), np.deg2rad)
 BUILTINS["rad2deg"] = _map(lambda x: Op("*", x, Op("/", Const(180.0), Named("pi", math.pi))), np.rad2deg)
 BUILTINS["double"] = BUILTINS["full"] = BUILTINS["squeeze"] = _map(lambda x: x, lambda x: x)
@@ -495,7 +501,7 @@ def _length(interp, args, nargout, node, scope):
     if isinstance(value, SolverOutput):
         from odelab.formats.matlab.results import result_count
 
-        if value.kind == "t":
+        if value.kind in ("t", "y"):
             return [result_count(value)]
         return [Unknown("the size of a solver's output", node.line, scope.file)]
     if isinstance(value, Unknown):
@@ -645,7 +651,10 @@ def _numeric_only(interp, args, nargout, node, scope):
     numbers = [a.numbers() if isinstance(a, Arr) else a for a in arrays]
     if any(v is None for v in numbers):
         raise Unsupported(f"`{name}` of values that depend on the time or the state is not translated")
-    return [_NUMERIC[name](*numbers)]
+    try:
+        return [_NUMERIC[name](*numbers)]
+    except (TypeError, ValueError, np.linalg.LinAlgError):
+        raise Unsupported(f"`{name}` with these arguments is not translated") from None
 
 
 def _vec(a: np.ndarray) -> np.ndarray:
@@ -803,6 +812,30 @@ def _str2func(interp, args, nargout, node, scope):
         parsed = parse_text(f"__f = {text};", scope.file)
         return [interp.eval(parsed.script[0].value, scope)]
     return [FuncValue(name=text, file=scope.file, line=node.line)]
+
+
+@builtin("inline", "vectorize")
+def _inline(interp, args, nargout, node, scope):
+    """MATLAB 5's ``inline('expr', 't', 'y')``: the text read (parsed, never run) as an anonymous function."""
+    name = node.target.name if isinstance(node, n.Index) else node.name
+    if not args or not isinstance(args[0], Str):
+        raise Unsupported(f"`{name}` of a value that is not constant text")
+    if name == "vectorize":
+        return [args[0]]
+    from odelab.formats.matlab.lexer import tokenize
+    from odelab.formats.matlab.parser import parse_text
+
+    text = args[0].text
+    names = [a.text for a in args[1:] if isinstance(a, Str)]
+    if not names:  # MATLAB's rule: the variables of the text, in alphabetical order (x if there is none)
+        known = set(BUILTINS) | {"i", "j"}
+        found = sorted({t.text for t in tokenize(text, scope.file) if t.kind == "name" and t.text not in known})
+        names = found or ["x"]
+    parsed = parse_text(f"__inline = @({', '.join(names)}) {text};", scope.file)
+    value = interp.eval(parsed.script[0].value, scope)
+    value.text = f"inline('{text}')"
+    value.line = node.line
+    return [value]
 
 
 @builtin("func2str")

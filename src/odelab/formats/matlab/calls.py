@@ -132,6 +132,8 @@ class Recorder:
             call.gap = Unknown(f"it starts from the result of the solver call on line {previous.line}: odelab runs "
                                "each call as its own case (a restart at an event is an [events] reset)", call.line,
                                call.file, call.text)
+            if interp.loops:
+                interp.loops[-1]["stop"] = True  # one gap for the loop, not one per pass
             return None
         context = interp.loops[-1]
         problem = _reset_problem(previous, call)

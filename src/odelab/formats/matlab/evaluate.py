@@ -8,7 +8,7 @@ import numpy as np
 
 from odelab.formats.matlab import nodes as n
 from odelab.formats.matlab import ops
-from odelab.formats.matlab.values import (Arr, Cell, Const, FuncValue, SolverOutput, Str, Struct, Unknown,
+from odelab.formats.matlab.values import (Arr, Cell, Const, FuncValue, Op, SolverOutput, Str, Struct, Unknown,
                                           Unsupported)
 
 __all__ = ["EXPRESSIONS", "colon_values", "arith"]
@@ -67,17 +67,50 @@ def arith(interp, op: str, left, right):
     raise Unsupported(f"the operator `{op}` is not translated")
 
 
+MAX_SYMBOLIC_SOLVE = 3
+"""``M \\ f`` with a matrix that depends on the state is written by Cramer's rule up to 3 x 3."""
+
+
 def _solve(a: Arr, b: Arr, right_division: bool) -> Arr:
-    """``A \\ b`` with a constant matrix: its inverse times b (the state's equations stay explicit)."""
-    matrix = b if right_division else a
-    numbers = matrix.numbers()
-    if numbers is None:
-        raise Unsupported("`\\` or `/` with a matrix that depends on the time or the state is not translated; give "
-                          "the matrix as odeset's Mass (M y' = f) instead")
-    if numbers.shape[0] != numbers.shape[1]:
+    """``A \\ b`` (``b / A``): with a constant matrix, its inverse times b; with a small matrix that depends on the
+    state (a mass matrix solved in the right-hand side), Cramer's rule."""
+    if right_division:  # b / A = (A' \ b')'
+        return ops.transpose(_solve(ops.transpose(b), ops.transpose(a), right_division=False))
+    numbers = a.numbers()
+    if a.rows != a.cols:
         raise Unsupported("`\\` with a matrix that is not square is not translated")
-    inverse = Arr.numeric(np.linalg.inv(numbers))
-    return ops.matmul(a, inverse) if right_division else ops.matmul(inverse, b)
+    if b.rows != a.rows:
+        raise Unsupported(f"`\\` of a {a.rows}x{a.cols} matrix and {b.rows} rows")
+    if numbers is not None:
+        return ops.matmul(Arr.numeric(np.linalg.inv(numbers)), b)
+    if a.rows > MAX_SYMBOLIC_SOLVE:
+        raise Unsupported(f"`\\` with a {a.rows}x{a.rows} matrix that depends on the time or the state is not "
+                          "translated (up to 3x3); give the matrix as odeset's Mass (M y' = f) instead")
+    n = a.rows
+    cols = [[a.item(j * n + i) for i in range(n)] for j in range(n)]
+    det = _det(cols)
+    items = []
+    for k in range(b.cols):
+        rhs = [b.item(k * n + i) for i in range(n)]
+        for j in range(n):
+            replaced = [rhs if c == j else cols[c] for c in range(n)]
+            items.append(Op("/", _det(replaced), det))
+    return Arr.of_items(n, b.cols, items)
+
+
+def _det(cols: list[list]):
+    """The determinant of a 1x1, 2x2 or 3x3 matrix given by columns (cofactor expansion)."""
+    n = len(cols)
+    if n == 1:
+        return cols[0][0]
+    if n == 2:
+        return Op("-", Op("*", cols[0][0], cols[1][1]), Op("*", cols[1][0], cols[0][1]))
+    total = None
+    for j in range(3):
+        minor = [[cols[c][r] for r in (1, 2)] for c in range(3) if c != j]
+        term = Op("*", cols[j][0], _det(minor))
+        total = term if total is None else (Op("-", total, term) if j == 1 else Op("+", total, term))
+    return total
 
 
 def _matrix_power(a: Arr, b: Arr) -> Arr:

@@ -499,7 +499,17 @@ class Interpreter:
         handler = self.builtins.get(name)
         if handler is None:
             return self.unknown_function(name, node, scope)
-        return handler(self, args, nargout, node, scope)
+        return self.call_builtin(handler, name, args, nargout, node, scope)
+
+    def call_builtin(self, handler, name: str, args: list, nargout: int, node: n.Expr, scope: Scope) -> list:
+        """A built-in's outputs; a built-in that fails on arguments it was not written for is a gap, not a crash."""
+        try:
+            return handler(self, args, nargout, node, scope)
+        except (Unsupported, TooBig, ExperimentError, ErrorCalled, Failure):
+            raise
+        except (TypeError, ValueError, IndexError, KeyError, AttributeError, ArithmeticError,
+                np.linalg.LinAlgError) as exc:
+            raise Unsupported(f"`{name}` with these arguments is not translated ({type(exc).__name__})") from None
 
     def unknown_function(self, name: str, node: n.Expr, scope: Scope) -> list:
         reason = (f"`{name}` is neither a MATLAB function odelab translates nor a function of this file or of a "
@@ -608,7 +618,7 @@ class Interpreter:
         if handler is None:
             raise Unsupported(f"the function `{fv.name}` is not in this file nor beside it ({fv.name}.m)")
         node = n.Id(line, fv.name)
-        return handler(self, args, nargout, node, owner)
+        return self.call_builtin(handler, fv.name, args, nargout, node, owner)
 
     def call_anonymous(self, fv: FuncValue, args: list, nargout: int, line: int, mode: str | None) -> list:
         if len(self.stack) >= MAX_CALL_DEPTH:

@@ -37,6 +37,7 @@ KEYWORDS = frozenset({
     "endfunction", "endif", "endfor", "endwhile", "endswitch", "end_try_catch", "unwind_protect",
     "unwind_protect_cleanup", "end_unwind_protect",
 })
+_PAREN_COMMANDS = frozenset({"syms", "pkg"})  # command syntax whose words hold parentheses: `syms y(t)`
 _OCTAVE_ENDS = frozenset({"endfunction", "endif", "endfor", "endwhile", "endswitch", "end_try_catch",
                           "end_unwind_protect"})
 
@@ -248,10 +249,12 @@ class _Lexer:
         if first == "-" and (len(rest) < 2 or not rest[1].isalpha()):
             return False  # `x -1` is arithmetic in ODE code
         code = re.match(r"(?:'(?:[^']|'')*'|[^%#;,'])*", rest).group()
-        if "=" in code.replace("==", "") or "(" in code:
+        bare = re.sub(r"'(?:[^']|'')*'", "", code)  # what is not quoted decides
+        if "=" in bare.replace("==", "") or ("(" in bare and m.group() not in _PAREN_COMMANDS):
             return False
-        if first.isdigit() or (_NAME.match(rest) and _NAME.match(rest).end() < len(rest) and
-                                rest[_NAME.match(rest).end()] in "+-*/^.(=<>&|:"):
+        first_name = _NAME.match(rest)
+        if first.isdigit() or (first_name and first_name.end() < len(rest) and rest[first_name.end()] in "+-*/^.(=<>&|:"
+                               and m.group() not in _PAREN_COMMANDS):
             return False
         words = []
         for part in re.finditer(r"'((?:[^']|'')*)'|(\S+)", code.rstrip(";, \t\r")):
