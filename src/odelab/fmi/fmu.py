@@ -241,13 +241,21 @@ class Adapter:
         return bool(result[0]), bool(result[1])
 
     # -- Co-Simulation -----------------------------------------------------------------------
-    def do_step(self, t: float, h: float) -> bool:
-        """One communication step; False if the FMU asks to stop (FMI 3's terminateSimulation)."""
+    def do_step(self, t: float, h: float) -> float | None:
+        """One communication step; None if it completed, else the time the FMU stopped at (it asked to
+        terminate: FMI 3's terminateSimulation, FMI 2's fmi2Discard with fmi2Terminated), as FMPy reads it."""
         if self.v3:
-            result = self.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h)
-            return not bool(result[1])
-        self.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h)
-        return True
+            _, terminate, _, last = self.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+            return float(last) if terminate else None
+        from fmpy.fmi1 import FMICallException
+
+        try:
+            self.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+        except FMICallException as exc:
+            if exc.status != 2 or not self.fmu.getBooleanStatus(3):  # fmi2Discard and fmi2Terminated
+                raise
+            return float(self.fmu.getRealStatus(2))  # fmi2LastSuccessfulTime
+        return None
 
 
 def _unit(v) -> str | None:
@@ -281,7 +289,13 @@ def _read(path: Path, archive: FmuArchive) -> FmuModel:
     interfaces = tuple(name for name, part in (("model-exchange", md.modelExchange), ("co-simulation", md.coSimulation))
                        if part is not None)
     if not interfaces:
-        raise InputError(f"{path.name}: it offers neither Model Exchange nor Co-Simulation.", key=_KEY)
+        only = " (only Scheduled Execution, which odelab does not run)" if getattr(md, "scheduledExecution", None) \
+            else ""
+        raise InputError(f"{path.name}: it offers neither Model Exchange nor Co-Simulation{only}.", key=_KEY)
+    arrays = [v.name for v in md.modelVariables if getattr(v, "dimensions", None)]
+    if arrays:
+        raise InputError(f"{path.name}: its variable {arrays[0]!r} is an array (FMI 3 dimensions); odelab loads FMUs "
+                         "of scalar variables only, so far.", key=_KEY)
     table = _variables(md)
     derivatives, states = [], []
     for unknown in md.derivatives:

@@ -9,8 +9,9 @@ as a bouncing ball's velocity), and the solver restarts from the states it gives
 event is recorded as [events] records are (name, time, state, reset).
 
 Co-Simulation: the FMU integrates itself; odelab sets its inputs and calls ``doStep`` at each
-communication point: ``[solver] h`` if given, else the FMU's DefaultExperiment ``stepSize``,
-else a 500th of the span.
+communication point: the output times of ``[time] points`` or ``output`` if given, else every
+``[solver] h`` (a fixed-step method's), else every DefaultExperiment ``stepSize``, else every
+500th of the span.
 """
 
 from __future__ import annotations
@@ -162,6 +163,8 @@ def run_model_exchange(run: FmuRun, tspan, x0, method: str, options: dict):
             records.append({"name": kind, "index": 0 if state_event else 1, "occurrence": sum(
                 r["name"] == kind for r in records), "t": t, "state": before,
                 "reset": dict(zip(names, map(float, x)))})
+            if terminate:  # as FMPy records it: the run ends at the event, its last row the one before
+                break
             adapter.enter_continuous_mode()
             rec.add(adapter, run, t, x)
             marks.append(len(rec.t) - 1)
@@ -194,25 +197,34 @@ def run_co_simulation(run: FmuRun, tspan, x0, method: str, options: dict):
     model = run.model
     adapter = model.adapter("co-simulation")
     t0, tf = float(tspan[0]), float(tspan[-1])
-    h = float(options.get("h") or model.default.get("stepSize") or (tf - t0) / 500.0)
-    n = int(np.ceil((tf - t0) / h - 1e-9))
-    grid = t0 + h * np.arange(n + 1)
-    grid[-1] = tf
+    if tspan.size > 2:  # [time] points or output: the communication points
+        grid = np.asarray(tspan, dtype=float)
+        n = grid.size - 1
+    else:
+        h = float(options.get("h") or model.default.get("stepSize") or (tf - t0) / 500.0)
+        n = int(np.ceil((tf - t0) / h - 1e-9))
+        grid = t0 + h * np.arange(n + 1)
+        grid[-1] = tf
     rec_t, rec_x, rec_y = [], [], []
-    status, message = "success", f"the FMU's co-simulation reached t = {tf:g} in {n} steps of {h:g}."
+    status, message = "success", f"the FMU's co-simulation reached t = {tf:g} in {n} communication steps."
     adapter.start(t0, options.get("rtol"), tf, {**run.values, **(run.inputs_at(t0) if run.signals else {})})
     try:
-        for k, t in enumerate(grid):
-            rec_t.append(t)
+        def record(t):
+            rec_t.append(float(t))
             rec_x.append(adapter.get(model.states) if model.states else np.zeros(0))
             rec_y.append(adapter.get(model.outputs) if model.outputs else np.zeros(0))
-            if k == n:
-                break
+
+        record(grid[0])
+        for k in range(n):
+            t = float(grid[k])
             if run.signals:
                 adapter.set(run.inputs_at(t))
-            if not adapter.do_step(float(t), float(grid[k + 1] - t)):
-                message = f"the FMU asked to stop at t = {grid[k + 1]:.10g}."
+            stopped = adapter.do_step(t, float(grid[k + 1]) - t)
+            if stopped is not None:
+                record(stopped)
+                message = f"the FMU asked to stop at t = {stopped:.10g}."
                 break
+            record(grid[k + 1])
     except Exception as exc:  # an FMI call that failed: a failed case with the reason
         status, message = "failed", f"the FMU's doStep failed at t = {rec_t[-1]:.10g}: {exc}."
     finally:
