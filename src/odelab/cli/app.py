@@ -130,6 +130,13 @@ def run(
     sets: Annotated[Optional[list[str]], typer.Option("--set", metavar="NAME=VALUE", help=SET_HELP,
                                                       show_default=False)] = None,
     call: Annotated[Optional[str], typer.Option("--call", metavar="CALL", help=CALL_HELP, show_default=False)] = None,
+    estimate: Annotated[Optional[bool], typer.Option(
+        "--estimate/--no-estimate", show_default=False,
+        help="The global error estimate (a second solve at RelTol and AbsTol / 10) for every case, or for none; "
+        "default: every case without a reference, except a [sweep]'s (overrides [solver] estimate_error).")] = None,
+    strict: Annotated[bool, typer.Option(
+        "--strict", help="Exit 1 also when a result is unreliable (ok?: its error estimate disagrees with it).")
+    ] = False,
 ) -> None:
     """Run experiments: solve every case, print the error tables and store the results."""
     import warnings
@@ -156,7 +163,8 @@ def run(
         raise typer.Exit(EXIT_INPUT)
     config = RunConfig(runs=runs, store=store, mat=mat, max_steps=max_steps, limits=limits, backend=backend,
                        jobs=jobs, executor=executor, scheduler=scheduler, validate_with=validate_with,
-                       allow_native=allow_native, import_options=_import_options(workspace, sets, call, err))
+                       allow_native=allow_native, import_options=_import_options(workspace, sets, call, err),
+                       estimate=estimate, strict=strict)
     _draw_run(run_files(paths, config), out, err, runs=runs, json_out=json_out, table=table or trajectories)
 
 

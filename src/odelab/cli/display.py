@@ -30,6 +30,21 @@ def _shown(text, *, lines: bool = False) -> str:
 fmt = fmt_error  # an error as the lab quotes it: 4 significant digits (1.068e-04), 'undefined' if missing
 
 
+def _estimates(r) -> dict:
+    """A result's estimated quantities (``estimate.quantities``), or {} (none made, or skipped)."""
+    est = getattr(r, "estimate", None) or {}
+    quantities = est.get("quantities")
+    return quantities if isinstance(quantities, dict) else {}
+
+
+def estimate_text(q) -> str:
+    """One quantity's estimate: '1.2e-05 (4.3 digits)'."""
+    if not q:
+        return ""
+    digits = q.get("digits")
+    return f"{fmt(q.get('max_abs'))}" + ("" if digits is None else f" ({digits:.1f} digits)")
+
+
 def headline_text(e) -> str:
     """The headline relative error of an ErrorSummary: '1.068e-04' or '9.093e-06 of peak'."""
     if e.basis == "peak":
@@ -58,25 +73,34 @@ def print_experiment(console: Console, exp, results, *, table: bool = False) -> 
         print_sweep(console, exp, results)
         return
     peak = any(e.basis == "peak" for r in results for e in r.errors.values())
+    estimated = any(_estimates(r) for r in results)
     columns = [("case", "left"), ("method", "left"), ("points", "right"), ("steps", "right"), ("failed", "right"),
                ("fevals", "right"), ("quantity", "left"), ("max abs error", "right"), ("rel error", "right")]
+    if estimated:
+        columns.append(("est. error", "right"))
     if peak:
         columns.append(("pointwise max |f - y| / |f|", "left"))
     columns.append(("status", "left"))
     rows = []
     for r in results:
         s = r.stats
-        status = (Text("ok", style="green") if r.status == "success" else
+        status = (Text("ok?", style="bold yellow") if r.unreliable else Text("ok", style="green")
+                  if r.status == "success" else
                   Text("stopped, as expected", style="yellow") if r.expected_stop else Text("FAILED", style="bold red"))
         method = r.method if r.backend == "python" else f"{r.method} ({r.backend})"
         head = [visible(r.case.name), method, str(r.t.size), str(s.nsteps),
                 "-" if s.nfailed is None else str(s.nfailed), str(s.nfevals)]
-        if not r.errors:
-            rows.append([*head, "-", "-", "-", *(["-"] if peak else []), status])
-        for i, (name, e) in enumerate(r.errors.items()):
+        est = _estimates(r)
+        names = list(r.errors) or list(est)
+        if not names:
+            rows.append([*head, "-", "-", "-", *(["-"] if estimated else []), *(["-"] if peak else []), status])
+        for i, name in enumerate(names):
             cells = head if i == 0 else [""] * len(head)
-            extra = [pointwise_text(e)] if peak else []
-            rows.append([*cells, visible(name), fmt(e.max_abs), headline_text(e), *extra, status if i == 0 else ""])
+            e = r.errors.get(name)
+            extra = [pointwise_text(e) if e is not None else ""] if peak else []
+            shown_est = [estimate_text(est.get(name))] if estimated else []
+            rows.append([*cells, visible(name), fmt(e.max_abs) if e is not None else "-",
+                         headline_text(e) if e is not None else "-", *shown_est, *extra, status if i == 0 else ""])
     marked = False
     if peak and not fits(console, columns, rows):  # narrow terminal: "of peak" becomes a mark
         marked = True
@@ -93,6 +117,11 @@ def print_experiment(console: Console, exp, results, *, table: bool = False) -> 
                       + (HEADLINE_NOTE.replace("marked 'of peak'", "marked * (of peak)").replace(
                              "beside it", "listed after the table") if marked else
                          HEADLINE_NOTE if peak else POINTWISE_NOTE) + "[/]")
+    if estimated:
+        console.print("[dim]est. error: the largest difference from a second solve at RelTol and AbsTol / 10 (same "
+                      "method), times 10/9, and the correct digits it implies (relative error by the same rule as "
+                      "the rel error column); an estimate, not a bound. ok?: the two solves disagree far beyond the "
+                      "tolerances, or leave less than one digit (see the note).[/]")
     undefined = []
     # a note every case has (a parameter shadowing a constant, a cache note) is said once, not once a case
     shared = [w for w in results[0].warnings if len(results) > 1 and not w.startswith(UNDEFINED_NOTE)

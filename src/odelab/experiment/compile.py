@@ -245,7 +245,7 @@ def _case_solver(model: schema.Experiment, built, params: dict, tspan: np.ndarra
     method = get_method(implicit_method_name(model, built, method_name(model, built)), key="solver.method")
     check_delay_method(model, built, method)  # lag(...) runs with dde23 only (experiment/delays.py)
     options = {k: v for k, v in model.solver.model_dump().items()
-               if k not in ("method", "backend", "zero_crossing") and v is not None}
+               if k not in ("method", "backend", "zero_crossing", "estimate_error") and v is not None}
     backend = model.solver.backend
     runtime_options = _state_options(options, states, params, dae=method.dae,
                                      takes_dependence="mstate_dependence" in method.options)
@@ -258,6 +258,8 @@ def _case_solver(model: schema.Experiment, built, params: dict, tspan: np.ndarra
     check_solve(fixed_step=not method.adaptive, tspan=tspan, options=normalize_options(options, method),
                 refine_default=getattr(method, "refine", 1) or 1, limits=limits)
     resolved["solver"] = {"method": method.name, **_plain(options)}
+    if model.solver.estimate_error is not None:  # read by odelab.run.estimate
+        resolved["solver"]["estimate_error"] = model.solver.estimate_error
     return method, runtime_options, backend
 
 

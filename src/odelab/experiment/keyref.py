@@ -106,6 +106,11 @@ NOTES: dict[str, str] = {
                      "dde23 (delay equations; `auto` picks it for lag()), ode15i (kind = \"implicit\", its default); "
                      "fixed-step euler, heun, midpoint, rk3, rk4; SciPy's RK23, RK45, DOP853, Radau, BDF, LSODA "
                      "(`odelab solvers` lists them).",
+    "solver.estimate_error": "The global error estimate: a second solve at RelTol and AbsTol / 10 (same method; a "
+                             "fixed-step method at h/2), giving each quantity's estimated max error and correct "
+                             "digits (`est. error`), and `ok?` when the two solves disagree far beyond the tolerances. "
+                             "Default: on for a case without a reference, off for a [sweep]'s cases (about twice the "
+                             "time); `odelab run --estimate/--no-estimate` overrides. See docs/guide/trust.md.",
     "solver.zero_crossing": "Diagrams: locate the instants switching blocks (saturation, relay, switch...) change "
                             "formula and restart there (default true, Simulink's zero-crossing detection); false "
                             "steps over them. Each block's own `zero_crossing` key turns it off for that block.",

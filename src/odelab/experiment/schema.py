@@ -67,6 +67,8 @@ class Solver(_Section):
 _SOLVER_RUN_KEYS: dict[str, Any] = {
     "backend": (Literal["auto", "python", "compiled"], "auto"),  # see odelab.solvers.compiled
     "zero_crossing": (StrictBool, True),  # diagrams: locate switching blocks' crossings (systems/diagram/zerocross)
+    # the global error estimate (a second solve at tighter tolerances, odelab.run.estimate); None: the default
+    "estimate_error": (Optional[StrictBool], None),
 }
 # How an option is given in a file (odelab.solvers.optionset.SolverOption.toml) -> its type in the schema;
 # "state names" are compiled to indices and a "matrix" of expressions to numbers by the loader.

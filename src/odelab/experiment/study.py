@@ -186,10 +186,22 @@ def sweep_rows(results) -> list[dict[str, Any]]:
             "end_abs": ends,
             "scale": {n: float(np.max(np.abs(v))) if v.size else 0.0 for n, v in r.reference.items()},
             "metrics": _metrics(r),
+            # the global error estimate, when the case has one (odelab.run.estimate): max error and digits
+            **_estimate_columns(r),
             "quadrature": quadrature[id(fun)],  # dy/dt = f(t): a method shows its quadrature rule's order
         }
         rows.append(row)
     return rows
+
+
+def _estimate_columns(r) -> dict[str, Any]:
+    est = getattr(r, "estimate", None) or {}
+    quantities = est.get("quantities")
+    if not isinstance(quantities, dict):
+        return {}
+    return {"est_abs": {n: q.get("max_abs") for n, q in quantities.items()},
+            "est_digits": {n: q.get("digits") for n, q in quantities.items()},
+            "estimate": est.get("verdict")}
 
 
 def _curve_label(row: dict, over: str) -> str:

@@ -135,6 +135,28 @@ class CaseView:
     summary_errors: list[QuantityErrors]  # the quantities the figures show (outputs, if any)
 
     @property
+    def summary_names(self) -> list[str]:
+        """The quantities of the summary table: those with errors, else those with an error estimate."""
+        if self.summary_errors:
+            return [e.name for e in self.summary_errors]
+        shown = [n for n in (*self.run.outputs, *self.run.states) if n in self.run.estimate]
+        return [n for n in shown if n in self.run.outputs] or shown
+
+    def error(self, name: str):
+        """The quantity's stored errors (QuantityErrors), or None."""
+        return self.run.errors.get(name)
+
+    def est_text(self, name: str) -> str:
+        """Its global error estimate as the tables show it: '1.2e-05 (4.3 digits)', or '—'."""
+        q = self.run.estimate.get(name)
+        if q is None or q.max_abs is None:
+            return "—"
+        from odelab.report.render import sci
+
+        digits = "" if q.digits is None else f" ({q.digits:.1f} digits)"
+        return f"{sci(q.max_abs)}{digits}"
+
+    @property
     def notes(self) -> list[str]:
         """The run's warnings, less the undefined-relative-error counts its error table already shows."""
         return [w for w in self.run.warnings if not w.startswith("relative error undefined")]

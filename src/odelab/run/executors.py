@@ -175,7 +175,8 @@ def _init_worker(parent: int) -> None:
 def run_cases(cases: Iterable, *, executor: str = "serial", jobs: int | None = None, scheduler: str | None = None,
               max_steps: int | None = None, on_done: Callable[[int, int], None] | None = None,
               backend: str | None = None, on_result: Callable[[object], None] | None = None,
-              limits=None, import_options=None, on_note: Callable[[str], None] | None = None) -> Iterator:
+              limits=None, import_options=None, on_note: Callable[[str], None] | None = None,
+              estimate: bool | None = None) -> Iterator:
     """Run ``cases``; returns an iterator of each one's :class:`CaseResult` (or :class:`CaseError`), in case order.
 
     A process pool is started (its workers forked) before this returns; the cases run as the
@@ -196,6 +197,9 @@ def run_cases(cases: Iterable, *, executor: str = "serial", jobs: int | None = N
     import_options
         The :class:`~odelab.formats.ImportOptions` an imported file (MATLAB, Simulink) was read with:
         a Dask worker reads it again with them.
+    estimate
+        True/False: every case gets (or none gets) the global error estimate (odelab.run.estimate);
+        None: each case as its file says, by default.
     on_note
         Called with a sentence when something happened to the run that the user should know and
         that did not change its results (a Dask worker lost mid-run: its cases ran again).
@@ -223,7 +227,8 @@ def run_cases(cases: Iterable, *, executor: str = "serial", jobs: int | None = N
         if on_done is not None:
             on_done(counts[0], counts[1])
 
-    opts = {"max_steps": max_steps, **({"backend": backend} if backend is not None else {})}  # run_case's options
+    opts = {"max_steps": max_steps, **({"backend": backend} if backend is not None else {}),  # run_case's options
+            **({"estimate": estimate} if estimate is not None else {})}
     if executor == "serial":
         return _run_serial(cases, opts, done)
     if executor == "process":

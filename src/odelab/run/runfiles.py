@@ -40,6 +40,8 @@ class RunConfig:
     max_steps: int = 1_000_000
     limits: Limits | None = None  # default: DEFAULT_LIMITS with steps = max_steps
     backend: str | None = None
+    estimate: bool | None = None  # --estimate / --no-estimate: the global error estimate (odelab.run.estimate)
+    strict: bool = False  # --strict: an unreliable result (ok?) fails the run too
     jobs: int | None = None
     executor: str = "process"
     scheduler: str | None = None
@@ -327,6 +329,7 @@ class FileRun:
         try:  # a process pool forks its workers here, before the caller starts drawing
             stream = run_cases(cases, executor=config.executor, jobs=config.jobs, scheduler=config.scheduler,
                                max_steps=config.max_steps or None, on_done=on_done, backend=config.backend,
+                               estimate=config.estimate,
                                on_result=on_result, limits=config.budgets,
                                import_options=config.import_options, on_note=notes.append)
             iterator = iter(stream)
@@ -362,6 +365,7 @@ class FileRun:
                         continue
                     results.append(result)
                     any_failed |= result.unexpected_failure or result.extra.get("fit", {}).get("status") == "failed"
+                    any_failed |= config.strict and result.unreliable  # ok?: a failure only with --strict
                     yield CaseDone(counts["finished"], counts["failed"])
             except (KeyboardInterrupt, Terminated) as exc:
                 if config.store:  # what finished: this experiment's cases so far, and any a pool finished out of order

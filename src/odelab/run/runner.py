@@ -70,10 +70,12 @@ def _integrate_quietly(problem, tspan, method, options, backend="python"):
     return Integration(sol.t, sol.y, None, sol.stats, sol.status, sol.message, sol.warnings, backend=ran)
 
 
-def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = None) -> CaseResult:
+def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = None,
+             estimate: bool | None = None) -> CaseResult:
     """Run one case and compute its error table (never raises for a failed integration).
 
-    ``backend`` ("auto", "python", "compiled") overrides the case's ``[solver] backend``.
+    ``backend`` ("auto", "python", "compiled") overrides the case's ``[solver] backend``;
+    ``estimate`` (True/False) the file's ``[solver] estimate_error`` (odelab.run.estimate).
     """
     p = case.problem
     if p.linearize is not None:
@@ -114,6 +116,13 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
     if p.fit is not None:  # the experiment's [fit], estimated before its cases ran (experiment/fit.py)
         result.extra["fit"] = p.fit
     _reference(result, max_steps)
+    from odelab.run.estimate import estimate_case, estimate_warning, wants_estimate
+
+    if wants_estimate(result, estimate):  # a second solve at tighter tolerances (analysis/estimate.py)
+        result.estimate = estimate_case(result, _integrate, max_steps, backend)
+        if result.estimate.get("reasons"):
+            result.warnings.append(estimate_warning(result.estimate))
+        result.warnings.extend(result.estimate.get("notes", ()))  # differences that are a phase error
     if status == "success" and case.config.get("expect") in ("max-steps", "failure"):
         result.warnings.append(f"the file expects this case to stop (expect = {case.config['expect']!r}), but it "
                                "reached the end of its span: remove `expect` if that is now right.")
@@ -247,8 +256,8 @@ def _reference(result: CaseResult, max_steps: int | None = None) -> None:
             + ", ".join(undefined) + "; left out of the maximum")
 
 
-def run_experiment(path_or_experiment, *, max_steps: int | None = None, backend: str | None = None
-                   ) -> list[CaseResult]:
+def run_experiment(path_or_experiment, *, max_steps: int | None = None, backend: str | None = None,
+                   estimate: bool | None = None) -> list[CaseResult]:
     """Load (if given a path) and run every case of an experiment."""
     exp = path_or_experiment if isinstance(path_or_experiment, LoadedExperiment) else load_experiment(path_or_experiment)
-    return [run_case(case, max_steps=max_steps, backend=backend) for case in exp.cases]
+    return [run_case(case, max_steps=max_steps, backend=backend, estimate=estimate) for case in exp.cases]

@@ -43,6 +43,38 @@ class QuantityErrors:
         return self.max_rel if self.basis == "pointwise" else self.peak_rel
 
 
+@dataclass(frozen=True)
+class EstimatedError:
+    """One quantity's stored global error estimate (result.json ``estimate.quantities``, odelab.run.estimate)."""
+
+    name: str
+    max_abs: float | None
+    digits: float | None
+    flagged: bool = False
+
+
+def _estimate(raw: Any) -> tuple[dict[str, EstimatedError], str | None]:
+    """``(quantities, verdict)`` of a stored estimate; an estimate that was skipped has no quantities."""
+    if raw is None:
+        return {}, None
+    if not isinstance(raw, dict):
+        raise ValueError("`estimate` must be a table")
+    verdict = raw.get("verdict")
+    if verdict is not None and verdict not in ("ok", "unreliable"):
+        raise ValueError(f"`estimate.verdict` must be \"ok\" or \"unreliable\"; got {verdict!r}")
+    quantities = raw.get("quantities") or {}
+    if not isinstance(quantities, dict):
+        raise ValueError("`estimate.quantities` must be a table")
+    out = {}
+    for name, q in quantities.items():
+        if not isinstance(q, dict):
+            raise ValueError(f"`estimate.quantities.{name}` must be a table")
+        out[name] = EstimatedError(name, _number(q.get("max_abs"), f"estimate.quantities.{name}.max_abs"),
+                                   _number(q.get("digits"), f"estimate.quantities.{name}.digits"),
+                                   bool(q.get("flagged", False)))
+    return out, verdict
+
+
 @dataclass(frozen=True, eq=False)
 class StoredRun:
     """One stored case, validated: the fields the report uses, typed, plus the raw record."""
@@ -76,10 +108,17 @@ class StoredRun:
     stats: dict[str, Any] = field(default_factory=dict)  # as stored, with the stiff solvers' npds, ndecomps...
     expected: bool = False  # failed the way its file said it would (expect = "max-steps"): not a real failure
     case_index: int | None = None  # the case's place in its experiment (None: stored by an older odelab)
+    estimate: dict[str, EstimatedError] = field(default_factory=dict)  # the global error estimate, per quantity
+    verdict: str | None = None  # the estimate's: "ok", "unreliable" (shown ok?) or None (no estimate)
 
     @property
     def ok(self) -> bool:
         return self.status == "success"
+
+    @property
+    def unreliable(self) -> bool:
+        """It succeeded, but its error estimate says not to trust it (ok?)."""
+        return self.ok and self.verdict == "unreliable"
 
     @property
     def t(self) -> np.ndarray:
@@ -174,7 +213,9 @@ def parse_record(record: dict[str, Any]) -> StoredRun:
             raise ValueError(f"`{key}` must be a table")
     check_extra(extra)
     status = _str(record, "status", required=True)
+    estimate, verdict = _estimate(record.get("estimate"))
     return StoredRun(
+        estimate=estimate, verdict=verdict,
         experiment=_str(record, "experiment", required=True),
         case=_str(record, "case", required=True),
         title=_str(record, "title"),

@@ -52,6 +52,12 @@ class CaseResult:
     events: list[dict[str, Any]] = field(default_factory=list)  # located events: name, t, state, ...
     event_marks: np.ndarray | None = None  # per output row: 1-based number of its event, 0 for none
     backend: str = "python"  # the engine that ran: "python" or "compiled"
+    estimate: dict[str, Any] | None = None  # the global error estimate (odelab.run.estimate), if one was made
+
+    @property
+    def unreliable(self) -> bool:
+        """The run succeeded but its error estimate says not to trust it (shown ``ok?``)."""
+        return self.status == "success" and bool(self.estimate) and self.estimate.get("verdict") == "unreliable"
 
     @property
     def expected_stop(self) -> bool:

@@ -58,6 +58,10 @@ def sweep_csv(record: dict[str, Any]) -> str:
     quantities = sorted({q for r in rows for q in r["max_abs"]})
     header = ["case", *keys, "method", "status", "nsteps", "nfailed", "nfevals", "elapsed_s"]
     header += [f"{q}_{what}" for q in quantities for what in ("max_abs", "end_abs", "max_rel")]
+    # the global error estimate's columns, when some case has one (odelab.run.estimate)
+    estimated = sorted({q for r in rows for q in (r.get("est_abs") or {})})
+    if estimated:
+        header += ["estimate", *(f"{q}_{what}" for q in estimated for what in ("est_abs", "est_digits"))]
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow([spreadsheet_cell(h) for h in header])
@@ -66,6 +70,10 @@ def sweep_csv(record: dict[str, Any]) -> str:
                  r["nfevals"], r["elapsed_s"]]
         for q in quantities:
             cells += [r["max_abs"].get(q), r["end_abs"].get(q), r["max_rel"].get(q)]
+        if estimated:
+            cells.append(r.get("estimate"))
+            for q in estimated:
+                cells += [(r.get("est_abs") or {}).get(q), (r.get("est_digits") or {}).get(q)]
         writer.writerow(["" if c is None else repr(c) if isinstance(c, float) else spreadsheet_cell(c)
                          for c in cells])
     return buf.getvalue()
