@@ -46,15 +46,24 @@ EXPORTED = {"exercise2": "experiments/exercise2.toml", "network_msd": "experimen
             "pid_saturation": "tests/assets/fmi/pid_saturation.toml"}
 
 
-@pytest.fixture(scope="session")
-def exported(tmp_path_factory) -> dict[str, tuple]:
-    """The shipped experiments exported (their first case): name -> (Exported, the loaded case)."""
+def _export_all(folder: Path, version: int) -> dict[str, tuple]:
     from odelab import fmi
     from odelab.experiment.loader import load_experiment
 
-    folder = tmp_path_factory.mktemp("exported")
     out = {}
     for name, path in EXPORTED.items():
         experiment = load_experiment(ROOT / path)
-        out[name] = (fmi.export(experiment, folder / f"{name}.fmu"), experiment.cases[0])
+        out[name] = (fmi.export(experiment, folder / f"{name}.fmu", fmi=version), experiment.cases[0])
     return out
+
+
+@pytest.fixture(scope="session")
+def exported(tmp_path_factory) -> dict[str, tuple]:
+    """The shipped experiments exported as FMI 2.0 (their first case): name -> (Exported, the loaded case)."""
+    return _export_all(tmp_path_factory.mktemp("exported"), 2)
+
+
+@pytest.fixture(scope="session")
+def exported3(tmp_path_factory) -> dict[str, tuple]:
+    """The same, as FMI 3.0."""
+    return _export_all(tmp_path_factory.mktemp("exported3"), 3)

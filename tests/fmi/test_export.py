@@ -41,18 +41,23 @@ def largest_relative(result, reference, t=None) -> float:
     return max(float(np.max(np.abs(result[k][after] - v[after])) / np.max(np.abs(v))) for k, v in reference.items())
 
 
+@pytest.fixture(params=[2, 3], ids=["fmi2", "fmi3"])
+def fmus(request, exported, exported3):
+    return exported if request.param == 2 else exported3
+
+
 @pytest.mark.parametrize("name", NAMES)
-def test_fmpy_validates_the_exported_fmu(exported, name):
+def test_fmpy_validates_the_exported_fmu(fmus, name):
     from fmpy.validation import validate_fmu
 
-    done, _ = exported[name]
+    done, _ = fmus[name]
     assert validate_fmu(str(done.path)) == []
 
 
 @pytest.mark.parametrize("name", NAMES)
 @pytest.mark.parametrize("interface", ["ModelExchange", "CoSimulation"])
-def test_fmpy_simulates_it_as_odelab_does(exported, name, interface):
-    done, case = exported[name]
+def test_fmpy_simulates_it_as_odelab_does(fmus, name, interface):
+    done, case = fmus[name]
     p = case.problem
     step, stop = 0.02, float(p.tspan[-1])
     kwargs = {"solver": "CVode"} if interface == "ModelExchange" else {}
@@ -87,7 +92,10 @@ def test_a_plain_c_host_runs_the_co_simulation_without_python(exported, tmp_path
     assert np.max(np.abs(fmpy_cs["x"] - rows[:, 1])) <= 1e-12 * np.max(np.abs(rows[:, 1]))
 
 
-def test_the_saturations_switching_functions_are_event_indicators(exported):
+def test_the_saturations_switching_functions_are_event_indicators(exported, exported3):
+    with zipfile.ZipFile(exported3["pid_saturation"][0].path) as z:
+        root3 = ET.fromstring(z.read("modelDescription.xml"))
+    assert len(root3.find("ModelStructure").findall("EventIndicator")) == 2  # FMI 3.0 names them as variables
     done, case = exported["pid_saturation"]
     with zipfile.ZipFile(done.path) as z:
         root = ET.fromstring(z.read("modelDescription.xml"))
@@ -196,8 +204,15 @@ def test_the_cli_exports_and_refuses(tmp_path, monkeypatch):
                                   "2 states, 1 output, 0 tunable parameters")
     assert (tmp_path / "exercise2.fmu").is_file()
     three = runner.invoke(app, ["export", str(ROOT / "experiments/exercise2.toml"), "-o", "m.fmu", "--fmi", "3"])
-    assert three.exit_code == 2
-    assert "FMI 3.0 export is not written yet: export with --fmi 2" in three.output
+    assert three.exit_code == 0, three.output
+    assert "FMI 3.0 Model Exchange and Co-Simulation" in three.output
+    with zipfile.ZipFile(tmp_path / "m.fmu") as z:
+        assert ET.fromstring(z.read("modelDescription.xml")).get("fmiVersion") == "3.0"
+        from odelab.fmi.build import platform_folder
+
+        assert any(n.startswith(f"binaries/{platform_folder(3)}/exercise2.") for n in z.namelist())
+    four = runner.invoke(app, ["export", str(ROOT / "experiments/exercise2.toml"), "-o", "n.fmu", "--fmi", "4"])
+    assert four.exit_code == 2 and "`fmi` must be 2 or 3; got 4." in four.output
     diagram = runner.invoke(app, ["export", str(ROOT / "experiments/thermostat.toml"), "-o", "d.fmu"])
     assert diagram.exit_code == 2 and "Traceback" not in diagram.output
-    assert not (tmp_path / "m.fmu").exists() and not (tmp_path / "d.fmu").exists()
+    assert not (tmp_path / "n.fmu").exists() and not (tmp_path / "d.fmu").exists()

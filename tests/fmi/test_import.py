@@ -168,6 +168,19 @@ def test_an_exported_fmu_comes_back_as_its_experiment(exported, tmp_path):
         assert np.max(np.abs(r.y[after, 0] - ref["y"])) / (10 * scale) < 50
 
 
+def test_an_fmi3_export_comes_back_too(exported3, tmp_path):
+    from .test_export import odelab_tight
+
+    done, case = exported3["pid_saturation"]
+    (r,) = run_toml(tmp_path, fmu_toml(done.path, 6))
+    assert r.status == "success" and r.case.config["system"]["fmi_version"] == "3.0"
+    after = np.r_[np.diff(r.t) > 0, True]
+    ref = odelab_tight(case, r.t[after])
+    for i, name in enumerate(r.case.problem.states):
+        scale = RTOL * np.max(np.abs(ref[name])) + ATOL
+        assert np.max(np.abs(r.x[after, i] - ref[name])) / scale < 50
+
+
 def test_a_sweep_over_the_fmus_parameter_runs(exported, tmp_path):
     done, _ = exported["network_nonlinear_spring"]
     results = run_toml(tmp_path, fmu_toml(done.path, 10, "[parameters]\nk3 = 2\n[sweep]\nparameters.k3 = [0, 2, 8]\n"))

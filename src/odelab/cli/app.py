@@ -480,10 +480,10 @@ def export(
     output: Annotated[Optional[Path], typer.Option("-o", "--output", help="The FMU to write (default: the "
                                                    "experiment's name, .fmu, in the current folder).",
                                                    show_default=False, metavar="MODEL.fmu")] = None,
-    fmi: Annotated[int, typer.Option("--fmi", help="The FMI version: 2 (3 is not written yet).",
-                                     metavar="2|3")] = 2,
+    fmi: Annotated[int, typer.Option("--fmi", help="The FMI version: 2 (FMI 2.0, which every tool loads) or 3 "
+                                     "(FMI 3.0).", metavar="2|3")] = 2,
 ) -> None:
-    """Export a case as an FMU (FMI 2.0, Model Exchange and Co-Simulation) for other simulation tools."""
+    """Export a case as an FMU (FMI 2.0 or 3.0, Model Exchange and Co-Simulation) for other simulation tools."""
     from odelab.exceptions import InputError
     from odelab.experiment.loader import load_experiment
     from odelab.fmi import export as export_fmu
@@ -503,7 +503,7 @@ def export(
     chosen = case or experiment.cases[0].name
     more = f" (the first of {len(experiment.cases)}; --case picks another)" if case is None and \
         len(experiment.cases) > 1 else ""
-    out.print(f"wrote {_escape(str(target))}: case {_escape(chosen)}{_escape(more)}, FMI 2.0 Model Exchange and "
+    out.print(f"wrote {_escape(str(target))}: case {_escape(chosen)}{_escape(more)}, FMI {fmi}.0 Model Exchange and "
               f"Co-Simulation, {len(m.states)} state{'s' if len(m.states) != 1 else ''}, {len(m.outputs)} "
               f"output{'s' if len(m.outputs) != 1 else ''}, {len(m.parameters)} tunable parameter"
               f"{'s' if len(m.parameters) != 1 else ''}; compiled with {_escape(Path(done.compiler).name)} in "

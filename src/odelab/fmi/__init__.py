@@ -34,7 +34,7 @@ def _pick_case(experiment, case: str | None):
 
 
 def export(experiment, output, *, case: str | None = None, fmi: int = 2, name: str | None = None):
-    """Export one case of a loaded experiment as an FMU (FMI 2.0, Model Exchange and Co-Simulation).
+    """Export one case of a loaded experiment as an FMU (FMI 2.0 or 3.0, Model Exchange and Co-Simulation).
 
     Parameters
     ----------
@@ -46,7 +46,7 @@ def export(experiment, output, *, case: str | None = None, fmi: int = 2, name: s
     case
         The case's name; by default the first case.
     fmi
-        The FMI version: 2 (3 is refused with the reason).
+        The FMI version: 2 (FMI 2.0, which every tool of the field loads) or 3 (FMI 3.0).
     name
         The FMU's model name (default: the experiment's name).
 
@@ -60,13 +60,10 @@ def export(experiment, output, *, case: str | None = None, fmi: int = 2, name: s
 
     if fmi not in (2, 3):
         raise InputError(f"`fmi` must be 2 or 3; got {fmi!r}.")
-    if fmi == 3:
-        raise InputError("FMI 3.0 export is not written yet: export with --fmi 2 (every FMI 3 tool of the field "
-                         "also loads FMI 2.0 FMUs).")
     chosen = _pick_case(experiment, case)
     start = time.perf_counter()
     model = model_of_case(chosen, name=name)
-    return build_fmu(model, Path(output), generate_seconds=time.perf_counter() - start)
+    return build_fmu(model, Path(output), generate_seconds=time.perf_counter() - start, fmi=fmi)
 
 
 def load(path, *, allow_native: bool = False, **kwargs):

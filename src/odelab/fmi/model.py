@@ -317,8 +317,9 @@ def _variables(problem, parameters, p, first: int, units: dict) -> tuple[Variabl
     return tuple(out)
 
 
-def c_model(m: ExportModel) -> str:
-    """``model.c``: the generated part of the FMU's C sources (the framework is ``odelab_fmi2.c``)."""
+def c_model(m: ExportModel, fmi: int = 2) -> str:
+    """``model.c``: the generated part of the FMU's C sources (the runtime is ``odelab_fmi2.c`` or
+    ``odelab_fmi3.c``, each on ``odelab_core.c``)."""
     def array(name: str, values) -> str:
         values = list(values) or [0.0]
         body = ",\n    ".join(", ".join(c_number(v) for v in values[i:i + 4]) for i in range(0, len(values), 4))
@@ -348,7 +349,7 @@ def c_model(m: ExportModel) -> str:
         m.c_rhs,
         m.c_outputs,
         m.c_indicators,
-        "#include \"odelab_fmi2.c\"",
+        f"#include \"odelab_fmi{fmi}.c\"",
         "",
     ]
     return "\n".join(lines)
