@@ -623,7 +623,12 @@ def describe(entry: KeyEntry, width: int = 78) -> str:
 
 
 def explain(key: str) -> str:
-    """The reference entry of ``key``, or a :class:`LookupError` listing the nearest keys."""
+    """The reference entry of ``key``, or a :class:`LookupError` listing the nearest keys. ``import`` (and
+    ``import.m``...) explains what `odelab import` reads (:func:`odelab.formats.explain_import`)."""
+    if key.strip().split(".")[0] == "import":
+        from odelab.formats import explain_import
+
+        return explain_import(key.strip())
     entry = find(key)
     if entry is None:
         close = _suggest(key)

@@ -16,7 +16,7 @@ from pathlib import Path
 from odelab.formats.base import GAP, IGNORED, TRANSLATED, Document, ImportOptions, Note
 
 __all__ = ["READERS", "FOLDER_SUFFIXES", "Document", "ImportOptions", "Note", "TRANSLATED", "IGNORED", "GAP",
-           "read", "reader_name", "is_experiment_file", "is_experiment"]
+           "read", "reader_name", "is_experiment_file", "is_experiment", "explain_import"]
 
 #: suffix -> (the reader's module, what the format is called in messages)
 READERS: dict[str, tuple[str, str]] = {
@@ -52,6 +52,40 @@ def is_experiment(path: Path) -> bool:
     module = importlib.import_module(reader_name(path))
     check = getattr(module, "is_experiment", None)
     return True if check is None else bool(check(path))
+
+
+IMPORT_TOPIC = (
+    "import  (odelab import FILE... [-o DIR] [--workspace SCRIPT.m]... [--set NAME=VALUE]... [--call CALL])\n"
+    "  Writes the experiment file (NAME.toml) of a file in another format, commented with where each part came\n"
+    "  from, and prints what was translated, what was ignored and what could not be (the gaps, each with what\n"
+    "  to write instead). Exit 0: everything translated; 1: written with gaps marked GAP: (it runs once they\n"
+    "  are filled in); 2: nothing usable (unreadable, hostile). Nothing in the file is ever run. `odelab run`\n"
+    "  takes the same files and options directly; the written file runs bit for bit as the source does.")
+
+
+def explain_import(topic: str = "import") -> str:
+    """``odelab explain import`` (and ``import.m``, ``import.slx``...): what ``odelab import`` reads, from each
+    reader's own ``EXPLAIN`` text."""
+    parts = topic.split(".", 1)
+    suffixes = [s for s in READERS if s != ".toml"]
+    if len(parts) == 2:
+        wanted = [s for s in suffixes if s.lstrip(".") == parts[1].lower().lstrip(".")
+                  or READERS[s][1].lower().endswith(parts[1].lower())]
+        if not wanted:
+            raise LookupError(f"no import topic `{topic}`; the formats are "
+                              f"{', '.join('import.' + s.lstrip('.') for s in suffixes)}.")
+        suffixes = wanted
+    texts = [IMPORT_TOPIC] if len(parts) == 1 else []
+    seen = set()
+    for suffix in suffixes:
+        module = READERS[suffix][0]
+        if module in seen:
+            continue
+        seen.add(module)
+        text = getattr(importlib.import_module(module), "EXPLAIN", None)
+        if text:
+            texts.append(text)
+    return "\n\n".join(texts)
 
 
 def read(path: str | Path, options: ImportOptions | None = None) -> Document:

@@ -22,7 +22,31 @@ import numpy as np
 
 from odelab.formats.base import Document, ImportOptions, Note
 
-__all__ = ["read", "workspace", "plain_value", "is_experiment"]
+__all__ = ["read", "workspace", "plain_value", "is_experiment", "EXPLAIN"]
+
+EXPLAIN = """import.m  (MATLAB .m files: a driver script, a driver function, or a right-hand side alone with --call)
+  Read, never run. Each call of ode45, ode23, ode113, ode78, ode89, ode15s, ode23s, ode23t, ode23tb or
+  ode15i is a case ([t,y] = ... and sol = ... forms; several calls of one system are [[case]]s, of
+  different systems [[problem]]s); its right-hand side (a function of the file or beside it, nested or
+  local, an anonymous function, MATLAB 5's ode45('f', ...) with a flag argument) is read with t and y as
+  symbols: y(1) is the first state, named by `S = y(1)` or else y1, y2...; intermediate variables are
+  inlined, if/else on the state becomes where(...), for loops with constant bounds are unrolled, a
+  constant matrix times y is written out. Constants become [parameters] however they are passed
+  (trailing arguments, values in the function, closures, vectors p(2) -> p_2, structs p.k -> p_k,
+  globals, a nested function's parent). odeset: RelTol, AbsTol, MaxStep, InitialStep, Refine,
+  NormControl, MaxOrder, BDF, Vectorized, NonNegative, Mass, MStateDependence, Jacobian, Events;
+  OutputFcn, OutputSel, Stats, JPattern are noted and ignored. tspan: [t0 tf], a vector, linspace,
+  a:h:b. Events functions become [events.NAME]; a loop that restarts the solver from the state at a
+  terminal event (MATLAB's ballode) becomes the event's reset and max_events. interp1 of a table in t
+  is a table input (the data file's name when the table is a file's two columns). decic's fixed
+  components become [initial.fixed].
+  Ignored with a note: plotting, printing, figures, clc/clear/close, tic/toc. Gaps (named with their
+  line): values odelab cannot know (input(), rand, a file it does not read, a solver's output used as a
+  number), a while loop with a data-dependent bound, feval of a computed name, complex numbers, dde23.
+  Refused (exit 2): eval, evalin, assignin, system, unix, dos, !, and files beyond the budgets (1 MB,
+  nesting, 100,000 loop iterations, recursion). A function file alone (eq1.m) imports with its span and
+  initial values as gaps; --call "[t,y] = ode23(@eq1, [0 pi], 2)" supplies the call. --set k=2 pins a
+  workspace value (also where the script assigns it); --workspace params.m runs a script first."""
 
 _SOLVER_CALL = re.compile(r"\bode(?:45|23|113|78|89|15s|23s|23t|23tb)\s*\(")
 

@@ -28,8 +28,8 @@ from odelab.formats.matlab.values import (Arr, Call, Cell, Const, FuncValue, Nam
 
 __all__ = ["BUILTINS", "SOLVERS", "PLOTTING", "command", "linspace"]
 
-SOLVERS = ("ode45", "ode23", "ode113", "ode78", "ode89", "ode15s", "ode23s", "ode23t", "ode23tb")
-UNSUPPORTED_SOLVERS = {"ode15i": "a fully implicit ODE f(t, y, y') = 0", "dde23": "a delay equation",
+SOLVERS = ("ode45", "ode23", "ode113", "ode78", "ode89", "ode15s", "ode23s", "ode23t", "ode23tb", "ode15i")
+UNSUPPORTED_SOLVERS = {"dde23": "a delay equation",
                        "ddesd": "a delay equation", "ddensd": "a neutral delay equation",
                        "bvp4c": "a boundary-value problem", "bvp5c": "a boundary-value problem",
                        "pdepe": "a partial differential equation", "ode": "MATLAB's ode object (R2023b)"}
@@ -888,6 +888,23 @@ def _unsupported_solver(interp, args, nargout, node, scope):
 
 for _name in UNSUPPORTED_SOLVERS:
     BUILTINS[_name] = _unsupported_solver
+
+
+@builtin("decic")
+def _decic(interp, args, nargout, node, scope):
+    """``[y0, yp0] = decic(f, t0, y0, fixed_y0, yp0, fixed_yp0)``: odelab runs decic itself when it loads the
+    implicit system; the call's fixed components become ``[initial.fixed]`` (the values pass through)."""
+    if len(args) < 6:
+        raise Unsupported("decic(f, t0, y0, fixed_y0, yp0, fixed_yp0) with all six arguments")
+    flags = []
+    for value in (args[3], args[5]):
+        numbers = value.numbers() if isinstance(value, Arr) else None
+        flags.append(None if numbers is None or numbers.size == 0 else [bool(v) for v in numbers.T.reshape(-1)])
+    interp.decic_calls.append((args[0], flags[0], flags[1], node.line))
+    if scope.mode == "script":
+        interp.note(node.line, "decic(...)", "translated", "the fixed components as [initial.fixed]: odelab makes the "
+                    "initial values consistent (MATLAB's decic) when it loads the file", scope.file)
+    return [args[2], args[4]][:max(nargout, 1)]
 
 
 @builtin("deval", "odextend")

@@ -45,6 +45,7 @@ class SolverCall:
     restart_line: int = 0
     restart_notes: list[str] = field(default_factory=list)
     gap: Unknown | None = None
+    yp0: Any = None  # ode15i's initial slopes
 
 
 class Recorder:
@@ -96,6 +97,10 @@ class Recorder:
 
         call.flag = uses_flag(interp, fun)
         rest = list(args[1:])
+        if call.method == "ode15i":  # ode15i(f, tspan, y0, yp0, options, extras...)
+            if len(rest) < 3 or not isinstance(rest[2], Arr):
+                raise Unsupported("ode15i needs the initial slopes yp0 (ode15i(f, tspan, y0, yp0))")
+            call.yp0 = rest.pop(2)
         tspan = rest[0] if rest else None
         y0 = rest[1] if len(rest) > 1 else None
         options = rest[2] if len(rest) > 2 else None

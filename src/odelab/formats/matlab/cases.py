@@ -75,7 +75,9 @@ def build_case(interp, call: SolverCall, name: str, inputs: dict) -> CaseSpec:
         b.gap(("system",), f"{call.gap.reason}", call.gap.line, call.gap.file, call.gap.construct or call.text)
         spec.tables["system"] = {}
         return spec
-    reading = read_function(interp, call.fun, call.states, call.extras, 1, flag="" if call.flag else None)
+    implicit = call.method == "ode15i"
+    reading = read_function(interp, call.fun, call.states, call.extras, 1, flag="" if call.flag else None,
+                            derivatives=implicit)
     from odelab.formats.matlab.exprtext import _reserved_words
 
     names = state_names(reading, call.states, _reserved_words())
@@ -83,6 +85,8 @@ def build_case(interp, call: SolverCall, name: str, inputs: dict) -> CaseSpec:
     _system(b, reading, names, namer)
     _options(b, namer, names)
     _initial(b, namer, names)
+    if implicit:
+        _implicit(b, namer, names)
     _time(b, namer)
     spec.tables["solver"] = {"method": call.method, **spec.tables.get("solver", {})}
     b.comment(("solver",), f"{b.where}: {call.text}")
@@ -145,6 +149,47 @@ def _system(b: _Builder, reading: Reading, names: list[str], namer: Namer) -> No
     for i, (given, line) in sorted(reading.names.items()):
         if i < len(names) and names[i] == given:
             b.comment(("system", "equations", given), f"{given} = y({i + 1}) on line {line}")
+
+
+def _implicit(b: _Builder, namer: Namer, names: list[str]) -> None:
+    """ode15i: the function's value is the residuals of 0 = f(t, y, y'); yp0 the slopes' guesses; decic's fixed
+    components the [initial.fixed] table."""
+    system = b.spec.tables["system"]
+    equations = system.pop("equations", {})
+    system["kind"] = "implicit"
+    system["residuals"] = {f"r{i + 1}": equations[name] for i, name in enumerate(names) if name in equations}
+    for key in [k for k in b.spec.gaps if k[:2] == ("system", "equations")]:
+        b.spec.gaps[("system", "residuals") + key[2:]] = b.spec.gaps.pop(key)
+    initial = b.spec.tables["initial"]
+    slopes = b.call.yp0.all_items() if isinstance(b.call.yp0, Arr) else []
+    if len(slopes) != len(names):
+        b.gap(("initial",), f"ode15i's yp0 has {len(slopes)} values for {len(names)} states")
+        return
+    for name, item in zip(names, slopes):
+        try:
+            initial[f"der({name})"] = namer.value(item)
+        except (Unsupported, TooBig) as exc:
+            b.gap(("initial", f"der({name})"), f"the initial slope of {name} cannot be written: {exc}")
+    fixed = _decic_flags(b, names)
+    if fixed:
+        b.spec.tables["initial"]["fixed"] = fixed
+        b.comment(("initial", "fixed"), "decic's fixed_y0 and fixed_yp0: what it may not change")
+
+
+def _decic_flags(b: _Builder, names: list[str]) -> dict:
+    fun = b.call.fun
+    for called, fixed_y0, fixed_yp0, line in reversed(b.interp.decic_calls):
+        if called is fun or (getattr(called, "name", None), getattr(called, "text", None)) == (fun.name, fun.text):
+            out = {}
+            for flags, form in ((fixed_y0, "{}"), (fixed_yp0, "der({})")):
+                if flags is None:
+                    continue
+                for name, flag in zip(names, flags):
+                    key = form.format(name)
+                    if form == "{}" or flag:
+                        out[key] = flag
+            return out
+    return {}
 
 
 def _number(b: _Builder, value, what: str) -> float | list | None:

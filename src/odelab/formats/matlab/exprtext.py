@@ -13,7 +13,7 @@ import keyword
 import math
 import re
 
-from odelab.formats.matlab.values import (COMPARE, Call, Const, Input, Named, Op, Param, ParamDef, ResultRef,
+from odelab.formats.matlab.values import (COMPARE, Call, Const, Deriv, Input, Named, Op, Param, ParamDef, ResultRef,
                                           State, Sym, Time, Unsupported)
 
 __all__ = ["Namer", "number_text", "identifier"]
@@ -124,6 +124,8 @@ class Namer:
             return self.states[item.index], _ATOM
         if isinstance(item, Time):
             return "t", _ATOM
+        if isinstance(item, Deriv):
+            return f"der({self.states[item.index]})", _ATOM
         if isinstance(item, Input):
             self.inputs_used.add(item.name)
             return item.name, _ATOM

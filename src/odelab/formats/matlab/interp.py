@@ -77,6 +77,7 @@ class Interpreter:
         self.state_names: dict[int, tuple[str, int]] = {}  # state index -> (name, line): `S = y(1)`
         self.state_base = ""  # the function's own name for the state vector
         self.state_base_from_function = False
+        self.decic_calls: list = []  # (function, fixed_y0, fixed_yp0, line) of each decic call
         self.builtins = hooks.builtins
         self.solved = 0
 

@@ -43,11 +43,16 @@ def uses_flag(interp, fv: FuncValue) -> bool:
 
 
 def read_function(interp, fv: FuncValue, states: int, extras: list, nargout: int, *, with_state: bool = True,
-                  time_only: bool = False, flag: str | None = None) -> Reading:
-    """Call ``fv(t, y, extras...)`` on symbols (``flag`` inserts MATLAB 5's flag argument)."""
+                  time_only: bool = False, flag: str | None = None, derivatives: bool = False) -> Reading:
+    """Call ``fv(t, y, extras...)`` on symbols (``flag`` inserts MATLAB 5's flag argument; ``derivatives`` passes
+    y' as ode15i's third argument, ``f(t, y, yp)``)."""
+    from odelab.formats.matlab.values import Deriv
+
     t = Arr.scalar(Time())
     y = Arr(states, 1, items=[State(i) for i in range(states)])
     args = [t] if time_only else [t, y]
+    if derivatives:
+        args.append(Arr(states, 1, items=[Deriv(i) for i in range(states)]))
     if flag is not None:
         args.append(Str(flag))
     args.extend(extras)

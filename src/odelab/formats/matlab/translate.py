@@ -87,8 +87,13 @@ def _has_solver_call(body: list[n.Stmt]) -> bool:
     return bool(_solver_calls([body]))
 
 
-def _title(text: str, path: Path) -> str:
-    """The file's H1 line (its first comment), MATLAB's one-line description."""
+def _title(text: str, path: Path, raw: bytes = b"") -> str:
+    """The file's H1 line (its first comment), MATLAB's one-line description (not when the file's encoding had to be
+    guessed: its comment would be shown garbled)."""
+    try:
+        raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return f"{path.name} (MATLAB)"
     for line in text.splitlines()[:40]:
         stripped = line.strip()
         if stripped.startswith(("%", "#")) and not stripped.startswith(("%{", "%%%")):
@@ -131,7 +136,7 @@ def translate(path: Path, raw: bytes, options: ImportOptions) -> Document:
     out_dir = Path(options.output) if getattr(options, "output", None) else path.parent
     for spec in specs:
         _relative_files(spec, out_dir)
-    sections = assemble(specs, _title(text, path))
+    sections = assemble(specs, _title(text, path, raw))
     header = (f"Imported from {path.name} by `odelab import` (odelab's MATLAB reader; nothing was run).\n"
               f"Running this file gives the same results, bit for bit, as `odelab run {path.name}`; each section "
               "names the MATLAB line it came from.")
@@ -212,13 +217,16 @@ def _section_of(path: tuple) -> tuple[str, str]:
     if len(path) == 1:
         return "", head
     if head == "system" and len(path) == 3:
-        return "system.equations", path[2]
+        return f"system.{path[1]}", path[2]
+    if head == "initial" and len(path) == 3:
+        return "initial.fixed", path[2]
     if head in ("inputs", "events") and len(path) == 3:
         return f"{head}.{path[1]}", path[2]
     return head, path[1]
 
 
-_ORDER = ("", "parameters", "system", "system.equations", "inputs", "initial", "time", "solver", "events")
+_ORDER = ("", "parameters", "system", "system.equations", "system.residuals", "inputs", "initial", "initial.fixed",
+          "time", "solver", "events")
 
 
 def _rank(section: str) -> tuple:

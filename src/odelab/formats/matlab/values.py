@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Sym", "Const", "Named", "Param", "ParamDef", "State", "Time", "Input", "Op", "Call", "ResultRef",
+__all__ = ["Sym", "Const", "Named", "Param", "ParamDef", "State", "Deriv", "Time", "Input", "Op", "Call", "ResultRef",
            "Arr", "Str", "Struct", "Cell", "FuncValue", "Unknown", "SolverOutput", "TooBig", "Unsupported",
            "MAX_SYM_DEPTH", "MAX_SYM_SIZE", "MAX_ELEMENTS", "scalar", "const"]
 
@@ -136,6 +136,21 @@ class State(Sym):
 
     def __repr__(self) -> str:
         return f"y{self.index + 1}"
+
+
+class Deriv(Sym):
+    """The derivative of the ``index``-th state, ``yp(index + 1)`` of an implicit ODE ``f(t, y, yp) = 0`` (ode15i)."""
+
+    __slots__ = ("index",)
+
+    def __init__(self, index: int):
+        self.index = index
+        self.num = None
+        self.depth = 1
+        self.size = 1
+
+    def __repr__(self) -> str:
+        return f"der(y{self.index + 1})"
 
 
 class Time(Sym):

@@ -1,0 +1,102 @@
+"""MATLAB constructs beyond the corpus: ode15i with decic, inline(), M \\ f, the Jacobian, explain import."""
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from odelab.experiment.keyref import explain
+from odelab.experiment.loader import load_experiments
+from odelab.formats import read
+from odelab.run.runner import run_experiment
+
+
+def _write(tmp_path, name, text):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_ode15i_with_decic_becomes_an_implicit_system_with_initial_fixed(tmp_path):
+    path = _write(tmp_path, "weissinger.m", """\
+f = @(t, y, yp) t*y^2*yp^3 - y^3*yp^2 + t*(t^2 + 1)*yp - t^2*y;
+t0 = 1; y0 = sqrt(3/2); yp0 = 0;
+[y0, yp0] = decic(f, t0, y0, 1, yp0, 0);
+opts = odeset('RelTol', 1e-6, 'AbsTol', 1e-8);
+[t, y] = ode15i(f, [1 10], y0, yp0, opts);
+""")
+    doc = read(path)
+    assert not doc.gaps
+    assert doc.data["system"] == {"states": ["y"], "kind": "implicit",
+                                  "residuals": {"r1": "t*y^2*der(y)^3 - y^3*der(y)^2 + t*(t^2 + 1)*der(y) - t^2*y"}}
+    assert doc.data["initial"] == {"y": np.sqrt(1.5), "der(y)": 0, "fixed": {"y": True}}
+    (result,) = [r for e in load_experiments(path) for r in run_experiment(e)]
+    exact = np.sqrt(result.t ** 2 + 0.5)
+    units = np.max(np.abs(result.x[:, 0] - exact) / (1e-8 + 1e-6 * np.max(exact)))
+    assert result.status == "success" and units < 20  # measured 3.6 tolerance units
+
+
+def test_inline_functions_are_read_as_anonymous_functions(tmp_path):
+    path = _write(tmp_path, "old.m", "f = inline('[u(2); 4*t-2*u(1)-u(2).*(4/5)]', 't', 'u');\n"
+                                      "[T, U] = ode45(f, [0 13], [1 2], []);\ng = inline('-2*y + t');\n"
+                                      "[T2, Y2] = ode23(g, [0 1], 1);\n")
+    doc = read(path)
+    assert not doc.gaps
+    eqs = [p["system"]["equations"] for p in doc.data["problem"]]
+    assert eqs[0] == {"u1": "u2", "u2": "4*t - 2*u1 - u2*0.8"}  # 4/5 of literals: the double MATLAB computes
+    assert eqs[1] == {"y": "-2*y + t"}  # inline('-2*y + t'): its variables in MATLAB's alphabetical order, t, y
+
+
+def test_a_mass_matrix_solved_in_the_right_hand_side_by_cramers_rule(tmp_path):
+    path = _write(tmp_path, "cart.m", """\
+[t, y] = ode45(@cart, [0 5], [0 0 0.3 0], odeset('RelTol', 1e-8, 'AbsTol', 1e-10));
+function dy = cart(t, y)
+M = [2, -0.5*cos(y(3)); -0.5*cos(y(3)), 0.4];
+F = [-0.5*y(4)^2*sin(y(3)); -9.81*0.5*sin(y(3))];
+a = M\\F;
+dy = [y(2); a(1); y(4); a(2)];
+end
+""")
+    (result,) = run_experiment(path)
+
+    def f(t, y):
+        M = np.array([[2, -0.5 * np.cos(y[2])], [-0.5 * np.cos(y[2]), 0.4]])
+        a = np.linalg.solve(M, [-0.5 * y[3] ** 2 * np.sin(y[2]), -9.81 * 0.5 * np.sin(y[2])])
+        return [y[1], a[0], y[3], a[1]]
+    ref = solve_ivp(f, (0, 5), [0, 0, 0.3, 0], method="DOP853", t_eval=result.t, rtol=1e-12, atol=1e-14).y.T
+    units = np.max(np.abs(result.x - ref) / (1e-10 + 1e-8 * np.max(np.abs(ref), axis=0)))
+    assert units < 20
+
+
+def test_an_analytic_jacobian_function_becomes_system_jacobian(tmp_path):
+    path = _write(tmp_path, "vdpstiff.m", """\
+function vdpstiff(MU)
+if nargin < 1
+  MU = 50;
+end
+options = odeset('Jacobian', @J, 'RelTol', 1e-4);
+[t, y] = ode15s(@f, [0 20], [2; 0], options);
+  function dydt = f(t, y)
+    dydt = [y(2)
+            MU*(1-y(1)^2)*y(2)-y(1)];
+  end
+  function dfdy = J(t, y)
+    dfdy = [  0                  1
+             -2*MU*y(1)*y(2)-1  MU*(1-y(1)^2) ];
+  end
+end
+""")
+    doc = read(path)
+    assert not doc.gaps
+    assert doc.data["system"]["jacobian"] == [[0, 1], ["-2*MU*y1*y2 - 1", "MU*(1 - y1^2)"]]
+    assert doc.data["parameters"] == {"MU": 50}
+    (result,) = run_experiment(path)
+    assert result.status == "success"
+
+
+def test_explain_import_says_what_the_matlab_reader_translates():
+    text = explain("import")
+    assert text.startswith("import  (odelab import FILE...") and "Exit 0: everything translated" in text
+    matlab = explain("import.m")
+    assert "(MATLAB's ballode) becomes the event's reset" in matlab and "Refused (exit 2): eval" in matlab
+    with pytest.raises(LookupError, match="no import topic `import.xyz`"):
+        explain("import.xyz")
