@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import os
+import re
 import tempfile
 from pathlib import Path
 
@@ -61,3 +62,23 @@ def spreadsheet_cell(value):
         return "'" + value
     return value if value.strip() == value and not value.lower().lstrip("+-").startswith(("nan", "inf")) \
         else "'" + value
+
+
+_DECIMAL_COMMA = re.compile(r"^[-+]?\d*,\d+(?:[eE][-+]?\d+)?$")
+
+
+def decimal_comma_line(line: str) -> bool:
+    """A CSV line whose numbers are written with decimal commas, as a spreadsheet in a European locale
+    saves them (``0,5;1,25`` or ``0,5<tab>1,25``): fields separated by ``;`` or tabs, at least one
+    number with a comma for its decimal point and every field a number so written or a whole number."""
+    for sep in (";", "\t"):
+        if sep in line:
+            cells = [c.strip() for c in line.split(sep)]
+            return (len(cells) >= 2 and any(_DECIMAL_COMMA.match(c) for c in cells)
+                    and all(_DECIMAL_COMMA.match(c) or c.lstrip("+-").isdigit() for c in cells))
+    return False
+
+
+DECIMAL_COMMA_FIX = ("odelab reads numbers with a decimal point. Save the file with '.' as the decimal separator "
+                     "(LibreOffice: Save As, Edit filter settings; Excel: File, Options, Advanced, untick 'Use "
+                     "system separators' and set the decimal separator to '.'), then save it again as CSV")

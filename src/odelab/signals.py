@@ -43,6 +43,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from odelab.exceptions import InputError
+from odelab.fileio import DECIMAL_COMMA_FIX, decimal_comma_line
 
 __all__ = [
     "SIGNALS",
@@ -1019,6 +1020,9 @@ class Table(Signal):
             stripped = line.strip()
             if not stripped or stripped.startswith("#"):
                 continue
+            if decimal_comma_line(stripped):
+                raise InputError(f"line {number} writes its numbers with decimal commas "
+                                 f"({_quoted_line(stripped, [None])}): {DECIMAL_COMMA_FIX}.", source=str(path))
             cells = _split_row(stripped)
             try:
                 numbers = [float(cell) for cell in cells]

@@ -26,7 +26,7 @@ R2021b and later), for a step from yinit = 0 to yfinal = the DC gain:
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -206,9 +206,8 @@ def _last_exit(t, e, level) -> float:
     return float(t[k] + (e[k] - level) * (t[k + 1] - t[k]) / (e[k] - e[k + 1]))
 
 
-def _peak(t, a) -> tuple[float, float]:
-    """Max of samples ``a`` refined by the parabola through the three around it."""
-    k = int(np.argmax(a))
+def _refined(t, a, k: int) -> tuple[float, float]:
+    """Sample ``k`` of ``a`` refined by the parabola through the three around it."""
     if 0 < k < a.size - 1:
         y0, y1, y2 = a[k - 1], a[k], a[k + 1]
         denom = y0 - 2 * y1 + y2
@@ -217,6 +216,28 @@ def _peak(t, a) -> tuple[float, float]:
             h = t[k + 1] - t[k] if d > 0 else t[k] - t[k - 1]
             return float(y1 - 0.25 * (y0 - y2) * d), float(t[k] + d * h)
     return float(a[k]), float(t[k])
+
+
+#: peaks within this relative distance of the largest are the same peak (an undamped response's
+#: peaks are equal; sampled, any of them can hold the largest sample)
+PEAK_TIE = 1e-6
+
+
+def _peak(t, a) -> tuple[float, float]:
+    """The largest value of samples ``a`` (refined by a parabola) and when it is first reached: a
+    response whose peaks are all equal (undamped) peaks at its first, not at whichever sample
+    happens to be largest."""
+    k = int(np.argmax(a))
+    value, when = _refined(t, a, k)
+    if k < 2:
+        return value, when
+    head = a[1:k]
+    local = np.flatnonzero((head >= a[:k - 1]) & (head > a[2:k + 1]) & (head >= value * (1 - 1e-4))) + 1
+    for i in local:  # earlier local maxima, first first
+        v, at = _refined(t, a, int(i))
+        if v >= value * (1 - PEAK_TIE):
+            return value, at
+    return value, when
 
 
 def step_metrics(t, y, yfinal: float, yinit: float = 0.0, *, settling_threshold: float = 0.02,
@@ -298,15 +319,16 @@ def stepinfo(system, *, settling_threshold: float = 0.02, rise_limits: tuple[flo
         raise InputError(f"`settling_threshold` must be between 0 and 1; got {settling_threshold!r}.",
                          key="settling_threshold")
     gains = dcgain(ss)
-    horizon = float(t_final) if t_final is not None else _horizon(ss)
+    first = float(t_final) if t_final is not None else _horizon(ss)
     out: dict[tuple[str, str], StepInfo] = {}
     for j, u in enumerate(ss.inputs):
-        doublings = 0
+        doublings, horizon, seen = 0, first, None
         while True:
             t = np.linspace(0.0, horizon, points)
             y = step_response(ss, t, j)
             infos = {(name, u): step_metrics(t, y[:, i], float(gains[i, j]), settling_threshold=settling_threshold,
                                              rise_limits=rise_limits) for i, name in enumerate(ss.outputs)}
+            seen = seen or infos
             moving = [s for s in infos.values() if math.isfinite(s.steady_state) and s.steady_state != 0]
             unsettled = any(math.isnan(s.settling_time) for s in moving)
             late = any(s.settling_time > 0.8 * horizon for s in moving if math.isfinite(s.settling_time))
@@ -314,6 +336,12 @@ def stepinfo(system, *, settling_threshold: float = 0.02, rise_limits: tuple[flo
                 break
             horizon *= 2
             doublings += 1
+        if doublings == 8 and unsettled:
+            # It never settles (an undamped or marginal mode): SettlingTime is NaN, as MATLAB's, and
+            # the rest is measured on the first window, sampled finest (256 times longer adds nothing).
+            infos = {k: (s if not math.isnan(s.settling_time) else
+                         replace(seen[k], settling_time=math.nan, transient_time=math.nan))
+                     for k, s in infos.items()}
         out.update(infos)
     return out
 

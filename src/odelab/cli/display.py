@@ -195,6 +195,15 @@ def _num(v: float, digits: int = 4) -> str:
     return f"{v:.{digits}g}"
 
 
+def _never_settles(s: dict) -> bool:
+    settling, final = s.get("SettlingTime"), s.get("SteadyStateValue")
+    return (settling is None or settling != settling) and final is not None and final == final and final != 0
+
+
+def _step_cell(s: dict, column: str) -> str:
+    return "NaN" if column == "SettlingTime" and _never_settles(s) else _num(s[column])
+
+
 def print_analysis(console: Console, case: str | None, info: dict) -> None:
     """[analysis]: transfer functions, poles, step metrics and margins of the linear model."""
     from rich.table import Table
@@ -223,8 +232,13 @@ def print_analysis(console: Console, case: str | None, info: dict) -> None:
     if "step_info" in info:
         cols = ("RiseTime", "SettlingTime", "Overshoot", "Undershoot", "Peak", "PeakTime", "SteadyStateValue")
         print_grid(console, [("step", "left"), *((c, "right") for c in cols)],
-                   [[f"{_shown(s['input'])} -> {_shown(s['output'])}", *(_num(s[c]) for c in cols)]
+                   [[f"{_shown(s['input'])} -> {_shown(s['output'])}", *(_step_cell(s, c) for c in cols)]
                     for s in info["step_info"]])
+        for s in info["step_info"]:
+            if _never_settles(s):
+                console.print(f"  {_shown(s['input'])} -> {_shown(s['output'])} does not settle (an undamped or "
+                              "growing mode): SettlingTime is NaN, as MATLAB's stepinfo gives; Peak and PeakTime "
+                              "are its first peak.")
     loop = info.get("loop")
     if loop:
         num, den = loop["text"]

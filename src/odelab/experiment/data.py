@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from odelab.exceptions import ExperimentError
+from odelab.fileio import DECIMAL_COMMA_FIX, decimal_comma_line
 
 __all__ = ["MeasuredData", "read_data", "read_data_file", "MAX_DATA_BYTES", "MAX_DATA_ROWS", "check_span"]
 
@@ -137,6 +138,9 @@ def _parse(path: Path, where: str, key: str) -> tuple[list[str], np.ndarray]:
                     "line names the columns.", key=key)
             header, width = cells, len(cells)
             continue
+        if decimal_comma_line(stripped):
+            raise ExperimentError(f"{where}, line {number} writes its numbers with decimal commas ({stripped[:40]!r}): "
+                                  f"{DECIMAL_COMMA_FIX}.", key=key)
         if len(cells) != width:
             raise ExperimentError(f"{where}, line {number}: {len(cells)} values, but the header names {width} "
                                   "columns; every row needs one value per column.", key=key)

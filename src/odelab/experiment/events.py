@@ -6,7 +6,7 @@ max_events = 100              # stop the case after this many events (default 10
 [events.floor]
 when = "h"                    # the event is a zero of this expression (t, states, parameters)
 direction = "falling"         # "rising", "falling" or "both" (MATLAB's 1, -1, 0 also work)
-terminal = true               # MATLAB's isterminal
+terminal = true               # MATLAB's isterminal (1 and 0 also work)
 reset = { v = "-e*v" }        # restart with these states changed
 exact = "t1*(1 + 2*e*(1 - e^k)/(1 - e))"   # optional: exact time of occurrence k = 0, 1, ...
 ```
@@ -113,9 +113,11 @@ def compile_events(section: dict[str, Any], states: tuple[str, ...], params: dic
         direction.append(_direction(spec.get("direction", "both"), f"{key}.direction"))
         reset = spec.get("reset")
         is_terminal = spec.get("terminal", reset is not None)
+        if not isinstance(is_terminal, bool) and is_terminal in (0, 1):  # MATLAB's isterminal: 1 or 0
+            is_terminal = bool(is_terminal)
         if not isinstance(is_terminal, bool):
-            raise ExperimentError(f"`{key}.terminal` must be true or false; got {is_terminal!r}.",
-                                  key=f"{key}.terminal")
+            raise ExperimentError(f"`{key}.terminal` must be true or false (MATLAB's isterminal 1 or 0); got "
+                                  f"{is_terminal!r}.", key=f"{key}.terminal")
         terminal.append(is_terminal)
         entry: dict[str, Any] = {"when": spec["when"], "direction": {1: "rising", -1: "falling", 0: "both"}[direction[-1]],
                                  "terminal": is_terminal}

@@ -209,7 +209,7 @@ NOTES: dict[str, str] = {
     "events.<name>": "One event: `when`, `direction`, `terminal`, `reset`, `exact`.",
     "events.<name>.when": "The event is a zero of this expression of t, the states and the parameters.",
     "events.<name>.direction": "`rising`, `falling` or `both` (MATLAB's 1, -1, 0 also work).",
-    "events.<name>.terminal": "Stop (or, with a reset, restart) at the event: MATLAB's isterminal.",
+    "events.<name>.terminal": "Stop (or, with a reset, restart) at the event: MATLAB's isterminal (true or false; 1 or 0 also work).",
     "events.<name>.reset": "States changed at the event, e.g. `{ v = \"-cr*v\" }`: the case restarts from them.",
     "events.<name>.exact": "The exact time of occurrence k = 0, 1, ..., to measure the event-time error.",
     "data": "Measured data (docs/fitting.md): a CSV file with a header row, the reference of every case (errors at "

@@ -132,6 +132,15 @@ def indexing_hint(name: str, arguments: list) -> str | None:
         return (f"`{name}({k})` looks like MATLAB indexing of the state vector; odelab names each state: list "
                 f"them in `states` (e.g. states = [\"{name}{k}\", ...]) and write the name (`{name}{k}`), not "
                 f"`{name}({k})`")
+    if len(arguments) == 1:
+        arg = arguments[0]
+        if (isinstance(arg, ast.BinOp) and isinstance(arg.op, ast.Sub) and isinstance(arg.left, ast.Name)
+                and arg.left.id == "t"):
+            tau = ast.unparse(arg.right)
+            return (f"`{name}(t - {tau})` reads as {name} delayed by {tau}: write `lag({name}, {tau})` (a delay "
+                    f"equation, solved by dde23; give {name}'s values before the start in [history])")
+        if isinstance(arg, ast.Name) and arg.id == "t":
+            return f"`{name}(t)` is `{name}`: a state or input is written by its name alone"
     return None
 
 

@@ -122,6 +122,37 @@ def _table_file(values: dict, key: str, path: Path, max_rows: int | None):
     return np.array(table.t), np.array(table.values)
 
 
+def _aliased(cls, spec: dict, key: str) -> dict:
+    """The block's keys under their own names: MATLAB's spellings (a PID's ``Kp``) taken as the key they name."""
+    if not cls.ALIASES:
+        return spec
+    out: dict[str, Any] = {}
+    for k, v in spec.items():
+        own = cls.ALIASES.get(k, k)
+        if own in out:
+            raise ExperimentError(f"`{key}` gives `{own}` twice (as `{own}` and as MATLAB's `{k}`); keep one.",
+                                  key=f"{key}.{k}")
+        out[own] = v
+    return out
+
+
+def _unknown_keys(cls, key: str, unknown: list[str]) -> ExperimentError:
+    """Every key of a block that does not apply, in one message, each with its nearest key."""
+    names = ["input", "inputs", *cls.KEYS, *cls.ALIASES]
+    known = ", ".join(["input" if cls.INPUTS[1] == 1 else "inputs", *cls.KEYS]) if not cls.SOURCE \
+        else ", ".join(cls.KEYS) or "no other keys"
+    if cls.ALIASES:
+        known += " (" + ", ".join(f"{a} for {k}" for a, k in cls.ALIASES.items()) + ", as MATLAB writes them)"
+    parts = []
+    for k in unknown:
+        close = difflib.get_close_matches(k, names, n=1) or difflib.get_close_matches(k.lower(), [n.lower() for n in names], n=1)
+        close = [n for n in names if n.lower() == close[0].lower()][:1] if close else []
+        parts.append(f"`{key}.{k}`" + (f" (did you mean `{close[0]}`?)" if close else ""))
+    verb = "does not apply" if len(unknown) == 1 else "do not apply"
+    return ExperimentError(f"{' and '.join(parts) if len(parts) <= 2 else ', '.join(parts[:-1]) + ' and ' + parts[-1]} "
+                           f"{verb} to a {cls.TYPE} block; a {cls.TYPE} takes {known}.", key=f"{key}.{unknown[0]}")
+
+
 def _block(name: str, spec: dict, params: dict[str, float], path: Path | None = None, max_rows: int | None = None):
     from odelab.systems.diagram.blocks import BLOCKS, BlockError, Fcn
     from odelab.systems.diagram.graph import located
@@ -131,6 +162,10 @@ def _block(name: str, spec: dict, params: dict[str, float], path: Path | None = 
     key = f"blocks.{name}"
     values: dict[str, Any] = {}
     texts = {}
+    spec = _aliased(cls, spec, key)
+    unknown = [k for k in spec if k not in ("type", "input", "inputs") and k not in cls.KEYS]
+    if unknown:
+        raise _unknown_keys(cls, key, unknown)
     for k, v in spec.items():
         if k == "type":
             continue
@@ -138,16 +173,9 @@ def _block(name: str, spec: dict, params: dict[str, float], path: Path | None = 
             values[k] = _value("text", v, f"{key}.input", params)
         elif k == "inputs":
             values[k] = _value("names", v, f"{key}.inputs", params)
-        elif k in cls.KEYS:
+        else:
             values[k] = _value(cls.KEYS[k].kind, v, f"{key}.{k}", params)
             texts[k] = v
-        else:
-            known = ", ".join(["input" if cls.INPUTS[1] == 1 else "inputs", *cls.KEYS]) if not cls.SOURCE \
-                else ", ".join(cls.KEYS) or "no other keys"
-            close = difflib.get_close_matches(k, ["input", "inputs", *cls.KEYS], n=1)
-            hint = f" Did you mean `{close[0]}`?" if close else ""
-            raise ExperimentError(f"`{key}.{k}` does not apply to a {cls.TYPE} block; a {cls.TYPE} takes {known}."
-                                  f"{hint}", key=f"{key}.{k}")
     if isinstance(values.get("gain"), np.ndarray) and values["gain"].size == 1:
         values["gain"] = float(values["gain"].reshape(()))
     extra = {}

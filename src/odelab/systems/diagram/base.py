@@ -59,6 +59,8 @@ class Block:
 
     TYPE: ClassVar[str] = ""
     KEYS: ClassVar[dict[str, Key]] = {}
+    #: other names a file may give a key, as MATLAB writes them (a PID's ``Kp`` for ``P``)
+    ALIASES: ClassVar[dict[str, str]] = {}
     INPUTS: ClassVar[tuple[int, int | None]] = (1, 1)  # least and most number of inputs
     LINEAR: ClassVar[bool] = True
     SOURCE: ClassVar[bool] = False

@@ -273,6 +273,7 @@ class PID(Block):
     TYPE = "pid"
     KEYS = {"P": Key("number", 1.0, "proportional gain"), "I": Key("number", 1.0, "integral gain"),
             "D": Key("number", 0.0, "derivative gain"), "N": Key("number", 100.0, "derivative filter coefficient")}
+    ALIASES = {"Kp": "P", "Ki": "I", "Kd": "D"}  # MATLAB's pid(Kp, Ki, Kd)
     DOC = "u = P e + I/s e + D N s/(s + N) e"
     nstates = 2
 

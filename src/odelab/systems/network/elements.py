@@ -83,6 +83,8 @@ class Element:
     LAW: ClassVar[str | None] = None  # the key of a nonlinear law (force, torque, current, flow)
     LAW_OF: ClassVar[str | None] = None  # the element variable that law is written in
     DOC: ClassVar[str] = ""
+    #: words a student writes for this element (its quantity's name, another book's): suggested first
+    ALSO: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, name: str | None = None, *, node: str | None = None, nodes=None, nodes2=None,
                  **values: Any):
@@ -227,12 +229,14 @@ _VALUE = {"value": Parameter(None, "its value, a number or an expression of inpu
 
 class Mass(Element):
     TYPE, DOMAIN, ROLE, GROUNDED = "mass", "translational", "across-store", True
+    ALSO = ('point-mass',)
     PARAMETERS = {"m": _p("mass (kg)")}
     DOC = "m dv/dt = f, the net force on it; dx/dt = v"
 
 
 class Spring(Element):
     TYPE, DOMAIN, ROLE = "spring", "translational", "through-store"
+    ALSO = ('stiffness', 'linear-spring')
     PARAMETERS = {"k": _p("stiffness (N/m)")}
     LAW, LAW_OF = "force", "x"
     DOC = "f = k x, x = x_a - x_b its stretch"
@@ -240,6 +244,7 @@ class Spring(Element):
 
 class Damper(Element):
     TYPE, DOMAIN, ROLE = "damper", "translational", "dissipator"
+    ALSO = ('damping', 'dashpot', 'viscous-damper')
     PARAMETERS = {"b": _p("damping coefficient (N s/m)")}
     LAW, LAW_OF = "force", "v"
     DOC = "f = b v, v = v_a - v_b"
@@ -247,12 +252,14 @@ class Damper(Element):
 
 class ForceSource(Element):
     TYPE, DOMAIN, ROLE = "force-source", "translational", "through-source"
+    ALSO = ('force',)
     PARAMETERS = dict(_VALUE)
     DOC = "f = value, a force on a in the positive direction (and its reaction on b)"
 
 
 class VelocitySource(Element):
     TYPE, DOMAIN, ROLE = "velocity-source", "translational", "across-source"
+    ALSO = ('velocity',)
     PARAMETERS = dict(_VALUE)
     DOC = "v_a - v_b = value"
 
@@ -261,6 +268,7 @@ class VelocitySource(Element):
 
 class Inertia(Element):
     TYPE, DOMAIN, ROLE, GROUNDED = "inertia", "rotational", "across-store", True
+    ALSO = ('moment-of-inertia', 'flywheel')
     PARAMETERS = {"J": _p("moment of inertia (kg m^2)")}
     DOC = "J dw/dt = tau, the net torque on it; dtheta/dt = w"
 
@@ -281,6 +289,7 @@ class RotationalDamper(Element):
 
 class TorqueSource(Element):
     TYPE, DOMAIN, ROLE = "torque-source", "rotational", "through-source"
+    ALSO = ('torque',)
     PARAMETERS = dict(_VALUE)
     DOC = "tau = value, a torque on a in the positive direction"
 
@@ -295,6 +304,7 @@ class SpeedSource(Element):
 
 class Resistor(Element):
     TYPE, DOMAIN, ROLE = "resistor", "electrical", "dissipator"
+    ALSO = ('resistance',)
     PARAMETERS = {"R": _p("resistance (ohm)")}
     LAW, LAW_OF = "current", "v"
     DOC = "i = v/R, v = v_a - v_b"
@@ -302,24 +312,28 @@ class Resistor(Element):
 
 class Capacitor(Element):
     TYPE, DOMAIN, ROLE = "capacitor", "electrical", "across-store"
+    ALSO = ('capacitance',)
     PARAMETERS = {"C": _p("capacitance (F)")}
     DOC = "C dv/dt = i"
 
 
 class Inductor(Element):
     TYPE, DOMAIN, ROLE = "inductor", "electrical", "through-store"
+    ALSO = ('inductance', 'coil')
     PARAMETERS = {"L": _p("inductance (H)")}
     DOC = "L di/dt = v"
 
 
 class VoltageSource(Element):
     TYPE, DOMAIN, ROLE = "voltage-source", "electrical", "across-source"
+    ALSO = ('voltage', 'battery')
     PARAMETERS = dict(_VALUE)
     DOC = "v_a - v_b = value; i is the current it delivers out of a"
 
 
 class CurrentSource(Element):
     TYPE, DOMAIN, ROLE = "current-source", "electrical", "through-source"
+    ALSO = ('current',)
     PARAMETERS = dict(_VALUE)
     DOC = "i = value, driven into a (out of b)"
 
@@ -418,14 +432,28 @@ ELEMENTS: dict[str, type[Element]] = {cls.TYPE: cls for cls in (
     Lever, Gear, RackPinion, DCMotor)}
 
 
+def suggest_element(word: str) -> str | None:
+    """The element type a student most likely means: one whose ``ALSO`` words hold ``word`` (a resistance
+    is a resistor before it is a fluid or thermal resistance), else the closest type name."""
+    import difflib
+
+    key = word.strip().lower().replace("_", "-").replace(" ", "-")
+    for cls in ELEMENTS.values():
+        if key in cls.ALSO:
+            return cls.TYPE
+    words = {w: cls.TYPE for cls in ELEMENTS.values() for w in cls.ALSO}
+    close = difflib.get_close_matches(key, [*ELEMENTS, *words], n=1)
+    return (words.get(close[0], close[0])) if close else None
+
+
 def element_class(kind: Any, name: str = "") -> type[Element]:
     """The class of an element type name, or a NetworkError with the valid types (did-you-mean)."""
     import difflib
 
     if isinstance(kind, str) and kind in ELEMENTS:
         return ELEMENTS[kind]
-    close = difflib.get_close_matches(str(kind), list(ELEMENTS), n=1)
-    hint = f" Did you mean {close[0]!r}?" if close else ""
+    close = suggest_element(str(kind))
+    hint = f" Did you mean {close!r}?" if close else ""
     where = f"element {name!r}: " if name else ""
     raise NetworkError(f"{where}{kind!r} is not an element type; the types are {', '.join(ELEMENTS)}.{hint}",
                        key="type")

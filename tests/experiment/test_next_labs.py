@@ -1,0 +1,125 @@
+"""The next labs' frictions (issue 37): the file a student writes, run as they run it, and what they read."""
+
+import math
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from odelab.cli import app
+
+
+def run(tmp_path: Path, text: str, *args: str, files: dict[str, str] | None = None):
+    (tmp_path / "lab.toml").write_text(text)
+    for name, content in (files or {}).items():
+        (tmp_path / name).write_text(content)
+    result = CliRunner().invoke(app, ["run", str(tmp_path / "lab.toml"), "--no-store", *args])
+    return result.exit_code, " ".join(result.output.split())
+
+
+def test_a_delayed_state_written_as_matlab_writes_it_is_answered_with_lag(tmp_path):
+    code, out = run(tmp_path, '[parameters]\ntau = 1\n[system]\nstates = ["y"]\n[system.equations]\n'
+                              'y = "-y(t - tau)"\n[initial]\ny = 1\n[time]\nstop = 2\n')
+    assert code == 2
+    assert "`y(t - tau)` reads as y delayed by tau: write `lag(y, tau)`" in out and "[history]" in out
+    assert "is not an allowed function" not in out
+
+
+BALL = """
+[system]
+states = ["h", "v"]
+[system.equations]
+h = "v"
+v = "-9.81"
+[initial]
+h = 1
+v = 0
+[time]
+stop = 2
+[events.floor]
+when = "h"
+direction = -1
+terminal = {terminal}
+"""
+
+
+@pytest.mark.parametrize("given, stops", [("1", True), ("0", False)])
+def test_matlab_isterminal_values_are_taken(tmp_path, given, stops):
+    import json
+
+    code, out = run(tmp_path, BALL.format(terminal=given), "--json", "--trajectories")
+    assert code == 0, out
+    (case,) = json.loads(out[out.index("{"):])["experiments"][0]["cases"]
+    floor = math.sqrt(2 / 9.81)
+    assert case["status"] == "success" and abs(case["events"][0]["t"] - floor) < 1e-6
+    t_end = case["trajectory"]["t"][-1]
+    assert (abs(t_end - floor) < 1e-9) if stops else (t_end == 2.0)
+
+
+def test_a_terminal_of_another_kind_is_refused_with_the_matlab_values(tmp_path):
+    code, out = run(tmp_path, BALL.format(terminal="2"))
+    assert code == 2 and "`events.floor.terminal` must be true or false (MATLAB's isterminal 1 or 0); got 2" in out
+
+
+PID = """
+[blocks]
+ref = {{ type = "step" }}
+err = {{ type = "sum", inputs = ["ref", "plant"], signs = "+-" }}
+pid = {{ type = "pid", input = "err", {gains} }}
+plant = {{ type = "transfer-fcn", input = "pid", num = [1], den = [1, 1] }}
+[system]
+kind = "diagram"
+[time]
+stop = 5
+"""
+
+
+def test_a_pid_takes_matlab_s_kp_ki_kd(tmp_path):
+    code, out = run(tmp_path, PID.format(gains="Kp = 2, Ki = 1, Kd = 0.1"))
+    assert code == 0, out
+    code, same = run(tmp_path, PID.format(gains="P = 2, I = 1, D = 0.1"))
+    assert code == 0 and same.split("lab (")[1] == out.split("lab (")[1]
+
+
+def test_every_wrong_key_of_a_block_is_in_one_message(tmp_path):
+    code, out = run(tmp_path, PID.format(gains="Kp = 2, Kx = 1, gian = 3"))
+    assert code == 2
+    assert "`blocks.pid.Kx` and `blocks.pid.gian` do not apply to a pid block; a pid takes input, P, I, D, N (Kp " \
+           "for P, Ki for I, Kd for D, as MATLAB writes them)." in out
+    code, out = run(tmp_path, PID.format(gains="P = 2, Kp = 2"))
+    assert code == 2 and "gives `P` twice (as `P` and as MATLAB's `Kp`); keep one" in out
+
+
+def test_a_resistance_is_a_resistor_first(tmp_path):
+    code, out = run(tmp_path, '[system]\nkind = "network"\n[elements]\n'
+                              'R = { type = "resistance", nodes = ["a", "ground"], R = 1 }\n[time]\nstop = 1\n')
+    assert code == 2 and "'resistance' is not an element type" in out and "Did you mean 'resistor'?" in out
+
+
+DECIMAL_COMMA = "t;u\n0,0;1,5\n0,5;2,25\n1,0;3\n"
+
+
+def test_a_decimal_comma_table_is_named_as_such(tmp_path):
+    code, out = run(tmp_path, '[system]\nstates = ["x"]\ninputs = ["u"]\n[system.equations]\nx = "-x + u"\n'
+                              '[initial]\nx = 0\n[time]\nstop = 1\n[inputs.u]\ntype = "table"\nfile = "u.csv"\n',
+                    files={"u.csv": DECIMAL_COMMA})
+    assert code == 2 and "line 2 writes its numbers with decimal commas ('0,0;1,5')" in out
+    assert "Save the file with '.' as the decimal separator" in out
+    code, out = run(tmp_path, '[system]\nstates = ["x"]\n[system.equations]\nx = "-x"\n[initial]\nx = 1\n'
+                              '[time]\nstop = 1\n[data]\nfile = "x.csv"\n', files={"x.csv": "t;x\n0,0;1\n0,5;0,6\n"})
+    assert code == 2 and "line 2 writes its numbers with decimal commas ('0,0;1')" in out
+
+
+def test_stepinfo_of_an_undamped_response_says_it_does_not_settle(tmp_path):
+    code, out = run(tmp_path, '[system]\nkind = "state-space"\nA = "[0 1; -4 0]"\nB = "[0; 1]"\nC = "[1 0]"\n'
+                              'D = "[0]"\n[initial]\nx1 = 0\nx2 = 0\n[time]\nstop = 5\n[inputs.u1]\ntype = "step"\n'
+                              '[analysis]\nstep_info = true\n')
+    assert code == 0, out
+    assert "u1 -> y1 does not settle (an undamped or growing mode): SettlingTime is NaN" in out
+    from odelab import StateSpace
+    from odelab.analysis.control import stepinfo
+
+    ((_, info),) = stepinfo(StateSpace([[0, 1], [-4, 0]], [[0], [1]], [[1, 0]], [[0]])).items()
+    assert math.isnan(info.settling_time) and abs(info.peak - 0.5) < 1e-9
+    assert abs(info.peak_time - math.pi / 2) < 1e-6  # the first peak, not the window's last
+    assert abs(info.rise_time - (math.acos(0.1) - math.acos(0.9)) / 2) < 1e-6
