@@ -52,13 +52,11 @@ def read(path: Path, options: ImportOptions | None = None) -> Document:
     options = options or ImportOptions()
     raw = read_bytes(path, limit=MAX_MODEL_BYTES, too_big=_too_big)
     try:
-        model = load_model(raw)
+        model = load_model(raw, path.stem)
     except (ContainerError, ModelError) as exc:
         fix = ("; flatten the model's deepest subsystems" if getattr(exc, "depth", False) else "")
         raise ExperimentError(f"is refused: {exc}{fix} (nothing was run, extracted or fetched).", source=src) from None
     _refuse_physical(model, src)
-    if not model.name:  # a newer .slx names its model by the file
-        model.name = path.stem
     notes: list[Note] = []
     scope = _root_scope(model, path, options, notes, src)
     tr = translate(model, scope)

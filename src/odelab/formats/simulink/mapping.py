@@ -25,6 +25,10 @@ PHYSICAL_LIBRARIES = ("fl_lib", "ee_lib", "elec_lib", "foundation", "powerlib", 
                       "nesl_utility", "sm_lib", "sdl_lib", "sh_lib", "ssc_lib", "simscape", "mblibv1", "drive_lib",
                       "electricdrivelib", "spsMeasurementsLib", "physmod")
 
+#: libraries whose blocks check or show a signal without changing the simulation (Model Verification, the
+#: Control System Toolbox's Check ... blocks, dashboards): ignored with a note
+OBSERVERS = ("slctrlblks", "Model Verification", "simulink/Dashboard", "hmilib", "Check ", "Assertion")
+
 #: blocks that only show or store a signal: each of their inputs becomes an output of the experiment
 SINKS = ("Scope", "Display", "ToWorkspace", "XYGraph", "FloatingScope", "ToFile", "Terminator", "Outport")
 
@@ -162,6 +166,7 @@ _TRIG.update({"atan2": ("atan2(u1, u2)", 2), "asinh": ("log(u + sqrt(u^2 + 1))",
 def _operator(table, default):
     def translate(c):
         op = c.text("Operator", default).strip()
+        op = op if op in table else op.lower()  # "rSqrt", "signedSqrt"
         if op not in table:
             c.gap(f"the operator {op!r}: write it as a Fcn block (u(1)...)", "fcn")
             return

@@ -87,15 +87,16 @@ def _decode(raw: bytes) -> str:
     raise ModelError("its text cannot be decoded")  # pragma: no cover - latin-1 decodes everything
 
 
-def load_model(raw: bytes) -> Model:
-    """The model in a file's bytes (raises :class:`ModelError` or ContainerError with one sentence)."""
+def load_model(raw: bytes, name: str = "model") -> Model:
+    """The model in a file's bytes (raises :class:`ModelError` or ContainerError with one sentence); ``name`` is the
+    model's when the file does not say it (a newer .slx names its model by its file)."""
     if _is_zip(raw):
         parts = read_package(raw)
-        return _from_parts(parts, "slx")
+        return _from_parts(parts, "slx", name)
     text = _decode(raw)
     stub, parts = split_text_package(text)
     if parts:
-        return _from_parts(parts, "mdl (text package)")
+        return _from_parts(parts, "mdl (text package)", name)
     try:
         root = parse_mdl(stub, MAX_SUBSYSTEM_DEPTH)
     except TreeError as exc:
@@ -106,10 +107,10 @@ def load_model(raw: bytes) -> Model:
         raise ModelError("it has no `Model {` section: it is not a Simulink model (a .mdl starts with `Model {`)")
     if top.tag == "Library":
         raise ModelError("it is a Simulink library, not a model: import the model that uses its blocks")
-    return _build(top, "mdl", lambda ref: None)
+    return _build(top, "mdl", lambda ref: None, name)
 
 
-def _from_parts(parts: dict[str, bytes], fmt: str) -> Model:
+def _from_parts(parts: dict[str, bytes], fmt: str, name: str) -> Model:
     main = parts.get("simulink/blockdiagram.xml")
     if main is None:
         raise ModelError("it has no simulink/blockdiagram.xml: it is a zip, but not a Simulink model")
@@ -121,9 +122,9 @@ def _from_parts(parts: dict[str, bytes], fmt: str) -> Model:
         raise ModelError("it is a Simulink library, not a model: import the model that uses its blocks")
     root_ref = top.find("System")
     layout = "systems/system_*.xml" if root_ref is not None and root_ref.get("Ref") else "blockdiagram.xml"
-    for name, data in parts.items():  # the configuration sets (the newer layout keeps them apart)
-        if re.match(r"simulink/configset\d*\.xml$", name):
-            top.children.append(parse_xml(data, name, MAX_SUBSYSTEM_DEPTH))
+    for part, data in parts.items():  # the configuration sets (the newer layout keeps them apart)
+        if re.match(r"simulink/configset\d*\.xml$", part):
+            top.children.append(parse_xml(data, part, MAX_SUBSYSTEM_DEPTH))
     defaults = parts.get("simulink/bddefaults.xml")
     if defaults is not None:
         top.children.append(parse_xml(defaults, "simulink/bddefaults.xml", MAX_SUBSYSTEM_DEPTH))
@@ -132,7 +133,7 @@ def _from_parts(parts: dict[str, bytes], fmt: str) -> Model:
         data = parts.get(f"simulink/systems/{ref.lower()}.xml")
         return None if data is None else parse_xml(data, f"simulink/systems/{ref}.xml", MAX_SUBSYSTEM_DEPTH)
 
-    return _build(top, f"{fmt} ({layout})", system_part)
+    return _build(top, f"{fmt} ({layout})", system_part, name)
 
 
 def _solver(top: Node) -> dict[str, str]:
@@ -226,8 +227,8 @@ def _lines(node: Node, by_sid, by_name) -> list[Line]:
     return out
 
 
-def _build(top: Node, fmt: str, system_part) -> Model:
-    name = top.get("Name", "")
+def _build(top: Node, fmt: str, system_part, fallback: str) -> Model:
+    name = top.get("Name") or fallback
     root_node = top.find("System")
     if root_node is None:
         raise ModelError("its model has no System (no blocks at all)")

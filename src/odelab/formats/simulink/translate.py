@@ -467,9 +467,12 @@ def _map_block(tr: Translation, block: Block, system: System, scope: Scope, pref
         if kind in _VIRTUAL and not (kind == "Outport" and id(system) not in tr.parent):
             tr.note(block, TRANSLATED, _VIRTUAL[kind])
         return
+    if kind in ("Assertion", "CheckStaticLowerBound", "CheckStaticUpperBound") or (
+            kind == "Reference" and any(o in block.source for o in mapping.OBSERVERS)):
+        tr.note(block, IGNORED, "checks or shows a signal without changing the simulation")
+        return
     if kind == "BusCreator":
         tr.buses[id(block)] = block
-    if kind == "BusCreator":
         c = BlockContext(tr, block, system, scope, prefix)
         c.add({"type": "mux"}, inputs=list(range(1, input_count(tr, block, "Inputs", "2") + 1)))
         tr.note(block, TRANSLATED, f"a bus: its selectors take its signals by name; as a signal it is a mux `{c.name}`")
