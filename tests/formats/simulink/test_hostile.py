@@ -92,6 +92,8 @@ def _hostile(tmp_path) -> dict[str, tuple[bytes, str]]:
         "junk.mdl": (b"\x00\x01\x02binary" * 100, "binary file"),
         "text.mdl": (b"just some text\nnot a model\n", "is outside any section"),
         "library.mdl": (b"Library {\n  Name \"lib\"\n  System {\n    Name \"lib\"\n  }\n}\n", "a Simulink library"),
+        "empty.mdl": (b"Model {\n  Name \"empty\"\n  System {\n    Name \"empty\"\n    Block {\n      BlockType Scope\n"
+                      b"      Name \"Scope\"\n    }\n  }\n}\n", "has nothing to simulate"),
     }
 
 

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from odelab.exceptions import ExperimentError
+from odelab.exceptions import ExperimentError, OdelabError
 from odelab.formats.base import GAP, IGNORED, TRANSLATED, Document, ImportOptions, Note
 from odelab.formats.emit import Section, write_toml
 from odelab.formats.simulink import mapping
@@ -47,6 +47,17 @@ def _too_big(size: int | None) -> str:
 
 def read(path: Path, options: ImportOptions | None = None) -> Document:
     """The :mod:`odelab.formats` reader of ``.slx`` and ``.mdl`` files."""
+    try:
+        return _read(Path(path), options)
+    except (OdelabError, MemoryError, KeyboardInterrupt):
+        raise
+    except Exception as exc:  # a construct no test has met: one message naming the file, never a traceback
+        raise ExperimentError(f"could not be read as a Simulink model ({type(exc).__name__}: {exc}); write the "
+                              "experiment file by hand, and report the model so the importer learns it.",
+                              source=str(path)) from None
+
+
+def _read(path: Path, options: ImportOptions | None) -> Document:
     path = Path(path)
     src = str(path)
     options = options or ImportOptions()
@@ -66,6 +77,11 @@ def read(path: Path, options: ImportOptions | None = None) -> Document:
     time, solver, step, solver_notes = settings(model.solver, lambda n: scope.lookup(n, "model"), rates)
     tr.fixed_step = step
     finish(tr)
+    if not tr.flats:
+        raise ExperimentError(f"has nothing to simulate: no block of the model {model.name!r} feeds a Scope, Display, "
+                              "To Workspace block or Outport (an empty model, or sinks with nothing connected). "
+                              "Connect a source to a Scope in Simulink, or write the experiment file by hand.",
+                              source=src)
     solver = _delays(tr, solver, notes)
     notes.extend(tr.notes)
     notes.extend(solver_notes)

@@ -601,7 +601,12 @@ def evaluate(text: str, lookup: Callable[[str], V | None], missing: set | None =
     if not tokens:
         raise MExprError("the value is empty")
     parser = _Parser(tokens, lookup, set() if missing is None else missing)
-    value = parser.expression()
+    try:
+        value = parser.expression()
+    except MExprError:
+        raise
+    except (ValueError, TypeError, IndexError, ZeroDivisionError, OverflowError, np.linalg.LinAlgError) as exc:
+        raise MExprError(f"the value cannot be computed ({exc})") from None
     if parser.i != len(tokens):
         raise MExprError(f"unexpected {tokens[parser.i][1]!r}")
     return value
