@@ -188,3 +188,12 @@ def test_a_sweep_over_the_fmus_parameter_runs(exported, tmp_path):
     for r, k3 in zip(results, (0.0, 2.0, 8.0)):
         x = r.x[-1, 0]  # settled where k1 x + k3 x^3 = 1 (the step of f at t = 1)
         assert 3 * x + k3 * x ** 3 == pytest.approx(1.0, rel=1e-3)
+
+
+def test_the_high_accuracy_reference_of_an_fmu_is_its_own_tight_run(exported, tmp_path):
+    done, _ = exported["network_nonlinear_spring"]
+    (r,) = run_toml(tmp_path, f'[system]\nkind = "fmu"\nfile = "{done.path}"\n[time]\nstop = 10\n'
+                              '[reference]\nmethod = "high-accuracy"\n')
+    assert r.status == "success" and r.case.problem.reference == "high-accuracy"
+    # ode45 at MATLAB's default RelTol 1e-3 against the FMU stepped by DOP853 at 1e-12
+    assert 1e-7 < r.errors["mass.x"].max_abs < 1e-4

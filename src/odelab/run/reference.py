@@ -30,7 +30,9 @@ def can_share(problem) -> bool:
 
     solver = problem.reference_solver[0]
     hybrid = problem.diagram is not None and getattr(problem.diagram, "hybrid", False)
+    fmu = getattr(problem, "fmu", None) is not None  # an FMU's reference is its own run (events, its state)
     return (problem.reference == "high-accuracy" and not problem.signals and problem.events is None and not hybrid
+            and not fmu
             and (solver == AUTO or solver in DENSE_SOLVERS))
 
 
