@@ -101,6 +101,15 @@ def test_a_missing_or_wrong_platform_binary(tmp_path, test_fmus):
     assert "its binaries: none (a source-only FMU)" in load(tmp_path, "s.fmu")
 
 
+def test_a_model_identifier_that_is_a_path(tmp_path, test_fmus):
+    with zipfile.ZipFile(test_fmus["Dahlquist"]) as z:
+        description = z.read("modelDescription.xml").replace(b'modelIdentifier="Dahlquist"',
+                                                              b'modelIdentifier="../../../../tmp/evil"')
+    write_zip(tmp_path / "p.fmu", {"modelDescription.xml": description})
+    assert load(tmp_path, "p.fmu") == ("p.fmu: its modelIdentifier '../../../../tmp/evil' is not a C identifier, as "
+                                       "the standard asks (it names the binary to load); refusing to load it.")
+
+
 def test_a_binary_that_is_not_one(tmp_path, test_fmus):
     with zipfile.ZipFile(test_fmus["Dahlquist"]) as z:
         description = z.read("modelDescription.xml")

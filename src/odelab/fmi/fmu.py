@@ -12,6 +12,7 @@ from __future__ import annotations
 import atexit
 import ctypes
 import hashlib
+import re
 import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,6 +25,7 @@ from odelab.fmi.archive import FmuArchive, binary_for, open_archive
 __all__ = ["FmuModel", "Adapter", "open_fmu"]
 
 _KEY = "system.file"
+_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,199}")
 _REAL = ("Real", "Float64", "Float32")
 _INT = ("Integer", "Int32", "Int64", "Int8", "UInt8", "Int16", "UInt16", "UInt32", "UInt64", "Enumeration")
 _BOOL = ("Boolean",)
@@ -292,6 +294,11 @@ def _read(path: Path, archive: FmuArchive) -> FmuModel:
         only = " (only Scheduled Execution, which odelab does not run)" if getattr(md, "scheduledExecution", None) \
             else ""
         raise InputError(f"{path.name}: it offers neither Model Exchange nor Co-Simulation{only}.", key=_KEY)
+    for part in (md.modelExchange, md.coSimulation):
+        identifier = getattr(part, "modelIdentifier", None) if part is not None else ""
+        if part is not None and not (isinstance(identifier, str) and _IDENTIFIER.fullmatch(identifier)):
+            raise InputError(f"{path.name}: its modelIdentifier {str(identifier)[:80]!r} is not a C identifier, as the "
+                             "standard asks (it names the binary to load); refusing to load it.", key=_KEY)
     arrays = [v.name for v in md.modelVariables if getattr(v, "dimensions", None)]
     if arrays:
         raise InputError(f"{path.name}: its variable {arrays[0]!r} is an array (FMI 3 dimensions); odelab loads FMUs "
