@@ -123,3 +123,124 @@ def test_stepinfo_of_an_undamped_response_says_it_does_not_settle(tmp_path):
     assert math.isnan(info.settling_time) and abs(info.peak - 0.5) < 1e-9
     assert abs(info.peak_time - math.pi / 2) < 1e-6  # the first peak, not the window's last
     assert abs(info.rise_time - (math.acos(0.1) - math.acos(0.9)) / 2) < 1e-6
+
+
+PENDULUM = """
+[parameters]
+g = 9.81
+L = 1
+[system]
+states = ["theta", "omega"]
+[system.equations]
+theta = "omega"
+omega = "-g/L*sin(theta)"
+[initial]
+theta = 0.5
+omega = 0
+[time]
+stop = 10
+"""
+
+
+def test_without_a_reference_the_table_shows_final_min_and_max(tmp_path):
+    import json
+
+    code, out = run(tmp_path, PENDULUM)
+    assert code == 0, out
+    assert "quantity final min max" in out and "max abs error" not in out
+    code, doc = run(tmp_path, PENDULUM, "--json", "--trajectories")
+    (case,) = json.loads(doc[doc.index("{"):])["experiments"][0]["cases"]
+    theta = case["trajectory"]["theta"]
+    assert f"theta {theta[-1]:.6g} {min(theta):.6g} {max(theta):.6g}" in out
+
+
+def _lines(tmp_path, text, *args, env=None):
+    import os
+    import subprocess
+    import sys
+
+    (tmp_path / "lab.toml").write_text(text)
+    out = subprocess.run([sys.executable, "-m", "odelab", "run", "lab.toml", "--no-store", *args], cwd=tmp_path,
+                         capture_output=True, text=True, env={**os.environ, **(env or {})})
+    assert out.returncode == 0, out.stderr
+    return out.stdout.splitlines()
+
+
+BOUNCE = BALL.format(terminal="true").replace("v = 0\n", "v = 0\n[events.floor.reset]\nv = \"-0.8*v\"\n") \
+    .replace("stop = 2", "stop = 3").replace('terminal = true', 'terminal = true\n[events]\nmax_events = 9')
+
+
+@pytest.mark.parametrize("how", [{"env": {"COLUMNS": "80"}}, {"args": ("--width", "80")}])
+def test_columns_and_width_are_honoured_when_piped_and_no_number_is_cut(tmp_path, how):
+    lines = _lines(tmp_path, BOUNCE, *how.get("args", ()), env=how.get("env"))
+    assert max(len(line) for line in lines) <= 80, max(lines, key=len)
+    wide = _lines(tmp_path, BOUNCE)  # piped with neither: 200 columns, every event time in full
+    times = [line.split()[2] for line in wide if line.split()[:2] and line.split()[0].isdigit()
+             and line.split()[1] == "floor"]
+    assert len(times) >= 3
+    narrow = "\n".join(lines)
+    for t in times:
+        assert t in narrow and len(t) >= 9, t  # 10 significant digits, whole, at 80 columns
+
+
+DAMPING = """
+[parameters]
+m = 1
+k = 3
+b = 4
+q = 10
+[system]
+kind = "state-space"
+states = ["x", "v"]
+inputs = ["f"]
+outputs = ["y"]
+A = [[0, 1], ["-k/m", "-b/m"]]
+B = [[0], ["1/m"]]
+C = [["q", 0]]
+D = [[0]]
+[initial]
+x = 0
+v = 0
+[time]
+stop = 40
+[inputs.f]
+type = "step"
+[reference]
+method = "none"
+[analysis]
+step_info = true
+[sweep]
+"parameters.b" = [0.5, 2, 4]
+"""
+
+
+def test_a_damping_sweep_with_step_info_has_its_overshoot_table_everywhere(tmp_path):
+    import csv
+    import subprocess
+    import sys
+
+    from odelab import StateSpace
+    from odelab.analysis.control import stepinfo
+
+    (tmp_path / "damping.toml").write_text(DAMPING)
+    out = subprocess.run([sys.executable, "-m", "odelab", "run", "damping.toml"], cwd=tmp_path, capture_output=True,
+                         text=True)
+    assert out.returncode == 0, out.stderr
+    expected = {b: stepinfo(StateSpace([[0, 1], [-3, -b]], [[0], [1]], [[10, 0]], [[0]]))
+                [("y1", "u1")].overshoot for b in (0.5, 2, 4)}
+    assert "step response of each case" in out.stdout
+    for b, overshoot in expected.items():
+        row = next(line for line in out.stdout.splitlines() if line.startswith(f"b={b:g} ") and "f -> y" in line)
+        assert f"{overshoot:.4g}" in row.split(), row
+    with open(tmp_path / "runs" / "damping" / "sweep.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    for r in rows:
+        b = float(r["parameters.b"])
+        assert abs(float(r["y/f_Overshoot"]) - expected[b]) <= 1e-9 * max(1.0, expected[b])
+        assert float(r["y_final"]) == pytest.approx(10 / 3, rel=1e-3)
+    report = subprocess.run([sys.executable, "-m", "odelab", "report", "--format", "md"], cwd=tmp_path,
+                            capture_output=True, text=True)
+    assert report.returncode == 0, report.stderr
+    md = (tmp_path / "report" / "report.md").read_text()
+    assert "| rise time | settling time | overshoot (%) | peak | peak time |" in md
+    assert f"| {expected[0.5]:.4g} |" in md

@@ -81,16 +81,26 @@ def _one_blas_thread() -> None:
         os.environ.setdefault(var, "1")
 
 
-def _consoles():
+def _consoles(width: int | None = None):
+    """The output and error consoles. Their width: ``--width``, else ``COLUMNS``, else the terminal's; piped
+    or redirected with neither, 200 (a table is never cut to 80 columns for a file)."""
+    import os
+
     from rich.console import Console
 
+    if width is None:
+        try:
+            width = int(os.environ.get("COLUMNS", "")) or None
+        except ValueError:
+            width = None
+        width = width if width is None or width >= 20 else 20
     # emoji=False: ":x:" in a user's title or message stays ":x:" (user text reaches Rich only
     # through odelab.terminal.shown, which escapes markup and makes control characters visible)
-    out = Console(highlight=False, emoji=False)
-    if not out.is_terminal:  # piped or redirected: never truncate a table to 80 columns
+    out = Console(highlight=False, emoji=False, width=width)
+    if not out.is_terminal:  # piped or redirected: never truncate a table to 80 columns unless asked to
         # and settle it once (Rich's default height, 25, as it finds no terminal): otherwise Rich asks the
         # environment and the terminal's size again at every print, a third of the cost of a short line
-        out = Console(highlight=False, emoji=False, width=200, height=25, force_terminal=False)
+        out = Console(highlight=False, emoji=False, width=width or 200, height=25, force_terminal=False)
     return out, Console(stderr=True, highlight=False, soft_wrap=True, emoji=False)
 
 
@@ -124,6 +134,9 @@ def run(
     validate_with: Annotated[Optional[Path], typer.Option(
         "--validate-with", metavar="CSV", help="Check each [fit]'s fitted model against a second data set (read as "
         "[data] reads its file).", show_default=False)] = None,
+    width: Annotated[Optional[int], typer.Option(
+        "--width", min=40, metavar="N", show_default="COLUMNS, else the terminal's (200 when piped)",
+        help="Lay the tables out for this many columns (numbers are never cut: a table too wide is split).")] = None,
     allow_native: Annotated[bool, typer.Option("--allow-native", help=NATIVE_HELP)] = False,
     workspace: Annotated[Optional[list[Path]], typer.Option(
         "--workspace", metavar="SCRIPT.m", help=WORKSPACE_HELP, show_default=False)] = None,
@@ -149,7 +162,7 @@ def run(
     # Everything worth saying (RelTol raised, equilibrium residuals...) reaches the user as a
     # note in the output; Python's own warning lines would only repeat it.
     warnings.simplefilter("ignore")
-    out, err = _consoles()
+    out, err = _consoles(width)
     limits = _limits(max_steps, limit, err)
     if backend is not None and backend not in ("auto", "python", "compiled"):
         err.print(f"[bold red]error:[/] `--backend` is {_escape(repr(backend))}; use auto, python or compiled.")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from rich.console import Console
 from rich.text import Text
@@ -74,8 +76,14 @@ def print_experiment(console: Console, exp, results, *, table: bool = False) -> 
         return
     peak = any(e.basis == "peak" for r in results for e in r.errors.values())
     estimated = any(_estimates(r) for r in results)
+    referenced = any(r.errors for r in results)
+    valued = any(not r.errors for r in results)  # no reference: what the quantity did instead of dashes
     columns = [("case", "left"), ("method", "left"), ("points", "right"), ("steps", "right"), ("failed", "right"),
-               ("fevals", "right"), ("quantity", "left"), ("max abs error", "right"), ("rel error", "right")]
+               ("fevals", "right"), ("quantity", "left")]
+    if valued:
+        columns += [("final", "right"), ("min", "right"), ("max", "right")]
+    if referenced:
+        columns += [("max abs error", "right"), ("rel error", "right")]
     if estimated:
         columns.append(("est. error", "right"))
     if peak:
@@ -91,16 +99,20 @@ def print_experiment(console: Console, exp, results, *, table: bool = False) -> 
         head = [visible(r.case.name), method, str(r.t.size), str(s.nsteps),
                 "-" if s.nfailed is None else str(s.nfailed), str(s.nfevals)]
         est = _estimates(r)
-        names = list(r.errors) or list(est)
+        series = _valued(r, swept=getattr(exp, "sweep", None) is not None) if valued and not r.errors else {}
+        names = list(r.errors) or list(est) or [n for n in series if n in est or not est]
         if not names:
-            rows.append([*head, "-", "-", "-", *(["-"] if estimated else []), *(["-"] if peak else []), status])
+            rows.append([*head, "-", *(["-"] * 3 if valued else []), *(["-", "-"] if referenced else []),
+                         *(["-"] if estimated else []), *(["-"] if peak else []), status])
         for i, name in enumerate(names):
             cells = head if i == 0 else [""] * len(head)
             e = r.errors.get(name)
             extra = [pointwise_text(e) if e is not None else ""] if peak else []
             shown_est = [estimate_text(est.get(name))] if estimated else []
-            rows.append([*cells, visible(name), fmt(e.max_abs) if e is not None else "-",
-                         headline_text(e) if e is not None else "-", *shown_est, *extra, status if i == 0 else ""])
+            values = _extent(series.get(name)) if valued else []
+            errors = [fmt(e.max_abs) if e is not None else "-", headline_text(e) if e is not None else "-"] \
+                if referenced else []
+            rows.append([*cells, visible(name), *values, *errors, *shown_est, *extra, status if i == 0 else ""])
     marked = False
     if peak and not fits(console, columns, rows):  # narrow terminal: "of peak" becomes a mark
         marked = True
@@ -142,13 +154,16 @@ def print_experiment(console: Console, exp, results, *, table: bool = False) -> 
     if undefined:
         console.print("[dim]relative error undefined (reference zero or tiny; left out of the maximum) at this many "
                       f"points: {_shown('; '.join(undefined), lines=True)}[/]")
-    printed = []
-    for r in results:
-        info = r.extra.get("analysis")
-        if info is not None and not any(info["A"] == a["A"] and info["B"] == a["B"] and info["C"] == a["C"]
-                                        and info["D"] == a["D"] for a in printed):
-            print_analysis(console, r.case.name if printed or len(results) == 1 else None, info)
-            printed.append(info)
+    if getattr(exp, "sweep", None) is not None and print_step_infos(console, results):
+        pass  # a sweep's step metrics as one table, a row per case (each case's analysis: result.json, report)
+    else:
+        printed = []
+        for r in results:
+            info = r.extra.get("analysis")
+            if info is not None and not any(info["A"] == a["A"] and info["B"] == a["B"] and info["C"] == a["C"]
+                                            and info["D"] == a["D"] for a in printed):
+                print_analysis(console, r.case.name if printed or len(results) == 1 else None, info)
+                printed.append(info)
     fit = next((r.extra["fit"] for r in results if isinstance(r.extra.get("fit"), dict)), None)
     if fit is not None:
         from odelab.cli.fit_display import print_fit
@@ -193,6 +208,25 @@ def _num(v: float, digits: int = 4) -> str:
     if v in (float("inf"), float("-inf")):
         return "inf" if v > 0 else "-inf"
     return f"{v:.{digits}g}"
+
+
+def _valued(r, *, swept: bool) -> dict:
+    """The quantities a case without a reference shows: its states and outputs (a sweep's: its outputs, or
+    its states when it has none), not its inputs, which the file gives."""
+    p = r.case.problem
+    series = r.series()
+    names = (list(p.outputs) or list(p.states)) if swept else [*p.states, *p.outputs]
+    return {n: series[n] for n in names if n in series}
+
+
+def _extent(column) -> list[str]:
+    """A quantity without a reference: its final value, its minimum and its maximum over the run."""
+    if column is None or not len(column):
+        return ["-", "-", "-"]
+    values = np.asarray(column, dtype=float)
+    finite = values[np.isfinite(values)]
+    low, high = (float(finite.min()), float(finite.max())) if finite.size else (math.nan, math.nan)
+    return [f"{float(values[-1]):.6g}", f"{low:.6g}", f"{high:.6g}"]
 
 
 def _never_settles(s: dict) -> bool:
@@ -285,29 +319,53 @@ def print_linearization(console: Console, case: str, info: dict) -> None:
         + (f"; log-log slope of the error over these amplitudes: {slope:.2f}" if slope is not None else ""))
 
 
+STEP_COLUMNS = ("RiseTime", "SettlingTime", "Overshoot", "Undershoot", "Peak", "PeakTime", "SteadyStateValue")
+
+
+def print_step_infos(console: Console, results) -> bool:
+    """A sweep's [analysis] step_info, one row per case and channel (the first SWEEP_ROWS_SHOWN); False if
+    no case has one."""
+    rows = []
+    for r in results:
+        for s in (r.extra.get("analysis") or {}).get("step_info") or []:
+            rows.append([visible(r.case.name), f"{_shown(s['input'])} -> {_shown(s['output'])}",
+                         *(_step_cell(s, c) for c in STEP_COLUMNS)])
+    if not rows:
+        return False
+    console.print("step response of each case (MATLAB's stepinfo of its linear model; every case's analysis is in "
+                  "result.json and the report; all of them in sweep.csv):")
+    print_grid(console, [("case", "left"), ("step", "left"), *((c, "right") for c in STEP_COLUMNS)],
+               rows[:SWEEP_ROWS_SHOWN])
+    if len(rows) > SWEEP_ROWS_SHOWN:
+        console.print(f"[dim]... and {len(rows) - SWEEP_ROWS_SHOWN} more rows in sweep.csv[/]")
+    for r in results:
+        for s in (r.extra.get("analysis") or {}).get("step_info") or []:
+            if _never_settles(s):
+                console.print(f"  {_shown(r.case.name)}: {_shown(s['input'])} -> {_shown(s['output'])} does not "
+                              "settle: SettlingTime is NaN, as MATLAB's stepinfo gives.")
+    return True
+
+
 EVENT_ROWS = 20  # events listed in the terminal; result.json and the report have them all
 
 
 def print_events(console: Console, r) -> None:
     """The located events of a case: time (and exact time, if known), state, reset."""
-    from rich.table import Table
-
     states = list(r.case.problem.states)
     exact = any("exact_t" in e for e in r.events)
-    t = Table(title=f"{_shown(r.case.name)}: {len(r.events)} event{'s' if len(r.events) != 1 else ''}",
-              title_justify="left",
-              show_edge=False, header_style="bold", box=None, pad_edge=False)
-    for col in ("#", "event", "t", *(("exact t", "|t - exact|") if exact else ()), *states, "reset"):
-        t.add_column(_shown(col), justify="left" if col in ("event", "reset") else "right")
+    console.print(_shown(f"{r.case.name}: {len(r.events)} event{'s' if len(r.events) != 1 else ''}"))
+    columns = [(col, "left" if col in ("event", "reset") else "right")
+               for col in ("#", "event", "t", *(("exact t", "|t - exact|") if exact else ()), *states, "reset")]
+    rows = []
     for i, e in enumerate(r.events[:EVENT_ROWS], start=1):
-        cells = [str(i), _shown(e["name"]), f"{e['t']:.10g}"]
+        cells = [str(i), visible(e["name"]), f"{e['t']:.10g}"]
         if exact:
             cells += ([f"{e['exact_t']:.10g}", fmt(abs(e["t"] - e["exact_t"]))] if "exact_t" in e else ["-", "-"])
         cells += [f"{e['state'][s]:.6g}" for s in states]
-        cells.append(_shown(", ".join(f"{k} = {v:.6g}" for k, v in e["reset"].items()
-                                      if v != e["state"][k])) if "reset" in e else "")
-        t.add_row(*cells)
-    console.print(t)
+        cells.append(visible(", ".join(f"{k} = {v:.6g}" for k, v in e["reset"].items()
+                                       if v != e["state"][k])) if "reset" in e else "")
+        rows.append(cells)
+    print_grid(console, [(visible(c), j) for c, j in columns], rows, wrap=("reset",))
     if len(r.events) > EVENT_ROWS:
         console.print(f"[dim]... and {len(r.events) - EVENT_ROWS} more events (all in result.json and the report)[/]")
 
@@ -324,6 +382,7 @@ def print_sweep(console: Console, exp, results) -> None:
                   f"The table of every case: sweep.csv in the results folder.")
     for r in failed[:5]:
         console.print(f"[red]{_shown(r.case.name)}: {_shown(r.message, lines=True)}[/]")
+    print_step_infos(console, results)
     if exp.study is None:
         return
     study = run_study(exp.study, sweep_rows(results))

@@ -92,6 +92,10 @@ def print_grid(console: Console, columns, rows, *, wrap=()) -> None:
         fixed = sum(widths[i] for i in keep) + 2 * (len(keep) - 1)
         if fixed + 14 * (len(columns) - len(keep)) <= console.width:
             break
+    if fixed > console.width and len(keep) > 2:  # even squeezed it does not fit: split it, never cut a number
+        for part in _parts(columns, keep, widths, console.width):
+            print_grid(console, [columns[i] for i in part], [[row[i] for i in part] for row in rows], wrap=wrap)
+        return
     below = [i for i in range(len(columns)) if i not in keep] if fixed + 14 * (len(columns) - len(keep)) > console.width \
         else []
     shown = [i for i in range(len(columns)) if i not in below]
@@ -121,6 +125,30 @@ def print_grid(console: Console, columns, rows, *, wrap=()) -> None:
             console.print(Text(f"{columns[i][0]}:", style="bold"))
             for line in lines:
                 console.print(Text("  " + line))
+
+
+def _parts(columns, keep: list[int], widths: list[int], width: int) -> list[list[int]]:
+    """The columns in groups that each fit ``width``: every group repeats the leading label columns (the
+    left-aligned ones before the first number: case, method; #, event), the others follow in order."""
+    labels = []
+    for i in keep:
+        if columns[i][1] == "left" or not labels and i == keep[0]:
+            labels.append(i)
+        else:
+            break
+    labels = labels[:2]
+    rest = [i for i in range(len(columns)) if i not in labels]
+    base = sum(widths[i] for i in labels) + 2 * len(labels)
+    parts, current, used = [], [], base
+    for i in rest:
+        if current and used + widths[i] > width:
+            parts.append(labels + current)
+            current, used = [], base
+        current.append(i)
+        used += widths[i] + 2
+    if current:
+        parts.append(labels + current)
+    return parts
 
 
 def _padded(text: str, width: int, justify: str) -> str:

@@ -186,6 +186,8 @@ def sweep_rows(results) -> list[dict[str, Any]]:
             "end_abs": ends,
             "scale": {n: float(np.max(np.abs(v))) if v.size else 0.0 for n, v in r.reference.items()},
             "metrics": _metrics(r),
+            # [analysis] step_info: MATLAB's stepinfo of each channel of the case's linear model
+            "step_info": list((r.extra.get("analysis") or {}).get("step_info") or []),
             # the global error estimate, when the case has one (odelab.run.estimate): max error and digits
             **_estimate_columns(r),
             "quadrature": quadrature[id(fun)],  # dy/dt = f(t): a method shows its quadrature rule's order

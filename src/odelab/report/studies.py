@@ -75,6 +75,37 @@ def collect_studies(runs: Path, experiments: list[str] | None = None) -> tuple[l
 _METRICS = (("overshoot_percent", "overshoot (%)"), ("max", "peak"), ("final", "final value"))
 
 
+_STEP_INFO = (("RiseTime", "rise time"), ("SettlingTime", "settling time"), ("Overshoot", "overshoot (%)"),
+              ("Peak", "peak"), ("PeakTime", "peak time"))
+
+
+def _step_info_table(rows: list[dict], section: StudySection) -> None:
+    """[analysis] step_info in a sweep: MATLAB's stepinfo of each case's first channel, beside its response."""
+    channel = next(((s.get("output"), s.get("input")) for r in rows for s in (r.get("step_info") or [])
+                    if isinstance(s, dict)), None)
+    if channel is None:
+        return
+    # stepinfo's overshoot and peak replace those read off the sampled trajectory (the same quantities,
+    # exactly): the final value stays
+    drop = [i for i, h in enumerate(section.header) if h.endswith((" overshoot (%)", " peak"))]
+    section.header = [h for i, h in enumerate(section.header) if i not in drop] + [label for _, label in _STEP_INFO]
+    section.rows = [[c for i, c in enumerate(cells) if i not in drop] for cells in section.rows]
+    for r, cells in zip(rows, section.rows):
+        s = next((s for s in (r.get("step_info") or []) if isinstance(s, dict)
+                  and (s.get("output"), s.get("input")) == channel), {})
+        for key, _ in _STEP_INFO:
+            value = s.get(key)
+            if key == "SettlingTime" and value is None and s.get("SteadyStateValue") is not None:
+                cells.append("does not settle")
+            elif key == "PeakTime" and value is None and s:
+                cells.append("∞")
+            else:
+                cells.append(_g(value))
+    section.notes.append(f"rise time to peak time: MATLAB's stepinfo of {channel[1]} -> {channel[0]} in each case's "
+                         "linear model ([analysis] step_info; all channels in sweep.csv); peak time ∞: the response "
+                         "approaches its final value without passing it")
+
+
 def _parameter_sweep(record: dict, section: StudySection) -> None:
     keys = record["sweep"]["keys"]
     rows = [r for r in record["rows"] if isinstance(r, dict)]
@@ -96,6 +127,7 @@ def _parameter_sweep(record: dict, section: StudySection) -> None:
         if cells and m.get("settled") is False:
             cells[0] += " *"  # the overshoot is measured against a value that is still moving
         section.rows.append([r["case"], r["status"], _g(r.get("nsteps"), 8), _g(r.get("nfevals"), 8)] + cells)
+    _step_info_table(rows, section)
     if len(rows) > 60:
         section.notes.append(f"the table shows the first 60 of {len(rows)} cases")
     if unsettled:

@@ -11,7 +11,11 @@ from typing import Any
 
 from odelab.experiment.study import run_study, sweep_rows
 
-__all__ = ["SWEEP_FORMAT", "sweep_record", "sweep_csv", "write_sweep"]
+__all__ = ["SWEEP_FORMAT", "sweep_record", "sweep_csv", "write_sweep", "METRICS", "STEP_INFO"]
+
+#: sweep.csv's columns of each quantity's response (experiment.study's metrics) and of each channel's stepinfo
+METRICS = ("final", "min", "max", "t_max", "overshoot_percent")
+STEP_INFO = ("RiseTime", "SettlingTime", "Overshoot", "Undershoot", "Peak", "PeakTime", "SteadyStateValue")
 
 
 SWEEP_FORMAT = "odelab-sweep/1"
@@ -57,6 +61,11 @@ def sweep_csv(record: dict[str, Any]) -> str:
     keys = record["sweep"]["keys"]
     quantities = sorted({q for r in rows for q in r["max_abs"]})
     header = ["case", *keys, "method", "status", "nsteps", "nfailed", "nfevals", "elapsed_s"]
+    # each quantity's response (final, min, max...) and each channel's stepinfo, then the errors
+    measured = list(dict.fromkeys(q for r in rows for q in (r.get("metrics") or {})))
+    header += [f"{q}_{what}" for q in measured for what in METRICS]
+    channels = list(dict.fromkeys((s["output"], s["input"]) for r in rows for s in (r.get("step_info") or [])))
+    header += [f"{y}/{u}_{what}" for y, u in channels for what in STEP_INFO]
     header += [f"{q}_{what}" for q in quantities for what in ("max_abs", "end_abs", "max_rel")]
     # the global error estimate's columns, when some case has one (odelab.run.estimate)
     estimated = sorted({q for r in rows for q in (r.get("est_abs") or {})})
@@ -68,6 +77,11 @@ def sweep_csv(record: dict[str, Any]) -> str:
     for r in rows:
         cells = [r["case"], *(r["swept"].get(k) for k in keys), r["method"], r["status"], r["nsteps"], r["nfailed"],
                  r["nfevals"], r["elapsed_s"]]
+        for q in measured:
+            cells += [((r.get("metrics") or {}).get(q) or {}).get(what) for what in METRICS]
+        info = {(s["output"], s["input"]): s for s in (r.get("step_info") or [])}
+        for channel in channels:
+            cells += [(info.get(channel) or {}).get(what) for what in STEP_INFO]
         for q in quantities:
             cells += [r["max_abs"].get(q), r["end_abs"].get(q), r["max_rel"].get(q)]
         if estimated:

@@ -143,14 +143,20 @@ def _unknown_keys(cls, key: str, unknown: list[str]) -> ExperimentError:
         else ", ".join(cls.KEYS) or "no other keys"
     if cls.ALIASES:
         known += " (" + ", ".join(f"{a} for {k}" for a, k in cls.ALIASES.items()) + ", as MATLAB writes them)"
-    parts = []
-    for k in unknown:
-        close = difflib.get_close_matches(k, names, n=1) or difflib.get_close_matches(k.lower(), [n.lower() for n in names], n=1)
-        close = [n for n in names if n.lower() == close[0].lower()][:1] if close else []
-        parts.append(f"`{key}.{k}`" + (f" (did you mean `{close[0]}`?)" if close else ""))
-    verb = "does not apply" if len(unknown) == 1 else "do not apply"
-    return ExperimentError(f"{' and '.join(parts) if len(parts) <= 2 else ', '.join(parts[:-1]) + ' and ' + parts[-1]} "
-                           f"{verb} to a {cls.TYPE} block; a {cls.TYPE} takes {known}.", key=f"{key}.{unknown[0]}")
+    def nearest(k: str) -> str | None:
+        close = difflib.get_close_matches(k, names, n=1) or difflib.get_close_matches(
+            k.lower(), [n.lower() for n in names], n=1)
+        return next((n for n in names if n.lower() == close[0].lower()), None) if close else None
+
+    if len(unknown) == 1:  # one key: the fix after the list
+        close = nearest(unknown[0])
+        hint = f" Did you mean `{close}`?" if close else ""
+        return ExperimentError(f"`{key}.{unknown[0]}` does not apply to a {cls.TYPE} block; a {cls.TYPE} takes "
+                               f"{known}.{hint}", key=f"{key}.{unknown[0]}")
+    parts = [f"`{key}.{k}`" + (f" (did you mean `{nearest(k)}`?)" if nearest(k) else "") for k in unknown]
+    listed = " and ".join(parts) if len(parts) == 2 else ", ".join(parts[:-1]) + " and " + parts[-1]
+    return ExperimentError(f"{listed} do not apply to a {cls.TYPE} block; a {cls.TYPE} takes {known}.",
+                           key=f"{key}.{unknown[0]}")
 
 
 def _block(name: str, spec: dict, params: dict[str, float], path: Path | None = None, max_rows: int | None = None):
