@@ -119,3 +119,51 @@ def test_real_world_constructs_second_order_integrator_and_an_initial_condition_
     assert np.max(np.abs(r.y[:, names.index("a")] - (2 + t))) < 1e-9
     assert np.max(np.abs(r.y[:, names.index("x")] - (1 - t + t * t / 2))) < 1e-9
     assert np.max(np.abs(r.y[:, names.index("v")] - (-1 + t))) < 1e-9
+
+
+FUNCTION = "function [r, theta] = fcn(x, y)\n% polar form\nr2 = x^2 + y^2;\nr = sqrt(r2);\ntheta = atan2(y, x);\n"
+POLAR = Sub([B("Constant", "x", {"Value": "3"}), B("Constant", "y", {"Value": "4"}),
+             B("SubSystem", "MATLAB Function", {"SFBlockType": "MATLAB Function"},
+               sub=Sub([B("Inport", "x", {"Port": "1"}), B("Inport", "y", {"Port": "2"}),
+                        B("Outport", "r", {"Port": "1"}), B("Outport", "theta", {"Port": "2"})], []), ports=(2, 2)),
+             B("Outport", "r", {"Port": "1"}), B("Outport", "theta", {"Port": "2"})],
+            [L("x:1", "MATLAB Function:1"), L("y:1", "MATLAB Function:2"), L("MATLAB Function:1", "r:1"),
+             L("MATLAB Function:2", "theta:1")])
+
+
+def _escaped(text):
+    return text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n")
+
+
+def test_matlab_function_blocks_of_straight_line_code_become_fcn_blocks(tmp_path):
+    import io
+    import zipfile
+
+    from make_corpus import xml_parts
+
+    chart = ('<?xml version="1.0" encoding="utf-8"?><chart id="7"><P Name="name">MATLAB Function</P><Children>'
+             '<state SSID="1"><eml><P Name="isEML">1</P><P Name="script">' + FUNCTION + '</P></eml></state>'
+             '</Children></chart>')
+    parts = {**xml_parts("polar", POLAR, {"StopTime": "1"}), "simulink/stateflow/chart_7.xml": chart}
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as zf:
+        for name, text in parts.items():
+            zf.writestr(name, text)
+    (tmp_path / "polar.slx").write_bytes(buf.getvalue())
+    mdl = classic_mdl("polar", POLAR, {"StopTime": "1"}) + (
+        'Stateflow {\n  machine {\n    id 1\n  }\n  chart {\n    id 7\n    name "MATLAB Function"\n  }\n'
+        f'  state {{\n    id 8\n    chart 7\n    eml {{\n      isEML 1\n      script "{_escaped(FUNCTION)}"\n    }}\n'
+        '  }\n}\n')
+    (tmp_path / "polar.mdl").write_text(mdl)
+    from odelab.run.runner import run_experiment
+
+    for name in ("polar.slx", "polar.mdl"):
+        doc = formats.read(tmp_path / name)
+        assert not doc.gaps, doc.gaps
+        (r,) = run_experiment(tmp_path / name)
+        names = list(r.case.problem.outputs)
+        assert np.all(r.y[:, names.index("r")] == 5.0)
+        assert np.all(r.y[:, names.index("theta")] == np.arctan2(4.0, 3.0))
+    (tmp_path / "loop.mdl").write_text(mdl.replace("r = sqrt(r2);", "for i = 1:3\\n r2 = r2 + 1;\\nend\\nr = r2;"))
+    (gap,) = formats.read(tmp_path / "loop.mdl").gaps
+    assert gap.construct == "MATLAB Function" and "is not an assignment" in gap.detail

@@ -70,6 +70,7 @@ class Model:
     defaults: dict[str, dict[str, str]]  # BlockParameterDefaults: BlockType -> parameter -> text
     root: System
     nblocks: int = 0
+    scripts: dict[str, str] = field(default_factory=dict)  # MATLAB Function blocks' code, by chart name
 
 
 def _is_zip(raw: bytes) -> bool:
@@ -107,7 +108,13 @@ def load_model(raw: bytes, name: str = "model") -> Model:
         raise ModelError("it has no `Model {` section: it is not a Simulink model (a .mdl starts with `Model {`)")
     if top.tag == "Library":
         raise ModelError("it is a Simulink library, not a model: import the model that uses its blocks")
-    return _build(top, "mdl", lambda ref: None, name)
+    model = _build(top, "mdl", lambda ref: None, name)
+    flow = root.find("Stateflow")
+    if flow is not None:
+        from odelab.formats.simulink.mfunction import charts
+
+        model.scripts = charts([flow])
+    return model
 
 
 def _from_parts(parts: dict[str, bytes], fmt: str, name: str) -> Model:
@@ -133,7 +140,14 @@ def _from_parts(parts: dict[str, bytes], fmt: str, name: str) -> Model:
         data = parts.get(f"simulink/systems/{ref.lower()}.xml")
         return None if data is None else parse_xml(data, f"simulink/systems/{ref}.xml", MAX_SUBSYSTEM_DEPTH)
 
-    return _build(top, f"{fmt} ({layout})", system_part, name)
+    model = _build(top, f"{fmt} ({layout})", system_part, name)
+    flows = [parse_xml(data, part, MAX_SUBSYSTEM_DEPTH) for part, data in parts.items()
+             if part.startswith("simulink/stateflow/") and "/_rels/" not in part]
+    if flows:
+        from odelab.formats.simulink.mfunction import charts
+
+        model.scripts = charts(flows)
+    return model
 
 
 def _solver(top: Node) -> dict[str, str]:

@@ -409,6 +409,31 @@ def _walk(tr: Translation, root: System, scope: Scope) -> None:
 
 
 _HANDLED = object()  # a subsystem turned into a gap: nothing more to map
+
+
+def _matlab_function(tr: Translation, block: Block, system: System, scope: Scope, prefix: str) -> bool:
+    """A MATLAB Function block of straight-line scalar code: one fcn block per output (True), else False."""
+    from odelab.formats.simulink.mfunction import function_outputs
+
+    model_path = block.path.split("/", 1)[1] if "/" in block.path else block.name
+    script = tr.model.scripts.get(model_path) or tr.model.scripts.get(block.name)
+    if script is None:
+        return False
+    exprs, why = function_outputs(script, lambda n: scope.lookup(n, block.path))
+    if why:
+        tr.note(block, GAP, f"a MATLAB Function block whose code is not translated ({why}): write it as fcn blocks",
+                construct="MATLAB Function")
+        _gap_block(tr, block, system, prefix)
+        return True
+    inner = [b for b in block.system.blocks if b.type == "Inport"] if block.system else []
+    n_in = max(len(inner), 1)
+    c = BlockContext(tr, block, system, scope, prefix)
+    for k, expression in enumerate(exprs):
+        name = c.name if k == 0 else f"{c.name}_{k + 1}"
+        c.add({"type": "fcn", "expression": expression}, inputs=list(range(1, n_in + 1)), name=name, out=k + 1)
+    tr.note(block, TRANSLATED, "its MATLAB code, straight-line arithmetic, as " + ", ".join(
+        f"`{n}` = {e}" for n, e in zip(c.added, exprs)), construct="MATLAB Function")
+    return True
 _SUBSYSTEM_GAPS = (("TriggerPort", "a triggered subsystem"), ("EnablePort", "an enabled subsystem"),
                    ("ActionPort", "an If/Switch Case action subsystem"), ("ForIterator", "a For Iterator subsystem"),
                    ("WhileIterator", "a While Iterator subsystem"), ("ResetPort", "a resettable subsystem"))
@@ -419,6 +444,8 @@ def _subsystem(tr: Translation, block: Block, system: System, scope: Scope, pref
     if block.type != "SubSystem" or block.system is None:
         return None
     kind = block.params.get("SFBlockType", "") or block.params.get("MaskType", "")
+    if kind == "MATLAB Function" and _matlab_function(tr, block, system, scope, prefix):
+        return _HANDLED
     if kind in ("Chart", "MATLAB Function", "Stateflow", "State Transition Table", "Truth Table"):
         _gap_block(tr, block, system, prefix)
         tr.note(block, GAP, f"a {kind} block (Stateflow / MATLAB code) is not a diagram: write its logic as fcn blocks "
