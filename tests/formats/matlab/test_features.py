@@ -100,3 +100,22 @@ def test_explain_import_says_what_the_matlab_reader_translates():
     assert "(MATLAB's ballode) becomes the event's reset" in matlab and "Refused (exit 2): eval" in matlab
     with pytest.raises(LookupError, match="no import topic `import.xyz`"):
         explain("import.xyz")
+
+
+def test_a_driver_function_takes_its_inputs_from_set_or_names_them_as_gaps(tmp_path):
+    path = _write(tmp_path, "drv.m", "function drv(k, c)\nif nargin < 2\n  c = 0.1;\nend\n"
+                                      "[t, y] = ode45(@(t, y) [y(2); -k*y(1) - c*y(2)], [0 5], [1 0]);\n")
+    doc = read(path)
+    assert "`k` is an input of drv(k, c) that the file does not set when called with none: give it with --set " \
+           "k=VALUE" in doc.gaps[0].detail
+    from odelab.formats.base import ImportOptions
+
+    doc = read(path, ImportOptions(sets=(("k", "4"),)))
+    assert not doc.gaps and doc.data["parameters"] == {"k": 4, "c": 0.1}
+
+
+def test_eig_with_two_outputs_of_a_constant_matrix(tmp_path):
+    path = _write(tmp_path, "modes.m", "K = [2 -1; -1 2];\n[V, D] = eig(K);\nw = sqrt(D(2,2));\n"
+                                        "[t, y] = ode45(@(t, y) [y(2); -w^2*y(1)], [0 1], [1 0]);\n")
+    doc = read(path)
+    assert not doc.gaps and doc.data["parameters"] == {"w": np.sqrt(3.0)}  # ascending, as MATLAB's symmetric eig

@@ -45,7 +45,8 @@ xticklabels yticklabels caxis clim light material rectangle yyaxis streamline st
 gcbf uicontrol uimenu waitbar datetick
 """.split())
 PRINTING = frozenset("""
-disp fprintf sprintf display num2str mat2str int2str format more diary echo clc home beep fflush
+disp fprintf sprintf display num2str mat2str int2str format more diary echo clc home beep fflush printf puts
+fputs fdisp
 """.split())
 IGNORED_CALLS = frozenset("""
 clear clearvars close all warning tic toc clock cputime etime now datetime datestr date rng addpath rmpath
@@ -186,6 +187,8 @@ BUILTINS["realsqrt"] = BUILTINS["sqrt"]
 BUILTINS["reallog"] = BUILTINS["log"]
 BUILTINS["atan2"] = _map(_odelab("atan2"), np.arctan2, (2, 2))
 BUILTINS["heaviside"] = _map(_odelab("heaviside"), lambda x: np.heaviside(x, 0.5))
+BUILTINS["square"] = _map(_odelab("square"), None, (1, 2))  # the Signal Processing Toolbox's, as odelab's
+BUILTINS["sawtooth"] = _map(_odelab("sawtooth"), None, (1, 2))
 
 
 def _mod_numeric(a, m):
@@ -640,7 +643,24 @@ def _inv(interp, args, nargout, node, scope):
     return [Arr.numeric(np.linalg.inv(numbers))]
 
 
-@builtin("det", "trace", "expm", "eig", "rank", "cond", "pinv", "null", "kron", "cumsum", "cumprod", "diff",
+@builtin("eig")
+def _eig(interp, args, nargout, node, scope):
+    """``eig(A)`` and ``[V, D] = eig(A)`` of a constant matrix with real eigenvalues."""
+    numbers = _arr(interp, args[0]).numbers() if args else None
+    if numbers is None or len(args) > 1 or numbers.shape[0] != numbers.shape[1]:
+        raise Unsupported("eig of a square constant matrix (one argument) only")
+    if np.array_equal(numbers, numbers.T):  # MATLAB's eig of a symmetric matrix: ascending, as LAPACK's dsyev
+        values, vectors = np.linalg.eigh(numbers)
+    else:
+        values, vectors = np.linalg.eig(numbers)
+    if np.any(np.abs(values.imag) > 0) or np.any(np.abs(vectors.imag) > 0):
+        raise Unsupported("eig with complex eigenvalues is not translated (odelab's values are real)")
+    if nargout < 2:
+        return [Arr.numeric(values.real.reshape(-1, 1))]
+    return [Arr.numeric(vectors.real), Arr.numeric(np.diag(values.real))]
+
+
+@builtin("det", "trace", "expm", "rank", "cond", "pinv", "null", "kron", "cumsum", "cumprod", "diff",
          "flipud", "fliplr", "flip", "sort", "unique", "find", "any", "all", "trapz", "std", "var", "median")
 def _numeric_only(interp, args, nargout, node, scope):
     name = node.target.name if isinstance(node, n.Index) else node.name
@@ -682,7 +702,6 @@ _NUMERIC = {
     "std": lambda a: Arr.numeric(float(np.std(_vec(a), ddof=1))), "var": lambda a: Arr.numeric(float(np.var(_vec(a), ddof=1))),
     "median": lambda a: Arr.numeric(float(np.median(_vec(a)))),
     "expm": lambda a: Arr.numeric(__import__("scipy.linalg", fromlist=["expm"]).expm(a)),
-    "eig": lambda a: Arr.numeric(np.linalg.eigvals(a).real.reshape(-1, 1)),
     "null": lambda a: Arr.numeric(__import__("scipy.linalg", fromlist=["null_space"]).null_space(a)),
 }
 

@@ -572,6 +572,28 @@ class Interpreter:
         self.last_scope = scope
         return self.outputs(fn, scope, nargout, line)
 
+    def run_driver_function(self, fn: n.Function, caller: Scope) -> list:
+        """A driver function file (``function msd_demo(m)``) run as MATLAB runs it with no arguments; an input the
+        file does not give a default is --set's value, else unknown (a gap where a case needs it)."""
+        scope = Scope(fn.file or caller.file, function=fn, mode="script", nargin=0, nargout=0)
+        for name in fn.inputs:
+            if name in self.pinned:
+                scope.vars[name] = self.pinned[name]
+                scope.assigned.add(name)
+        self.stack.append(fn)
+        missing = [name for name in fn.inputs if name not in scope.vars and name not in ("~", "varargin")]
+        for name in missing:
+            scope.vars[name] = Unknown(f"`{name}` is an input of {fn.name}({', '.join(fn.inputs)}) that the file does "
+                                       f"not set when called with none: give it with --set {name}=VALUE", fn.line,
+                                       scope.file)
+        try:
+            self.run_block(fn.body, scope)
+        except ReturnNow:
+            pass
+        finally:
+            self.stack.pop()
+        return []
+
     def note_state_vector(self, names: list[str], args: list, named_function: bool) -> None:
         """The first function that receives the state vector names it (`function dx = f(t, x)`: x1, x2...)."""
         if self.state_vector is None or (self.state_base and (self.state_base_from_function or not named_function)):

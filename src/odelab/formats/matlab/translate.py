@@ -153,7 +153,7 @@ def _run(interp, source: n.SourceFile, scope: Scope, options: ImportOptions, sib
     if source.script is not None:
         interp.run_block(source.script, scope)
     elif source.main is not None and _has_solver_call(source.main.body) and not options.call:
-        interp.call_function(source.main, [], 0, source.main.line, scope, mode="script")
+        interp.run_driver_function(source.main, scope)
     if options.call:
         call_source = parse_text(options.call, "--call")
         if call_source.script is None:
