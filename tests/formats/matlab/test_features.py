@@ -119,3 +119,16 @@ def test_eig_with_two_outputs_of_a_constant_matrix(tmp_path):
                                         "[t, y] = ode45(@(t, y) [y(2); -w^2*y(1)], [0 1], [1 0]);\n")
     doc = read(path)
     assert not doc.gaps and doc.data["parameters"] == {"w": np.sqrt(3.0)}  # ascending, as MATLAB's symmetric eig
+
+
+def test_a_struct_array_of_parameter_sets_gives_one_case_each(tmp_path):
+    (tmp_path / "decay_rhs.m").write_text("function dy = decay_rhs(t, y, p)\ndy = -p.k*y;\n")
+    path = _write(tmp_path, "sets.m", "ks = [0.5 1 2];\nfor i = 1:3\n  pars(i).k = ks(i);\nend\n"
+                                      "for i = 1:numel(pars)\n  [t, y] = ode45(@decay_rhs, [0 2], 1, [], pars(i));\nend\n")
+    doc = read(path)
+    assert not doc.gaps and doc.data["system"]["equations"] == {"y": "-pars_k*y"}
+    assert [c["parameters"]["pars_k"] for c in doc.data["case"]] == [0.5, 1, 2]
+    results = {r.case.name: r for r in run_experiment(path)}
+    for name, k in (("ode45 i=1", 0.5), ("ode45 i=2", 1.0), ("ode45 i=3", 2.0)):
+        r = results[name]
+        assert np.max(np.abs(r.x[:, 0] - np.exp(-k * r.t))) < 10 * (1e-6 + 1e-3)  # ode45's defaults

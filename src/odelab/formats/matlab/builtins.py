@@ -494,6 +494,10 @@ def _shape_of(interp, value) -> tuple[int, int]:
         return (1, len(value.text))
     if isinstance(value, (Struct, FuncValue)):
         return (1, 1)
+    from odelab.formats.matlab.values import StructArray
+
+    if isinstance(value, StructArray):
+        return (1, len(value.items))
     raise Unsupported(interp.why_not_number(value, "an array"))
 
 

@@ -146,9 +146,18 @@ def _system(b: _Builder, reading: Reading, names: list[str], namer: Namer) -> No
     system["equations"] = equations
     b.interp.note(line, f"function {fname}" if fn.params is None else fname, TRANSLATED,
                   f"[system]: {len(equations)} equation{'s' if len(equations) != 1 else ''}", file)
-    for i, (given, line) in sorted(reading.names.items()):
-        if i < len(names) and names[i] == given:
-            b.comment(("system", "equations", given), f"{given} = y({i + 1}) on line {line}")
+    source = b.interp.file_of(file) if file else None
+    for i, name in enumerate(names):
+        parts = []
+        at = reading.lines.get(i)
+        if at and source is not None and 0 < at <= len(source.lines):
+            text = source.lines[at - 1].strip()
+            parts.append(f"{Path(file).name} line {at}: {text if len(text) <= 70 else text[:67] + '...'}")
+        given = reading.names.get(i)
+        if given and given[0] == name:
+            parts.append(f"{name} = y({i + 1}) on line {given[1]}")
+        if parts:
+            b.comment(("system", "equations", name), "\n".join(parts))
 
 
 def _implicit(b: _Builder, namer: Namer, names: list[str]) -> None:

@@ -29,7 +29,8 @@ from odelab.formats.matlab import ops
 from odelab.formats.matlab.flow import BreakLoop, ContinueLoop, ErrorCalled, Failure, ReturnNow, assigned_names
 from odelab.formats.matlab.scope import MAX_CALL_DEPTH, Budget, Notes, Scope
 from odelab.formats.matlab.values import (Arr, Cell, Const, FuncValue, Named, Op, Param, ParamDef, ResultRef,
-                                          SolverOutput, State, Str, Struct, Sym, TooBig, Unknown, Unsupported)
+                                          SolverOutput, State, Str, Struct, StructArray, Sym, TooBig, Unknown,
+                                          Unsupported)
 
 __all__ = ["Interpreter", "Hooks", "Failure", "ErrorCalled", "BreakLoop", "ContinueLoop", "ReturnNow", "assigned_names"]
 
@@ -78,6 +79,7 @@ class Interpreter:
         self.state_base = ""  # the function's own name for the state vector
         self.state_base_from_function = False
         self.decic_calls: list = []  # (function, fixed_y0, fixed_yp0, line) of each decic call
+        self.assign_log: list = []  # while a right-hand side is read: (function, name, position or None, line)
         self.builtins = hooks.builtins
         self.solved = 0
 
@@ -223,6 +225,8 @@ class Interpreter:
             new = Struct(fields, origin=current.origin or self.path_name(base_node), odeset=current.odeset)
         elif target.brace:
             new = self.assign_cell(current, target, value, scope)
+        elif isinstance(value, Struct) or isinstance(current, StructArray):
+            new = self.assign_struct_element(current, target, value, scope, base_node)
         else:
             if isinstance(current, Cell):
                 raise Unsupported("assigning to a cell array with () is not translated; use {}")
@@ -233,11 +237,38 @@ class Interpreter:
             specs = self.index_specs(target.args, current if current is not None else
                                      Arr(0, 0, data=np.zeros((0, 0))), scope)
             new = ops.assign_index(current, specs, value)
-            self.track_state_names(base_node, target.args, value, scope, line)
+            if self.state_vector is not None and isinstance(base_node, n.Id):
+                self.assign_log.append((scope.function, base_node.name, _position(specs), line))
         self.assign(base_node, new, scope, line) if not isinstance(base_node, n.Id) else \
             scope.set(base_node.name, new, self.globals)
         if isinstance(base_node, n.Id):
             scope.assigned.add(base_node.name)
+
+    def assign_struct_element(self, current, target: n.Index, value: Any, scope: Scope, base_node) -> StructArray:
+        """``pars(2) = s`` and ``pars(2).beta = 0.5``: an element of a struct array (grown with empty structs)."""
+        if not isinstance(value, Struct):
+            raise Unsupported("a struct array's element must be a struct")
+        if isinstance(current, Struct):
+            current = StructArray([current], origin=current.origin)
+        elif current is None or (isinstance(current, Arr) and current.size == 0):
+            current = StructArray([], origin=self.path_name(base_node))
+        if not isinstance(current, StructArray):
+            raise Unsupported(f"`{self.path_name(base_node)}` is not a struct array")
+        k = self.struct_position(target, len(current.items), scope)
+        items = list(current.items) + [Struct(origin=current.origin) for _ in range(max(0, k + 1 - len(current.items)))]
+        items[k] = value
+        return StructArray(items, origin=current.origin)
+
+    def struct_position(self, node: n.Index, size: int, scope: Scope) -> int:
+        specs = self.index_specs(node.args, Arr(1, size, data=np.zeros((1, size))), scope)
+        numbers = [s.numbers() for s in specs if s is not ops.COLON]
+        if len(numbers) != len(specs) or any(v is None or v.size != 1 for v in numbers) or \
+                (len(numbers) == 2 and numbers[0][0, 0] != 1):
+            raise Unsupported("a struct array is translated with one constant index (pars(2).beta)")
+        k = int(numbers[-1][0, 0])
+        if k < 1:
+            raise Unsupported("a struct array's index must be 1 or more")
+        return k - 1
 
     def assign_cell(self, current, target: n.Index, value: Any, scope: Scope) -> Cell:
         """``c{k} = value``: a new cell array."""
@@ -264,6 +295,8 @@ class Interpreter:
             value = self.named_value(name, value, scope, line, first=first)
         scope.set(name, value, self.globals)
         scope.assigned.add(name)
+        if self.state_vector is not None:
+            self.assign_log.append((scope.function, name, None, line))
         if isinstance(value, Arr) and value.size == 1 and scope.mode == "rhs" and value.items is not None:
             item = value.items[0]
             if isinstance(item, State) and item.index not in self.state_names:
@@ -300,9 +333,6 @@ class Interpreter:
             return Arr(value.rows, value.cols, items=items, colon=value.colon)
         return value
 
-    def track_state_names(self, base_node, args, value, scope, line) -> None:
-        return None
-
     def lvalue(self, node: n.Expr, scope: Scope) -> Any:
         """The current value of an assignment target's base, or None when it does not exist yet."""
         if isinstance(node, n.Id):
@@ -318,6 +348,10 @@ class Interpreter:
             base = self.lvalue(node.target, scope)
             if base is None or isinstance(base, Unknown):
                 return base
+            if isinstance(base, (Struct, StructArray)) and not node.brace:  # an element not there yet is new
+                items = base.items if isinstance(base, StructArray) else [base]
+                k = self.struct_position(node, len(items), scope)
+                return items[k] if k < len(items) else None
             return self.index_value(base, node, scope)
         raise Unsupported("an assignment to this kind of target is not translated")
 
@@ -398,9 +432,12 @@ class Interpreter:
         if isinstance(base, Str):
             base = _char_array(base)
         if isinstance(base, Struct):
-            if all(isinstance(a, n.Num) and a.value == 1 for a in node.args):
-                return [base] if multi else base
-            raise Unsupported("struct arrays are not translated")
+            base = StructArray([base], origin=base.origin)
+        if isinstance(base, StructArray):
+            k = self.struct_position(node, len(base.items), scope)
+            if k >= len(base.items):
+                raise Unsupported(f"index {k + 1} is beyond the {len(base.items)} elements of the struct array")
+            return [base.items[k]] if multi else base.items[k]
         if not isinstance(base, Arr):
             raise Unsupported(self.why_not_number(base))
         if node.brace:
@@ -669,6 +706,17 @@ class Interpreter:
             return self.eval_multi(fv.body, scope, nargout)
         finally:
             self.stack.pop()
+
+
+def _position(specs: list) -> int | None:
+    """The 0-based element an index names, when it names one of a vector (``dy(2)``, ``dy(2,1)``, ``dy(2,:)``)."""
+    numbers = [s.numbers() if s is not ops.COLON else None for s in specs]
+    if len(specs) == 1 and numbers[0] is not None and numbers[0].size == 1:
+        return int(numbers[0][0, 0]) - 1
+    if len(specs) == 2 and numbers[0] is not None and numbers[0].size == 1 and (
+            specs[1] is ops.COLON or (numbers[1] is not None and numbers[1].size == 1 and numbers[1][0, 0] == 1)):
+        return int(numbers[0][0, 0]) - 1
+    return None
 
 
 def _within(fn: n.Function, outer: n.Function) -> bool:

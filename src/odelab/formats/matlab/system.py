@@ -59,6 +59,7 @@ def read_function(interp, fv: FuncValue, states: int, extras: list, nargout: int
     interp.state_vector = y
     interp.state_names = {}
     interp.state_base = ""
+    interp.assign_log = []
     try:
         outputs = interp.call_value(fv, args, nargout, fv.line, mode="rhs")
     except (Unsupported, TooBig) as exc:
@@ -68,11 +69,36 @@ def read_function(interp, fv: FuncValue, states: int, extras: list, nargout: int
     finally:
         interp.state_vector = None
     reading = Reading(outputs=list(outputs), names=dict(interp.state_names), base=interp.state_base)
+    reading.lines = _element_lines(interp, fv, states)
     for value in outputs[:max(nargout, 1)]:
         if isinstance(value, Unknown):
             reading.gap = value
             break
     return reading
+
+
+def _element_lines(interp, fv: FuncValue, states: int) -> dict[int, int]:
+    """The line that last set each element of the function's output (``dy(2) = ...``, or ``dy = [...]``)."""
+    fn = interp.find_function(fv.name, fv.closure if fv.closure is not None else _scope_of(interp, fv)) \
+        if fv.params is None else None
+    if not isinstance(fn, n.Function) or not fn.outputs:
+        return {}
+    out = fn.outputs[0]
+    lines: dict[int, int] = {}
+    for function, name, position, line in interp.assign_log:
+        if function is not fn or name != out:
+            continue
+        if position is None:
+            lines = {i: line for i in range(states)}
+        elif 0 <= position < states:
+            lines[position] = line
+    return lines
+
+
+def _scope_of(interp, fv: FuncValue):
+    from odelab.formats.matlab.scope import Scope
+
+    return Scope(fv.file or interp.src)
 
 
 def state_names(reading: Reading, count: int, reserved: set[str]) -> list[str]:

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 __all__ = ["Sym", "Const", "Named", "Param", "ParamDef", "State", "Deriv", "Time", "Input", "Op", "Call", "ResultRef",
-           "Arr", "Str", "Struct", "Cell", "FuncValue", "Unknown", "SolverOutput", "TooBig", "Unsupported",
+           "Arr", "Str", "Struct", "StructArray", "Cell", "FuncValue", "Unknown", "SolverOutput", "TooBig", "Unsupported",
            "MAX_SYM_DEPTH", "MAX_SYM_SIZE", "MAX_ELEMENTS", "scalar", "const"]
 
 MAX_SYM_DEPTH = 90
@@ -404,6 +404,14 @@ class Struct:
     fields: dict[str, Any] = field(default_factory=dict)
     origin: str = ""  # the variable it was assigned to (its fields' parameters are named origin_field)
     odeset: bool = False
+
+
+@dataclass(eq=False)
+class StructArray:
+    """A 1 x n struct array (``pars(2).beta = 0.5``): its elements, each a :class:`Struct`."""
+
+    items: list = field(default_factory=list)
+    origin: str = ""
 
 
 @dataclass(eq=False)
