@@ -244,3 +244,55 @@ def test_a_damping_sweep_with_step_info_has_its_overshoot_table_everywhere(tmp_p
     md = (tmp_path / "report" / "report.md").read_text()
     assert "| rise time | settling time | overshoot (%) | peak | peak time |" in md
     assert f"| {expected[0.5]:.4g} |" in md
+
+
+PENDULUM_LINEARIZED = """
+[parameters]
+g = 9.81
+L = 1
+[system]
+states = ["theta", "omega"]
+inputs = ["tau"]
+[system.equations]
+theta = "omega"
+omega = "-g/L*sin(theta) + tau"
+[system.outputs]
+y = "theta"
+[initial]
+theta = 0.1
+omega = 0
+[time]
+stop = 5
+[inputs.tau]
+type = "constant"
+value = 0
+[linearize]
+input = {{ tau = 0 }}
+{start}
+[analysis]
+step_info = true
+"""
+
+
+def test_linearize_runs_from_the_files_initial_state_and_analyses_the_linear_model(tmp_path):
+    import json
+
+    code, out = run(tmp_path, PENDULUM_LINEARIZED.format(start=""), "--json", "--trajectories")
+    assert code == 0, out
+    (case,) = json.loads(out[out.index("{"):])["experiments"][0]["cases"]
+    assert case["trajectory"]["theta"][0] == 0.1 and case["extra"]["linearization"]["start"] == "initial"
+    (s,) = case["extra"]["analysis"]["step_info"]  # the linear model's: 1/(s^2 + 9.81), undamped
+    assert s["SettlingTime"] is None and abs(s["PeakTime"] - math.pi / math.sqrt(9.81)) < 1e-6
+    assert not case["warnings"]
+
+
+def test_an_initial_state_linearize_does_not_use_is_said(tmp_path):
+    import json
+
+    code, out = run(tmp_path, PENDULUM_LINEARIZED.format(start='start = "operating-point"'), "--json",
+                    "--trajectories")
+    assert code == 0, out
+    (case,) = json.loads(out[out.index("{"):])["experiments"][0]["cases"]
+    assert case["trajectory"]["theta"][0] == 0.0
+    assert any('[initial] (theta = 0.1) is not used: linearize.start = "operating-point"' in w
+               for w in case["warnings"]), case["warnings"]

@@ -45,6 +45,7 @@ class Problem:
     fit: Any = None  # the summary of the experiment's [fit] (a plain dict), once it has been fitted
     network: Any = None  # the derived odelab.systems.network.Network of a kind = "network" system
     fmu: Any = None  # kind = "fmu": an odelab.fmi.simulate.FmuRun (the FMU, its interface, values, signals)
+    initial_given: tuple[str, ...] = ()  # the states the file's [initial] gives (the rest took their defaults)
 
 
 @dataclass(frozen=True, eq=False)

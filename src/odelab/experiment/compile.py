@@ -98,11 +98,15 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
     exact_fn, kind = _case_reference(model, built, method, signals, events, data, params, resolved)
     if model.units:
         resolved["units"] = check_units(model.units, states, inputs, outputs, params)
-    if model.linearize is not None:
-        check_linearize(model.linearize, states, inputs, outputs, built)
-        if model.linearize.amplitudes is not None:
-            check_count("amplitudes", len(model.linearize.amplitudes), "linearize.amplitudes", "amplitudes", limits)
-        resolved["linearize"] = _plain(model.linearize.model_dump(exclude_none=True))
+    given = tuple(s for s in states if s in (model.initial or {}))
+    linearize = model.linearize
+    if linearize is not None:
+        check_linearize(linearize, states, inputs, outputs, built)
+        if linearize.amplitudes is not None:
+            check_count("amplitudes", len(linearize.amplitudes), "linearize.amplitudes", "amplitudes", limits)
+        if "start" not in linearize.model_fields_set:  # from the file's [initial] if it gives one (issue 37)
+            linearize = linearize.model_copy(update={"start": "initial" if given else "operating-point"})
+        resolved["linearize"] = _plain(linearize.model_dump(exclude_none=True))
     analysis = None
     if model.analysis is not None:
         analysis = check_analysis(model.analysis, inputs, built, params)
@@ -113,8 +117,9 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
         states=states, inputs=inputs, outputs=outputs, fun=built.fun, tspan=tspan, x0=x0, method=method.name,
         options=options, output_fn=built.output_fn, input_fn=input_fn, exact_fn=exact_fn, reference=kind,
         reference_solver=(ref.solver, float(ref.rtol), float(ref.atol)), system=built.system, signals=signals,
-        linearize=model.linearize, parameters=params, diagram=built.diagram, events=events, backend=backend,
+        linearize=linearize, parameters=params, diagram=built.diagram, events=events, backend=backend,
         compiled=fast, analysis=analysis, data=data, network=built.network, fmu=_bound_fmu(built.fmu, signals),
+        initial_given=given,
     )
     return problem, resolved
 

@@ -163,7 +163,8 @@ NOTES: dict[str, str] = {
     "inputs.constant.value": "The value.",
     "linearize": "Linearisation about an operating point and the linear-against-nonlinear comparison.",
     "linearize.start": "`operating-point` (both models start at rest at the operating point) or `initial` "
-                       "(both start from [initial]).",
+                       "(both start from [initial]); when the file does not say, `initial` if it has an [initial] "
+                       "table, else `operating-point`.",
     "linearize.drive": "The input whose steps are compared (default the first input).",
     "linearize.input": "The operating input (f̄ = 1 is `input = { f = 1 }`); the state x̄ solves f(x̄, f̄) = 0.",
     "linearize.state": "The operating state, when it is known instead of found.",

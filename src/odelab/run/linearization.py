@@ -77,7 +77,8 @@ def run_linearization_case(case: Case, *, max_steps: int | None = None) -> CaseR
             raise ExperimentError(f"`linearize`: {exc}", key="linearize") from None
     notes.extend(str(w.message) for w in caught)
     op = lin.operating_point
-    x_init = op.x if spec.start == "operating-point" else p.x0
+    start_from = _start(case, spec, op.x, notes)
+    x_init = op.x if start_from == "operating-point" else p.x0
     u = list(p.signals) if p.signals else [Constant(float(v)) for v in u_bar]
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -106,7 +107,7 @@ def run_linearization_case(case: Case, *, max_steps: int | None = None) -> CaseR
         },
         "A": lin.A.tolist(), "B": lin.B.tolist(), "C": lin.C.tolist(), "D": lin.D.tolist(),
         "states": list(lin.states), "inputs": list(lin.inputs), "outputs": list(lin.outputs),
-        "start": spec.start,
+        "start": start_from,
     }
     if spec.amplitudes:
         drive = spec.drive or (p.inputs[0] if p.inputs else None)
@@ -149,7 +150,32 @@ def run_linearization_case(case: Case, *, max_steps: int | None = None) -> CaseR
                 for a, c in zip(study.amplitudes, study.comparisons)],
         })
     result.extra["linearization"] = info
+    if p.analysis is not None:  # [analysis] of the linear model [linearize] made, about its operating point
+        result.extra["analysis"] = _analysis(lin, p, info["operating_point"])
     return result
+
+
+def _start(case: Case, spec, x_bar: np.ndarray, notes: list[str]) -> str:
+    """Where both models start (``linearize.start``, which loading resolved: the file's [initial] when it gives
+    one and the file does not say); [initial] values that are not used are said."""
+    p = case.problem
+    if spec.start == "operating-point" and p.initial_given:
+        x0 = np.asarray(p.x0, dtype=float)
+        differ = [f"{n} = {x0[i]:.6g}" for i, n in enumerate(p.states) if n in p.initial_given and x0[i] != x_bar[i]]
+        if differ:
+            notes.append(f"[initial] ({', '.join(differ)}) is not used: linearize.start = \"operating-point\" starts "
+                         "both models at the operating point; write start = \"initial\" to start them from [initial]")
+    return spec.start
+
+
+def _analysis(lin, p, point: dict) -> dict:
+    """[analysis] with [linearize]: transfer functions, poles, stepinfo, Bode and margins of its linear model."""
+    from odelab.analysis.control import analyze
+
+    spec = p.analysis
+    linearized_at = {"x": point["x"], "u": point["u"], "residual": point["residual"]}
+    return analyze(lin, step_info=spec["step_info"], bode_range=spec["bode"], show_poles=spec["poles"],
+                   linearized_at=linearized_at, with_margins=True)
 
 
 def _slope(study) -> float | None:
