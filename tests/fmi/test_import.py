@@ -197,3 +197,11 @@ def test_the_high_accuracy_reference_of_an_fmu_is_its_own_tight_run(exported, tm
     assert r.status == "success" and r.case.problem.reference == "high-accuracy"
     # ode45 at MATLAB's default RelTol 1e-3 against the FMU stepped by DOP853 at 1e-12
     assert 1e-7 < r.errors["mass.x"].max_abs < 1e-4
+
+
+@pytest.mark.parametrize("name", ["BouncingBall", "Dahlquist", "VanDerPol", "Stair", "Feedthrough"])
+def test_each_test_fmu_equals_fmpys_own_simulation(test_fmus, name, tmp_path):
+    from .test_fmu_folder import compare  # what ODELAB_FMUS runs on any folder of FMUs
+
+    differences = compare(test_fmus[name], tmp_path, "model-exchange")
+    assert max(differences.values(), default=0.0) < 1e-6, differences
