@@ -132,3 +132,12 @@ def test_a_struct_array_of_parameter_sets_gives_one_case_each(tmp_path):
     for name, k in (("ode45 i=1", 0.5), ("ode45 i=2", 1.0), ("ode45 i=3", 2.0)):
         r = results[name]
         assert np.max(np.abs(r.x[:, 0] - np.exp(-k * r.t))) < 10 * (1e-6 + 1e-3)  # ode45's defaults
+
+
+def test_argument_defaults_of_a_driver_function(tmp_path):
+    path = _write(tmp_path, "drv2.m", "function drv2(tf, opts)\n  arguments\n    tf (1,1) double = 3\n"
+                                       "    opts.k (1,1) double = 4\n  end\n"
+                                       "  [t, y] = ode45(@(t, y) -opts.k*y, [0 tf], 1);\nend\n")
+    doc = read(path)
+    assert not doc.gaps and doc.data["time"] == {"start": 0, "stop": 3}
+    assert doc.data["parameters"] == {"opts_k": 4}

@@ -95,3 +95,11 @@ def test_blocks_nest_a_bounded_depth():
     with pytest.raises(ExperimentError) as info:
         parse_text(text, "deep.m")
     assert "blocks nest more than 32 deep" in str(info.value)
+
+
+def test_an_arguments_block_is_read_for_its_defaults():
+    src = parse_text("function out = f(tf, opts)\n  arguments\n    tf (1,1) double {mustBePositive} = 5\n"
+                     "    opts.gain (1,1) double = 2\n  end\n  out = tf*opts.gain;\nend\n", "f.m")
+    block = src.main.body[0]
+    assert isinstance(block, n.Arguments) and [e[0].__class__.__name__ for e in block.entries] == ["Id", "Field"]
+    assert block.entries[0][1].value == 5 and block.entries[1][1].value == 2

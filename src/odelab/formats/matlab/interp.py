@@ -192,6 +192,26 @@ class Interpreter:
     def stmt_while(self, stmt: n.While, scope: Scope) -> None:
         self.hooks.run_while(self, stmt, scope)
 
+    def stmt_arguments(self, stmt: n.Arguments, scope: Scope) -> None:
+        """An arguments block: each default where the caller gave no value (``options.Vm0 = NaN``)."""
+        for target, default in stmt.entries:
+            if default is None:
+                continue
+            base = target
+            while isinstance(base, (n.Field, n.Index)):
+                base = base.target
+            if not isinstance(base, n.Id):
+                continue
+            current = scope.get(base.name, self.globals) if scope.has(base.name, self.globals) else None
+            if isinstance(current, Unknown):  # not passed by the caller: the default applies
+                scope.vars.pop(base.name, None)
+                current = None
+            if isinstance(target, n.Id) and current is not None:
+                continue
+            if isinstance(target, n.Field) and isinstance(current, Struct) and target.name in current.fields:
+                continue
+            self.assign(target, self.eval(default, scope), scope, stmt.line)
+
     def stmt_try(self, stmt: n.TryCatch, scope: Scope) -> None:
         self.run_block(stmt.body, scope)
 
@@ -745,5 +765,6 @@ _STATEMENTS = {
     n.Assign: Interpreter.stmt_assign, n.ExprStmt: Interpreter.stmt_expr, n.Command: Interpreter.stmt_command,
     n.Global: Interpreter.stmt_global, n.If: Interpreter.stmt_if, n.Switch: Interpreter.stmt_switch,
     n.For: Interpreter.stmt_for, n.While: Interpreter.stmt_while, n.TryCatch: Interpreter.stmt_try,
+    n.Arguments: Interpreter.stmt_arguments,
     n.Break: Interpreter.stmt_break, n.Continue: Interpreter.stmt_continue, n.Return: Interpreter.stmt_return,
 }

@@ -229,8 +229,15 @@ class _Lexer:
         return ch.isalnum() or ch == "_"
 
     def command_syntax(self) -> bool:
-        """``hold on``, ``format long``, ``global a b``: a name, white space, then words (no operator, no =)."""
+        """``hold on``, ``format long``, ``global a b``: a name, white space, then words (no operator, no =).
+        ``arguments`` alone on its line opens a function's argument-validation block (R2019b)."""
         m = _NAME.match(self.text, self.pos)
+        if m and m.group() == "arguments" and re.match(r"[ \t]*(?:\([^)\n]*\))?[ \t]*(?:[%#].*)?(?:\r?\n|$)",
+                                                        self.text[m.end():]):
+            self.pos = m.end()
+            self.emit("kw", "arguments")
+            self.pos_fix(m.start())
+            return True
         if not m or m.group() in KEYWORDS:
             return False
         after = m.end()

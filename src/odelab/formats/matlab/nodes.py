@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 __all__ = ["MAX_DEPTH", "Expr", "Num", "Str", "Id", "EndIndex", "Colon", "Binary", "Unary", "Postfix", "Index",
            "Field", "DynField", "Matrix", "Range", "AnonFn", "FuncHandle", "Stmt", "Assign", "ExprStmt", "Command",
-           "If", "For", "While", "Switch", "Break", "Continue", "Return", "Global", "TryCatch", "Function",
+           "If", "For", "While", "Switch", "Break", "Continue", "Return", "Global", "TryCatch", "Arguments", "Function",
            "SourceFile", "Tilde"]
 
 MAX_DEPTH = 120
@@ -193,6 +193,13 @@ class Return(Stmt):
 class Global(Stmt):
     names: list[str]
     persistent: bool = False
+
+
+@dataclass(eq=False, slots=True)
+class Arguments(Stmt):
+    """A function's ``arguments ... end`` block: each argument and its default (None: required)."""
+
+    entries: list[tuple[Expr, Expr | None]]
 
 
 @dataclass(eq=False, slots=True)

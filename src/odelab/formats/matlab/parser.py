@@ -25,7 +25,7 @@ MAX_NESTING = 64
 _BINARY = {"||": 1, "&&": 2, "|": 3, "&": 4, "==": 5, "~=": 5, "<": 5, "<=": 5, ">": 5, ">=": 5, ":": 6,
            "+": 7, "-": 7, "*": 8, "/": 8, "\\": 8, ".*": 8, "./": 8, ".\\": 8, "^": 10, ".^": 10}
 _UNARY_PREC = 9
-_OPENERS = frozenset({"if", "for", "parfor", "while", "switch", "try", "unwind_protect"})
+_OPENERS = frozenset({"if", "for", "parfor", "while", "switch", "try", "unwind_protect", "arguments"})
 _STATEMENT_END = frozenset({";", ","})
 
 
@@ -376,6 +376,40 @@ class _Parser:
             handler = self.parse_block(("end",))
         self.close_block("try", line)
         return n.TryCatch(line, body, handler)
+
+    def stmt_arguments(self) -> n.Arguments:
+        """``arguments`` ... ``end``: each line ``name (dims) class {validators} = default``; only the names and
+        the defaults matter here (the validators are MATLAB's checks of its caller)."""
+        line = self.advance().line
+        self.enter_block()
+        if self.is_op("("):  # arguments (Repeating), (Output)
+            while not self.is_op(")") and self.tok.kind != "eof":
+                self.advance()
+            self.advance()
+        entries: list = []
+        while True:
+            self.skip_separators()
+            if self.is_kw("end") or self.tok.kind == "eof":
+                break
+            name_tok = self.advance()
+            if name_tok.kind != "name":
+                raise self.error(f"expected an argument's name in the arguments block; found {self._shown(name_tok)}.",
+                                 name_tok)
+            target: n.Expr = n.Id(name_tok.line, name_tok.text)
+            while self.is_op(".") and self.peek().kind == "name":  # opts.gain: a name-value argument
+                self.advance()
+                target = n.Field(name_tok.line, target, self.advance().text, depth=target.depth + 1)
+            default = None
+            while self.tok.kind not in ("nl", "eof") and not self.is_op("=") and not self.is_op(";"):
+                self.advance()
+            if self.is_op("="):
+                self.advance()
+                default = self.parse_expr()
+            entries.append((target, default))
+            while self.tok.kind not in ("nl", "eof") and not self.is_kw("end"):
+                self.advance()
+        self.close_block("arguments", line)
+        return n.Arguments(line, entries)
 
     def stmt_break(self) -> n.Break:
         return n.Break(self.advance().line)
