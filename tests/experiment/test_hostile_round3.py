@@ -71,7 +71,7 @@ def _diagram_dot(name="figure1.toml"):
 
 @pytest.mark.parametrize("name", ["figure1.toml", "feedback_pi.toml"])
 def test_the_report_draws_only_dot_as_odelab_writes_it(name):
-    from odelab.report.control import render_dot
+    from odelab.report.graphviz import render_svg
     from odelab.systems.diagram.draw import dot_problem
 
     dot = _diagram_dot(name)
@@ -86,8 +86,8 @@ def test_the_report_draws_only_dot_as_odelab_writes_it(name):
     }
     for what, text in edits.items():
         assert dot_problem(text), what
-        png, note = render_dot(text)
-        assert png is None and "is not drawn" in note and "edited by hand" in note, what
+        drawn, note = render_svg(text)
+        assert drawn is None and "is not drawn" in note and "edited by hand" in note, what
 
 
 def test_diagram_matrices_many_columns_at_once_equal_one_column_at_a_time():

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import shutil
 
 import pytest
@@ -26,8 +27,8 @@ def section(html: str, anchor: str) -> str:
 @needs_dot
 def test_figure1_is_drawn_and_shown_to_be_exercise2(lab_report):
     fig1 = section(lab_report.html, "figure1")
-    assert '<figure id="fig-figure1-diagram">' in fig1 and "laid out by Graphviz" in fig1
-    assert (lab_report.out / "figures" / "figure1-diagram.png").read_bytes().startswith(b"\x89PNG")
+    assert '<figure id="fig-figure1-diagram">' in fig1 and "laid out by system Graphviz dot 2." in fig1
+    assert b"<svg" in (lab_report.out / "figures" / "figure1-diagram.svg").read_bytes()[:200]
     assert "The same system as Exercise 2: mass-spring-damper as a state-space model" in fig1
     assert "A and B are equal entry for entry, and so are the rows of C and D for y" in fig1
     # same inputs, same solver, same output times: bit-for-bit the same responses
@@ -58,15 +59,18 @@ def test_pi_loop_section_shows_the_closed_loop(lab_report):
     assert "phase margin 40.53&deg; at 3.968 rad/s" in pi and '<figure id="fig-feedback_pi-bode">' in pi
 
 
-def test_without_graphviz_the_diagram_is_still_drawn(lab_runs, tmp_path, monkeypatch):
+def test_without_system_graphviz_the_webassembly_one_draws_and_the_caption_says_so(lab_runs, tmp_path, monkeypatch):
     # a fresh machine has no Graphviz: the README's first line must still give the whole report
     runs = tmp_path / "runs"
     shutil.copytree(lab_runs / "figure1", runs / "figure1")
-    monkeypatch.setattr("odelab.report.control.shutil.which", lambda name: None)
+    monkeypatch.setattr("odelab.report.graphviz._system_dot", lambda: None)
     report = build(runs, tmp_path / "report")
     assert "Graphviz is not installed" not in report.html and "apt install graphviz" not in report.md
-    png = (tmp_path / "report" / "figures" / "figure1-diagram.png").read_bytes()
-    assert png.startswith(b"\x89PNG") and len(png) > 5_000
+    assert re.search(r"laid out by Graphviz \d+\.\d+\.\d+ via WebAssembly\.</figcaption>", report.html)
+    assert "system Graphviz" not in report.html
+    svg = (tmp_path / "report" / "figures" / "figure1-diagram.svg").read_bytes()
+    assert svg.startswith(b"<svg") and b">velocity<" in svg
+    assert 'src="data:image/svg+xml;base64,' in report.html
 
 
 def test_dot_strings_are_escaped():
@@ -77,7 +81,7 @@ def test_dot_strings_are_escaped():
 @needs_dot
 def test_a_hostile_label_cannot_change_the_drawing():
     from odelab import diagram as dg
-    from odelab.report.control import render_dot
+    from odelab.report.graphviz import render_svg
     from odelab.signals import Step
 
     src = dg.Source(Step(), label='step"] ; x -> y [label="\\')
@@ -88,5 +92,5 @@ def test_a_hostile_label_cannot_change_the_drawing():
     plain = subprocess.run([DOT, "-Tplain"], input=text.encode(), capture_output=True, check=True).stdout.decode()
     assert sum(line.startswith("edge ") for line in plain.splitlines()) == 2  # s -> i, i -> y: no edge added
     assert sum(line.startswith("node ") for line in plain.splitlines()) == 3
-    png, note = render_dot(text)
-    assert note == "" and png.startswith(b"\x89PNG")
+    drawn, note = render_svg(text)
+    assert note == "" and drawn.svg.startswith(b"<svg")

@@ -414,7 +414,7 @@ def report(
     for path in result.paths:
         if path.suffix in (".html", ".md"):
             out_console.print(f"wrote {_escape(str(path))}")
-    figures = sum(1 for p in result.paths if p.suffix == ".png")
+    figures = sum(1 for p in result.paths if p.suffix in (".png", ".svg"))
     if figures:
         out_console.print(f"wrote {figures} figures in {_escape(str(out / 'figures'))}/")
 

@@ -35,24 +35,31 @@ PRINT_STEP_ROWS = 20
 
 @dataclass(eq=False)
 class Figure:
-    """A drawn figure: the PNG bytes, embedded in the HTML and written for the Markdown.
+    """A drawn figure: a plot's PNG bytes, or a Graphviz drawing's SVG, embedded in the HTML and
+    written for the Markdown.
 
-    The bytes are filled in once every figure of the report is known (:class:`_Drawing`), so
-    that they can be drawn together, across the cores."""
+    A plot's bytes are filled in once every figure of the report is known (:class:`_Drawing`),
+    so that they can be drawn together, across the cores."""
 
     name: str
     caption: str
     alt: str
     png: bytes
+    svg: bytes | None = None  # a drawing by Graphviz: shown instead of ``png``
+
+    @property
+    def data(self) -> bytes:
+        return self.svg if self.svg is not None else self.png
 
     @property
     def path(self) -> str:
         """Where the Markdown report links it, relative to the report folder."""
-        return f"{FIGURES_DIR}/{self.name}.png"
+        return f"{FIGURES_DIR}/{self.name}.{'svg' if self.svg is not None else 'png'}"
 
     @property
     def data_uri(self) -> str:
-        return "data:image/png;base64," + base64.b64encode(self.png).decode("ascii")
+        mime = "image/svg+xml" if self.svg is not None else "image/png"
+        return f"data:{mime};base64," + base64.b64encode(self.data).decode("ascii")
 
 
 @dataclass(frozen=True)
@@ -114,40 +121,39 @@ class _Drawing:
         self.pending = []
 
 
+def _drawn(view_dot: str, name: str, taken: set[str], caption: str, alt: str) -> tuple[Figure | None, str]:
+    """A Graphviz drawing of DOT text as a report figure (its caption naming what drew it), or None and why not."""
+    from odelab.report.graphviz import render_svg
+
+    drawn, note = render_svg(view_dot)
+    if drawn is None:
+        return None, note
+    unique, i = name, 2
+    while unique in taken:
+        unique, i = f"{name}-{i}", i + 1
+    taken.add(unique)
+    return Figure(name=unique, caption=f"{caption}; laid out by {drawn.by}.", alt=alt, png=b"", svg=drawn.svg), ""
+
+
 def _draw_control(view, stem: str, draw: _Drawing) -> list[Figure]:
-    """The diagram (by Graphviz) and the Bode plot of a section, drawn."""
+    """The diagram and network (by Graphviz) and the Bode plot of a section, drawn."""
     if view is None:
         return []
-    from odelab.report.control import render_dot
-
-    taken = draw.taken
     drawn = []
     if view.dot is not None:
-        png, view.diagram_note = render_dot(view.dot)
-        if png is not None:
-            name, i = f"{stem}-diagram", 2
-            while name in taken:
-                name, i = f"{stem}-diagram-{i}", i + 1
-            taken.add(name)
-            view.diagram_figure = Figure(name=name, caption="The block diagram as written in the experiment file, "
-                                         "laid out by Graphviz.", alt="Block diagram of the experiment.", png=png)
-            drawn.append(view.diagram_figure)
+        view.diagram_figure, view.diagram_note = _drawn(
+            view.dot, f"{stem}-diagram", draw.taken, "The block diagram as written in the experiment file",
+            "Block diagram of the experiment.")
+        drawn.append(view.diagram_figure)
     if view.network_dot is not None:
-        png, view.network_note = render_dot(view.network_dot)
-        if png is not None:
-            name, i = f"{stem}-network", 2
-            while name in taken:
-                name, i = f"{stem}-network-{i}", i + 1
-            taken.add(name)
-            view.network_figure = Figure(name=name, caption="The network as written in the experiment file: nodes "
-                                         "as circles, each element between its two nodes (the arrow points at its "
-                                         "first node, the + side), couplings as boxes; laid out by Graphviz.",
-                                         alt="Drawing of the network's elements and nodes.", png=png)
-            drawn.append(view.network_figure)
+        view.network_figure, view.network_note = _drawn(
+            view.network_dot, f"{stem}-network", draw.taken, "The network as written in the experiment file: nodes "
+            "as circles, each element between its two nodes (the arrow points at its first node, the + side), "
+            "couplings as boxes", "Drawing of the network's elements and nodes.")
+        drawn.append(view.network_figure)
     view.bode_figure = draw(view.bode_figure)
-    if view.bode_figure is not None:
-        drawn.append(view.bode_figure)
-    return drawn
+    drawn.append(view.bode_figure)
+    return [f for f in drawn if f is not None]
 
 
 def generated_at() -> datetime:
@@ -279,7 +285,7 @@ def build_report(
         texts[MARKDOWN_NAME] = render_template(md_env, "report.md.j2", context)
 
     written: list[Path] = []
-    files = [(out / figure.path, figure.png) for figure in figures] if "md" in chosen else []
+    files = [(out / figure.path, figure.data) for figure in figures] if "md" in chosen else []
     files += [(out / name, text) for name, text in texts.items()]  # the figures first, so the Markdown
     for path, data in files:                                          # never links a file not yet there
         try:
@@ -302,7 +308,7 @@ def _remove_stale_figures(out: Path, current: set[str]) -> None:
     folder = out / FIGURES_DIR
     if not folder.is_dir():
         return
-    for path in folder.glob("*.png"):
+    for path in [*folder.glob("*.png"), *folder.glob("*.svg")]:
         if f"{FIGURES_DIR}/{path.name}" not in current and path.is_file() and not path.is_symlink():
             try:
                 path.unlink()

@@ -4,15 +4,13 @@ From the stored runs only: ``extra["diagram"]`` (DOT text, and A, B, C, D of a l
 and ``extra["analysis"]`` (transfer functions, poles, step metrics, Bode data, margins). A
 linear diagram is compared with every state-space experiment of the report that has the same
 A and B (Figure 1 against Exercise 2): matrix by matrix, and case by case on the responses.
-The drawing is laid out by Graphviz's ``dot`` (rendered to PNG, so no text from the file
-reaches the page as markup); without ``dot`` the report says so instead.
+The drawing is laid out by Graphviz (:mod:`odelab.report.graphviz`: the system's ``dot`` or the
+WebAssembly one) when the report is built.
 """
 
 from __future__ import annotations
 
 import math
-import shutil
-import subprocess
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -20,9 +18,8 @@ import numpy as np
 
 from odelab.report.plots import SERIES_COLORS, FigureSpec, Line, Panel, RefLine
 
-__all__ = ["ControlView", "control_view", "render_dot"]
+__all__ = ["ControlView", "control_view"]
 
-DOT_TIMEOUT_S = 30
 EPS = float(np.finfo(float).eps)
 
 
@@ -53,34 +50,6 @@ class ControlView:
     @property
     def has_analysis(self) -> bool:
         return bool(self.transfer_functions)
-
-
-def render_dot(dot: str) -> tuple[bytes | None, str]:
-    """PNG bytes of DOT text by Graphviz's ``dot``, or None and the reason.
-
-    Only DOT of the shape odelab writes reaches Graphviz (see
-    :func:`~odelab.systems.diagram.draw.dot_problem`): a stored drawing edited by hand to
-    embed a local file (``image="/path.png"``) is left out, with the reason."""
-    from odelab.systems.diagram.draw import dot_problem
-
-    why = dot_problem(dot)
-    if why:
-        return None, (f"The stored drawing of this diagram is not drawn: {why} (was result.json edited by "
-                      "hand?). Run the experiment again to store a fresh one.")
-    exe = shutil.which("dot")
-    if exe is None:  # no Graphviz: odelab's own layered layout of the same DOT text (report/dotlayout.py)
-        from odelab.report.dotlayout import draw_png
-
-        return draw_png(dot), ""
-    try:
-        done = subprocess.run([exe, "-Tpng", "-Gdpi=96"], input=dot.encode("utf-8"), capture_output=True,
-                              timeout=DOT_TIMEOUT_S, check=False)
-    except (OSError, subprocess.TimeoutExpired) as exc:
-        return None, f"Graphviz's `dot` could not draw the diagram ({type(exc).__name__})."
-    if done.returncode != 0 or not done.stdout.startswith(b"\x89PNG"):
-        message = done.stderr.decode("utf-8", "replace").strip().splitlines()[:1]
-        return None, "Graphviz's `dot` could not draw the diagram" + (f": {message[0]}" if message else ".")
-    return done.stdout, ""
 
 
 def _matrix_rows(M, rows, cols):
