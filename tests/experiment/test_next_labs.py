@@ -296,3 +296,86 @@ def test_an_initial_state_linearize_does_not_use_is_said(tmp_path):
     assert case["trajectory"]["theta"][0] == 0.0
     assert any('[initial] (theta = 0.1) is not used: linearize.start = "operating-point"' in w
                for w in case["warnings"]), case["warnings"]
+
+
+SPRING_UNITS = """
+[parameters]
+m = "250 g"
+k = "3 N/m"
+L = "100 cm"
+[system]
+states = ["x", "v"]
+[system.equations]
+x = "v"
+v = "-k/m*x"
+[system.outputs]
+stretch = "x/L"
+[initial]
+x = "{x0}"
+v = 0
+[time]
+stop = "{stop}"
+[units]
+{units}
+"""
+
+
+def test_parameters_with_units_are_converted_to_si_and_said(tmp_path):
+    import json
+
+    text = SPRING_UNITS.format(x0="5 cm", stop="0.5 min", units="")
+    code, out = run(tmp_path, text, "--json", "--trajectories")
+    assert code == 0, out
+    (case,) = json.loads(out[out.index("{"):])["experiments"][0]["cases"]
+    plain = SPRING_UNITS.replace('"250 g"', "0.25").replace('"3 N/m"', "3").replace('"100 cm"', "1").format(
+        x0="0.05", stop="30", units="")
+    code, same = run(tmp_path, plain, "--json", "--trajectories")
+    (expected,) = json.loads(same[same.index("{"):])["experiments"][0]["cases"]
+    assert case["trajectory"]["x"] == expected["trajectory"]["x"]  # the same run, bit for bit
+    notes = case["warnings"]
+    for note in ("parameters.m = 250 g is 0.25 kg (converted by pint)", "parameters.k = 3 N/m is 3 N/m (converted by pint)",
+                 "parameters.L = 100 cm is 1 m (converted by pint)", "initial.x = 5 cm is 0.05 m (converted by pint)",
+                 "time.stop = 0.5 min is 30 s (converted by pint)"):
+        assert note in notes, notes
+    stored = tmp_path / "runs"
+    from typer.testing import CliRunner
+
+    (tmp_path / "lab.toml").write_text(text)
+    assert CliRunner().invoke(app, ["run", str(tmp_path / "lab.toml"), "--runs", str(stored)]).exit_code == 0
+    resolved = next(stored.rglob("resolved.toml")).read_text()
+    assert "# parameters.L = 100 cm is 1 m (converted by pint): the number below." in resolved
+    import tomllib
+
+    assert tomllib.loads(resolved)["parameters"]["L"] == 1.0
+
+
+def test_a_unit_converts_to_the_one_units_declares_and_a_misfit_names_both(tmp_path):
+    import json
+
+    code, out = run(tmp_path, SPRING_UNITS.format(x0="5 cm", stop="30", units='x = "cm"'), "--json", "--trajectories")
+    assert code == 0, out
+    (case,) = json.loads(out[out.index("{"):])["experiments"][0]["cases"]
+    assert case["trajectory"]["x"][0] == 5.0 and "initial.x = 5 cm is 5 cm (converted by pint)" in case["warnings"]
+    code, out = run(tmp_path, SPRING_UNITS.format(x0="5 cm", stop="30", units='L = "s"'))
+    assert code == 2
+    assert ("`parameters.L` is '100 cm', a quantity of [length], but [units] gives L in 's', a quantity of [time]: "
+            "the two do not fit.") in out
+
+
+@pytest.mark.parametrize("value, message", [
+    ("1e400 km", "'1e400 km': inf is not a finite number"),
+    ("1e308 km", "which is inf in m: not a finite number"),
+    ("2 m + 3 s", "is not a unit odelab reads"),
+    ("5 kg*(((((m)))))", "is not a unit odelab reads"),
+    ("3 " + "(" * 10000 + "m" + ")" * 10000, "is not a unit odelab reads"),
+    ("7 furlong_per_fortnite", "it is not a unit pint knows"),
+])
+def test_hostile_values_with_units_get_one_message(tmp_path, value, message):
+    code, out = run(tmp_path, SPRING_UNITS.replace('"100 cm"', f'"{value}"').format(x0="5 cm", stop="30", units=""))
+    assert code == 2 and message in out and "Traceback" not in out, out
+
+
+def test_a_unit_dunder_name_is_no_unit_and_runs_no_code(tmp_path):
+    code, out = run(tmp_path, SPRING_UNITS.replace('"100 cm"', '"5 __class__"').format(x0="5 cm", stop="30",
+                                                                                        units=""))
+    assert code == 2 and "Traceback" not in out and "parameters.L" in out

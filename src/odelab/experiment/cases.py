@@ -46,6 +46,7 @@ class Problem:
     network: Any = None  # the derived odelab.systems.network.Network of a kind = "network" system
     fmu: Any = None  # kind = "fmu": an odelab.fmi.simulate.FmuRun (the FMU, its interface, values, signals)
     initial_given: tuple[str, ...] = ()  # the states the file's [initial] gives (the rest took their defaults)
+    notes: tuple[str, ...] = ()  # what loading did that the run's notes say (values converted from their units)
 
 
 @dataclass(frozen=True, eq=False)

@@ -35,6 +35,7 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
     ``shared`` (a dict kept across the cases of one file) lets cases that share the base's
     validated [system] and [time] (see ``loader._validated_sections``) share their builds.
     """
+    model, notes = with_units_converted(model)
     params = expr().evaluate_parameters(model.parameters) if model.parameters else {}
     system = model.system
     resolved: dict[str, Any] = {}
@@ -119,9 +120,50 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
         reference_solver=(ref.solver, float(ref.rtol), float(ref.atol)), system=built.system, signals=signals,
         linearize=linearize, parameters=params, diagram=built.diagram, events=events, backend=backend,
         compiled=fast, analysis=analysis, data=data, network=built.network, fmu=_bound_fmu(built.fmu, signals),
-        initial_given=given,
+        initial_given=given, notes=tuple(notes),
     )
     return problem, resolved
+
+
+def with_units_converted(model: schema.Experiment) -> tuple[schema.Experiment, list[str]]:
+    """[parameters], [initial] and [time] values written with a unit (``L = "100 cm"``) as plain numbers:
+    in the unit [units] declares for the name (``t`` for [time]), else in SI (odelab.expressions.units).
+    Returns the model with the numbers and one note per conversion."""
+    from odelab.expressions.units import split_unit_value
+
+    sections = {"parameters": model.parameters or {}, "initial": model.initial or {}}
+    time = {k: getattr(model.time, k) for k in ("start", "stop")} if model.time is not None else {}
+    if not any(split_unit_value(v) for table in (*sections.values(), time) for v in table.values()):
+        return model, []  # pint is imported only when a unit appears
+    from odelab.exceptions import InputError
+    from odelab.expressions.units import convert
+
+    units = model.units or {}
+    notes: list[str] = []
+    update: dict[str, Any] = {}
+
+    def converted(table: dict, section: str, declared) -> dict:
+        out = dict(table)
+        for name, value in table.items():
+            if split_unit_value(value) is None:
+                continue
+            try:
+                unit = convert(name, value, declared(name), f"`{section}.{name}`")
+            except InputError as exc:
+                raise ExperimentError(exc.message, key=f"{section}.{name}") from None
+            out[name] = unit.value
+            notes.append(f"{section}.{unit.note(name)}")
+        return out
+
+    for section, table in sections.items():
+        new = converted(table, section, units.get)
+        if new != table:
+            update[section] = new
+    if time:
+        new = converted(time, "time", lambda name: units.get("t", "s"))
+        if new != time:
+            update["time"] = model.time.model_copy(update=new)
+    return model.model_copy(update=update), notes
 
 
 def _bound_fmu(run, signals):

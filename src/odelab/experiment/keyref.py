@@ -46,7 +46,9 @@ NOTES: dict[str, str] = {
               "for any failed integration; default `success`.",
     "parameters": "Named numbers or expressions of other parameters (`k = \"m*w^2\"`), usable in every expression "
                   "of the file, as MATLAB workspace variables. A parameter may shadow a constant such as `e`.",
-    "parameters.<name>": "A number, or an expression of other parameters.",
+    "parameters.<name>": "A number, or an expression of other parameters, or a number with a unit (`L = \"100 "
+                         "cm\"`, `k = \"3 N/m\"`): converted with pint to the unit [units] gives the name, else to "
+                         "SI, and said in the run's notes and resolved.toml ([initial] and [time] start/stop too).",
     "system": "What is integrated: equations, a state-space model, a block diagram or a Python function.",
     "system.kind": "The kind of system: `ode` (states and [system.equations]), `state-space` (A, B, C, D), "
                    "`diagram` ([blocks]), `network` ([elements]: odelab derives the equations), `implicit` "
@@ -204,7 +206,9 @@ NOTES: dict[str, str] = {
     "report.quote": "Stored cases, as \"experiment/case\", whose maximum relative errors the note quotes, each with "
                     "its time span and number of points (e.g. [\"exercise1/ode23\", \"exercise1_2pi/ode23\"]).",
     "units": "A unit per time, state, input, output or parameter, shown on the report's axes (`x = \"m\"`).",
-    "units.<name>": "The unit of <name>, as text (\"m/s\"), shown as \"x (m)\".",
+    "units.<name>": "The unit of <name>, as text (\"m/s\"), shown as \"x (m)\"; a value with a unit given for "
+                    "<name> ([parameters], [initial], t for [time]) is converted to it, and one that does not fit is "
+                    "an error naming both.",
     "events": "Zero-crossing events (MATLAB's Events), one table per event, and `max_events`.",
     "events.max_events": "End the case cleanly after this many events (a Zeno guard; default 100).",
     "events.<name>": "One event: `when`, `direction`, `terminal`, `reset`, `exact`.",

@@ -100,6 +100,21 @@ def _required_hint(key: str) -> str:
     return _REQUIRED_HINT.get(key) or _REQUIRED_HINT.get(key.rsplit(".", 1)[-1], "")
 
 
+def _unit_hint(text: str, key: str) -> str:
+    """A value with a unit where a plain number is read: the number it is in SI, converted by pint, so the
+    fix never drops a unit (a student told to write 100 for "100 cm" makes the model 100 times wrong)."""
+    from odelab.exceptions import InputError
+    from odelab.expressions.units import convert
+
+    try:
+        si = convert(key.rsplit(".", 1)[-1], text, None, f"`{key}`")
+    except InputError as exc:
+        return f"a value with a unit, which this key does not read ({exc.message})"
+    return (f"a value with a unit, which this key does not read: it takes a plain number in SI units, here "
+            f"{si.value:.10g} ({text} is {si.value:.10g} {si.unit}); units are read in [parameters], [initial] and "
+            "[time]")
+
+
 def schema_error(exc: ValidationError, *, source: str, case: str | None, data: Any = None) -> ExperimentError:
     """Turn pydantic's errors into one message, one line per key, most useful first.
 
@@ -138,7 +153,13 @@ def schema_error(exc: ValidationError, *, source: str, case: str | None, data: A
                 expected.remove("a whole number")
             if expected == ["a number", "a string"]:
                 expected = ["a number or an expression string"]
-            lines.append(f"`{key}` must be {' or '.join(expected)}; got {describe_value(err['input'])}.")
+            line = f"`{key}` must be {' or '.join(expected)}; got {describe_value(err['input'])}."
+            if "a number" in expected:
+                from odelab.expressions.units import split_unit_value
+
+                if split_unit_value(err["input"]) is not None:  # "2 N": never "drop the unit", say what it is
+                    line = line[:-1] + ": " + _unit_hint(str(err["input"]), key) + "."
+            lines.append(line)
     where = f" (in case {case!r})" if case else ""
     message = lines[0] + where if len(lines) == 1 else "\n  ".join([f"{len(lines)} problems{where}:", *lines])
     return ExperimentError(message, source=source, key=first_key)

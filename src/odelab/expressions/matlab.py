@@ -149,9 +149,9 @@ def syntax_hint(text: str, key: str | None = None) -> str | None:
     m = _NUMBER_UNIT.match(text)
     if m is not None:
         number, unit = m.groups()
-        name = "t" if (key or "").startswith("time.") else (key or "x").rsplit(".", 1)[-1]
-        return (f"`{text.strip()}` has a unit in it; values are plain numbers: write {number} and give the unit "
-                f"in [units] ({name} = \"{unit}\"), where the report's axes show it")
+        return (f"`{text.strip()}` has a unit in it, which this key does not read: values with units are read in "
+                f"[parameters], [initial] and [time] (converted by pint to the unit [units] declares for the name, "
+                f"else to SI): give it a name there (p = \"{text.strip()}\") and write that name here")
     if is_matrix_string(text) and (";" in text or " " in text.strip()[1:-1].strip()):
         return ("a MATLAB matrix is a value of its own, not part of an expression: give it whole to a matrix key "
                 "(A, B, C, D), e.g. A = \"[0 1; -k/m -b/m]\", or as TOML rows [[0, 1], [\"-k/m\", \"-b/m\"]]")

@@ -57,8 +57,9 @@ def _hint(line: str) -> str | None:
     unit = _NUMBER_UNIT.match(value)
     if unit is not None:
         number = value[:unit.start(1)].strip()
-        return (f"`{value}` has a unit in it; values are plain numbers: write `{key} = {number}` and give the unit "
-                f"in [units] ({'t' if key in ('start', 'stop') else key.rsplit('.', 1)[-1]} = \"{unit.group(1)}\")")
+        return (f"`{value}` has a unit in it: write it in quotes, `{key} = \"{value}\"`, and odelab converts it "
+                "with pint (in [parameters], [initial] and [time]: to the unit [units] declares for the name, else "
+                "to SI)")
     if re.search(r"[A-Za-z_(*/^]", value):
         return (f"an equation or expression must be in quotes: write `{key} = \"{value}\"` (TOML has no "
                 "formulas; odelab reads the string)")

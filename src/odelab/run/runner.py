@@ -110,6 +110,7 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
     from odelab.expressions.functions import shadowing_note
 
     warnings += shadowing_note(p.parameters)  # "parameter e shadows the constant e (2.718...)"
+    warnings += [n for n in p.notes if n not in warnings]  # loading's: values converted from their units
     result = CaseResult(case=case, status=status, message=message, stats=stats, elapsed=elapsed, t=t, x=x, u=u,
                         y=y, warnings=list(warnings), events=run.events, event_marks=run.marks, backend=run.backend)
     result.record_input_jumps()

@@ -442,6 +442,7 @@ def _resolved_toml(result: CaseResult, tomli_w) -> str:
               f"# `odelab run` this file to reproduce the case exactly.\n")
     header += "".join(f"# {note}; in this file's expressions it is the parameter.\n"
                       for note in shadowing_note(case.config.get("parameters") or {}))
+    header += "".join(f"# {note}: the number below.\n" for note in getattr(case.problem, "notes", ()))
     return header + tomli_w.dumps(json_safe(case.config))
 
 
