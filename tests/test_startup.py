@@ -63,8 +63,11 @@ NOT_FOR_A_PLAIN_RUN = ("scipy", "matplotlib", "jinja2", "numba", "llvmlite", "co
 
 
 def _imported(tmp_path, *args) -> set[str]:
+    # a piped run as a script runs it: without the COLUMNS and LINES that GNU readline, which pytest loads,
+    # exports to the processes it starts (80 x 24)
+    env = {k: v for k, v in os.environ.items() if k not in ("COLUMNS", "LINES")}
     out = subprocess.run([sys.executable, "-c", MODULES, *args], capture_output=True, text=True, cwd=tmp_path,
-                         check=True).stdout
+                         check=True, env=env).stdout
     return set(next(line for line in out.splitlines() if line.startswith("MODULES")).split()[1:])
 
 

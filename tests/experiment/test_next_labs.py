@@ -160,8 +160,9 @@ def _lines(tmp_path, text, *args, env=None):
     import sys
 
     (tmp_path / "lab.toml").write_text(text)
+    base = {k: v for k, v in os.environ.items() if k not in ("COLUMNS", "LINES")}  # readline's, under pytest
     out = subprocess.run([sys.executable, "-m", "odelab", "run", "lab.toml", "--no-store", *args], cwd=tmp_path,
-                         capture_output=True, text=True, env={**os.environ, **(env or {})})
+                         capture_output=True, text=True, env={**base, **(env or {})})
     assert out.returncode == 0, out.stderr
     return out.stdout.splitlines()
 
@@ -175,6 +176,7 @@ def test_columns_and_width_are_honoured_when_piped_and_no_number_is_cut(tmp_path
     lines = _lines(tmp_path, BOUNCE, *how.get("args", ()), env=how.get("env"))
     assert max(len(line) for line in lines) <= 80, max(lines, key=len)
     wide = _lines(tmp_path, BOUNCE)  # piped with neither: 200 columns, every event time in full
+    assert max(len(line) for line in wide) > 80
     times = [line.split()[2] for line in wide if line.split()[:2] and line.split()[0].isdigit()
              and line.split()[1] == "floor"]
     assert len(times) >= 3
