@@ -697,6 +697,28 @@ def network(
     out.print(_escape(text), end="", highlight=False, soft_wrap=True)
 
 
+@app.command(cls=_Command)
+def schema(
+    out: Annotated[Optional[Path], typer.Option("--out", "-o", metavar="FILE", show_default=False,
+                                                help="Write the schema to FILE instead of printing it.")] = None,
+) -> None:
+    """Print the JSON Schema of experiment files, for editors (Taplo, VS Code's Even Better TOML): keys
+    completed and explained as you type. `odelab new` files point at it with a #:schema line."""
+    from odelab.experiment.jsonschema import schema_text
+
+    text = schema_text()
+    if out is None:
+        sys.stdout.write(text)
+        return
+    _, err = _consoles()
+    try:
+        out.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        err.print(f"[bold red]error:[/] cannot write {_escape(str(out))}: {_escape(exc.strerror or str(exc))}")
+        raise typer.Exit(EXIT_INPUT) from None
+    typer.echo(f"wrote {out}")
+
+
 @app.command()
 def solvers() -> None:
     """List the integration methods: what they are for (non-stiff, stiff, DAE), order, defaults."""

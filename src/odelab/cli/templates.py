@@ -22,6 +22,14 @@ def _read(name: str) -> str:
     return _folder().joinpath(name).read_text(encoding="utf-8")
 
 
+def schema_line() -> str:
+    """``#:schema file:///.../odelab/schemas/experiment.schema.json``: a TOML editor (Taplo, VS Code's Even
+    Better TOML) completes the file's keys and shows their reference entries; any other reader sees a comment."""
+    from odelab.experiment.jsonschema import shipped_path
+
+    return f"#:schema {Path(str(shipped_path())).resolve().as_uri()}\n"
+
+
 def write_template(file: Path, kind: str, *, force: bool = False) -> list[Path]:
     """Write a commented starter experiment (and, for ``python``, its function file)."""
     if kind not in KINDS:
@@ -29,7 +37,7 @@ def write_template(file: Path, kind: str, *, force: bool = False) -> list[Path]:
     file = Path(file)
     if file.suffix != ".toml":
         raise ValueError(f"{file}: experiment files end in .toml; try {file.with_suffix('.toml')}.")
-    targets = {file: _read(f"{kind}.toml")}
+    targets = {file: schema_line() + _read(f"{kind}.toml")}
     if kind == "python":
         rhs = file.with_name(file.stem + "_rhs.py")
         targets[file] = targets[file].replace("RHS_FILE", rhs.name)
