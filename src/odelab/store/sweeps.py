@@ -61,8 +61,9 @@ def sweep_csv(record: dict[str, Any]) -> str:
     keys = record["sweep"]["keys"]
     quantities = sorted({q for r in rows for q in r["max_abs"]})
     header = ["case", *keys, "method", "status", "nsteps", "nfailed", "nfevals", "elapsed_s"]
-    # each quantity's response (final, min, max...) and each channel's stepinfo, then the errors
-    measured = list(dict.fromkeys(q for r in rows for q in (r.get("metrics") or {})))
+    # each quantity's response (final, min, max...) where it has no reference (with one, its errors are
+    # the point: a convergence study's), and each channel's stepinfo; then the errors
+    measured = list(dict.fromkeys(q for r in rows for q in (r.get("metrics") or {}) if q not in quantities))
     header += [f"{q}_{what}" for q in measured for what in METRICS]
     channels = list(dict.fromkeys((s["output"], s["input"]) for r in rows for s in (r.get("step_info") or [])))
     header += [f"{y}/{u}_{what}" for y, u in channels for what in STEP_INFO]
