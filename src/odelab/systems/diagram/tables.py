@@ -21,12 +21,25 @@ from __future__ import annotations
 
 import numpy as np
 
-from odelab.systems.diagram.base import ZC_KEY, Block, BlockError, Key, _column, _real, register
+from odelab.signals.tables import (
+    EXTRAPOLATIONS,
+    INTERPOLATIONS,
+    interpolate_1d,
+    interpolate_2d,
+    spline_pieces,
+)
+from odelab.systems.diagram.base import (
+    ZC_KEY,
+    Block,
+    BlockError,
+    Key,
+    _column,
+    _real,
+    register,
+)
 
 __all__ = ["LookupTable"]
 
-INTERPOLATIONS = ("linear", "flat", "nearest", "cubic-spline")
-EXTRAPOLATIONS = ("clip", "linear")
 
 
 def _choice(block, key, allowed):
@@ -80,7 +93,6 @@ class LookupTable(Block):
         super().__init__(**kw)
 
     def check(self):
-        from odelab.signals import spline_pieces
 
         p = self.params
         self.interpolation = _choice(self, "interpolation", INTERPOLATIONS)
@@ -144,7 +156,6 @@ class LookupTable(Block):
         return [widths[0]]
 
     def outputs(self, t, x, u, cplx=False):
-        from odelab.signals import interpolate_1d, interpolate_2d
 
         if self.dims == 2:
             return [interpolate_2d(u[0], u[1], self.bp1, self.bp2, self.values, self.interpolation,
