@@ -91,13 +91,73 @@ def test_no_remote_resources_and_no_external_files(lab_report, tree):
     assert csp is not None and "default-src 'none'" in csp.attrs["content"]
 
 
+SVG = "{http://www.w3.org/2000/svg}"
+#: the figures Graphviz draws (report.build._draw_control): a block diagram or a network, as SVG
+DRAWING_ID = re.compile(r"fig-.+-(diagram|network)(-\d+)?")
+
+
+def drawing_problems(data: bytes) -> list[str]:
+    """What is wrong with a Graphviz drawing: not an SVG, or not a drawing of blocks joined by
+    signals (fewer than 3 nodes or 2 edges, a node with neither a shape nor a text, fewer labels
+    than half the nodes)."""
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.fromstring(data)
+    except ET.ParseError as exc:
+        return [f"not XML: {exc}"]
+    if root.tag != SVG + "svg":
+        return [f"root is {root.tag}"]
+    groups = [(g.get("class"), g) for g in root.iter(SVG + "g")]
+    nodes = [g for cls, g in groups if cls == "node"]
+    edges = [g for cls, g in groups if cls == "edge"]
+    problems = []
+    if len(nodes) < 3 or len(edges) < 2:
+        problems.append(f"{len(nodes)} nodes and {len(edges)} edges")
+    for g in nodes:
+        title = g.findtext(SVG + "title")
+        drawn_parts = [e for e in g if e.tag in {SVG + t for t in ("polygon", "ellipse", "path", "polyline", "text")}]
+        if not title or not drawn_parts:  # a block's box, a junction's dot, or a named output's text
+            problems.append(f"node {title!r} is not drawn")
+    labels = [t.text for t in root.iter(SVG + "text") if (t.text or "").strip()]
+    if len(labels) < len(nodes) // 2:
+        problems.append(f"{len(labels)} labels for {len(nodes)} nodes")
+    return problems
+
+
 def test_every_figure_is_an_embedded_non_trivial_png(tree):
+    """A plot is a drawn PNG; a block diagram or network drawing is an SVG by Graphviz with its
+    nodes, edges and labels (issue 37: crisp in print); nothing else is SVG."""
     images = tree.find_all("img")
     assert len(images) >= 2 * len(LAB) + 2
+    drawings = []
     for img in images:
-        assert drawn(png_of(img))
+        figure_id = img.parent.attrs.get("id", "")
+        if DRAWING_ID.fullmatch(figure_id):
+            src = img.attrs["src"]
+            assert src.startswith("data:image/svg+xml;base64,"), (figure_id, src[:40])
+            assert drawing_problems(base64.b64decode(src.split(",", 1)[1], validate=True)) == [], figure_id
+            assert "laid out by" in img.parent.find("figcaption").text()
+            drawings.append(figure_id)
+        else:
+            assert drawn(png_of(img)), figure_id
         assert img.attrs.get("alt")
         assert img.parent.tag == "figure" and img.parent.find("figcaption").text()
+    # the shipped experiments with a [blocks] diagram (experiments/networks/ is not in `odelab run experiments/`)
+    assert sorted(drawings) == [f"fig-{name}-diagram" for name in ("feedback_pi", "figure1", "speed_control",
+                                                                   "thermostat")]
+
+
+def test_the_drawing_check_finds_a_drawing_without_its_blocks():
+    """Not vacuous: an empty SVG, a PNG, one node with no edge, and a node drawn as nothing are refused."""
+    empty = b'<svg xmlns="http://www.w3.org/2000/svg" width="10pt" height="10pt"><g class="graph"></g></svg>'
+    assert drawing_problems(empty) != []
+    assert drawing_problems(PNG_SIGNATURE + b"\0" * 20) != []
+    one = (b'<svg xmlns="http://www.w3.org/2000/svg"><g class="node"><title>b:a</title>'
+           b'<polygon points="0,0 1,1"/><text>a</text></g></svg>')
+    assert drawing_problems(one) == ["1 nodes and 0 edges"]
+    hollow = one.replace(b'<polygon points="0,0 1,1"/><text>a</text>', b"")
+    assert "node 'b:a' is not drawn" in drawing_problems(hollow)
 
 
 def test_sections_follow_the_lab_order(tree):
