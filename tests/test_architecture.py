@@ -149,9 +149,14 @@ def test_no_import_circles():
     assert not stale, f"these circles are cut: remove them from KNOWN_CIRCLES: {stale}"
 
 
+# The compiled loops' texts: templates (package data) joined into one generated module, held to the same rules.
+LOOP_TEMPLATES = sorted((SRC / "solvers" / "compiled" / "loops").glob("*.py.txt"))
+
+
 def _long_functions() -> dict[str, int]:
     out = {}
-    for mod, path in _modules().items():
+    sources = {**_modules(), **{f"odelab.solvers.compiled.loops/{p.name}": p for p in LOOP_TEMPLATES}}
+    for mod, path in sources.items():
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 lines = node.end_lineno - node.lineno + 1
@@ -248,11 +253,30 @@ def test_nothing_outside_cli_prints():
 
 
 # Modules that cannot be imported on their own, with who cuts them and why (an entry that imports fails too).
-_PASTED = ("issue 38 item 4: a fragment solvers/compiled/cache.py pastes into one generated module with the others; "
-           "it uses their names unimported")
-CANNOT_IMPORT_ALONE: dict[str, str] = {"odelab.solvers.compiled.kernels": _PASTED,
-                                       "odelab.solvers.compiled.kernels_events": _PASTED,
-                                       "odelab.solvers.compiled.kernels_stiff": _PASTED}
+# (The compiled loops, which use each other's names, are templates: solvers/compiled/loops/*.py.txt.)
+CANNOT_IMPORT_ALONE: dict[str, str] = {}
+
+
+def test_loop_templates_keep_to_their_own_tables():
+    """The compiled loops' templates are not modules (nothing imports them by name) and none of them
+    changes a table another defines: each table is written whole where it is defined."""
+    assert [p.name for p in LOOP_TEMPLATES] == ["events.py.txt", "kernels.py.txt", "stiff.py.txt", "table.py.txt"]
+    assert not list((SRC / "solvers" / "compiled" / "loops").glob("*.py"))
+    trees = {p.name: ast.parse(p.read_text(encoding="utf-8")) for p in LOOP_TEMPLATES}
+    defined = {name: {t.id for node in tree.body if isinstance(node, ast.Assign) for t in node.targets
+                      if isinstance(t, ast.Name)} for name, tree in trees.items()}
+    mutating = {"update", "append", "extend", "setdefault", "pop", "insert", "clear", "__setitem__"}
+    edits = []
+    for name, tree in trees.items():
+        others = set().union(*(d for n, d in defined.items() if n != name)) - defined[name]
+        for node in ast.walk(tree):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target] if isinstance(
+                node, ast.AugAssign) else []
+            bases = [t.value for t in targets if isinstance(t, (ast.Subscript, ast.Attribute))]
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr in mutating:
+                bases.append(node.func.value)
+            edits += [f"{name} line {node.lineno}: {b.id}" for b in bases if isinstance(b, ast.Name) and b.id in others]
+    assert not edits, f"a loop template edits another's table: {edits}"
 
 
 def test_every_module_imports_on_its_own():

@@ -59,7 +59,7 @@ print("MODULES", *sorted(sys.modules))
 # (matplotlib, jinja2), the compiled backend (numba), control and symbolic analysis, Dask, the progress bar.
 NOT_FOR_A_PLAIN_RUN = ("scipy", "matplotlib", "jinja2", "numba", "llvmlite", "control", "sympy", "dask",
                        "distributed", "rich.progress", "rich.table", "odelab.report", "odelab.analysis.reference",
-                       "odelab.solvers.compiled.kernels")
+                       "odelab.solvers.compiled.cache")
 
 
 def _imported(tmp_path, *args) -> set[str]:
@@ -78,6 +78,7 @@ def test_a_plain_run_imports_only_what_it_needs(tmp_path):
     loaded = sorted(m for m in modules if m.split(".")[0] in {n.split(".")[0] for n in NOT_FOR_A_PLAIN_RUN}
                     and any(m == n or m.startswith(n + ".") for n in NOT_FOR_A_PLAIN_RUN))
     assert loaded == []
+    assert not [m for m in modules if m.startswith("odelab_kernels_")]  # the compiled loops' generated module
 
 
 @pytest.mark.parametrize("args", [["--help"], ["--version"]])

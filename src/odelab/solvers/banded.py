@@ -12,7 +12,7 @@ states) has ``kl = ku = 3`` after the permutation (101 and 100 before), and its 
 
 :func:`plan_band` decides from the pattern alone, so the Python path
 (:class:`odelab.solvers.implicit.common.Work`) and the compiled loops
-(:mod:`odelab.solvers.compiled.kernels_stiff`) make the same choice and call the same LAPACK
+(``solvers/compiled/loops/stiff.py.txt``) make the same choice and call the same LAPACK
 routines on the same numbers: their steps stay equal to the bit. A system smaller than
 :data:`MIN_STATES`, or whose band after the permutation is wider than :data:`MAX_BAND_FRACTION`
 of its size, stays dense (dense LU is as fast there, measured in numba against

@@ -20,7 +20,7 @@ factored here, by LAPACK's unblocked algorithm (``dgetf2``) written out in plain
 
 Every operation is a single IEEE rounding in an order that does not depend on the machine, so
 the factors and solutions are the same bits everywhere; the compiled loops
-(:func:`odelab.solvers.compiled.kernels_stiff._factor`) do the same arithmetic in the same
+(``_factor`` in ``solvers/compiled/loops/stiff.py.txt``) do the same arithmetic in the same
 order. Python floats are used for the arithmetic: on these sizes they cost less than numpy
 calls (2 x 2: 1.3 us a factorisation, 1.1 us a solve; 8 x 8: 13 and 5 us; 12 x 12: 33 and 9 us,
 against about 0.4 us for LAPACK's getrf or getrs called directly), which a stiff step's

@@ -1,7 +1,7 @@
 """MATLAB's ``odezero`` rule for one event, written once for both event locators (Python and compiled).
 
 :func:`odelab.solvers.events.locate_events` (the Python engines) and the compiled loop's
-``_locate`` (:mod:`odelab.solvers.compiled.kernels_events`) walk the same bracket; what they
+``_locate`` (``solvers/compiled/loops/events.py.txt``) walk the same bracket; what they
 decide at each point of it is here: the tolerance on t, whether an event is bracketed (sign
 change, direction), where regula falsi (Illinois, secant through the last point tried when an
 end is exactly zero) tries next, the Illinois halving, and whether a terminal event stops.

@@ -6,7 +6,7 @@ blocks of four, its Nehalem and Sandybridge kernels do not, and each gives other
 step-size controller turns such a bit into another accepted step now and then, so MATLAB
 parity, exact step counts and the compiled backend's equality with the Python one would hold on
 one machine only. Every combination of stages in the explicit engine, its interpolants and
-``deval`` is therefore written in one order, the one :mod:`odelab.solvers.compiled.kernels`
+``deval`` is therefore written in one order, the one ``solvers/compiled/loops/kernels.py.txt``
 spells out as loops:
 
 * a *combination* ``sum_k w[k] K[k]`` starts at 0 and adds the terms for k = 0, 1, ... (each

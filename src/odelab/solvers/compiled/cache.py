@@ -1,7 +1,7 @@
 """Building, caching and loading the compiled modules: the shared loops and each system's rhs.
 
-Two kinds of module live in the cache folder: the stepping loops (``kernels.py``, the same
-for every system) and one generated right-hand side per system. Each file is named by the
+Two kinds of module live in the cache folder: the stepping loops (the texts of ``loops/``, the
+same for every system) and one generated right-hand side per system. Each file is named by the
 SHA-256 of its text and of the numba, numpy and Python versions, so a changed system, a
 changed loop or an upgraded numba never reuses a stale build. A file is written once
 (atomically); numba's own ``cache=True`` keeps the machine code beside it in ``__pycache__``,
@@ -14,7 +14,7 @@ executed from the text odelab generated, in memory, never from the file or a ``.
 there (the file is only what numba's cache keys its machine code by). numba's index and data
 files (``.nbi``, pickles; ``.nbc``) are sealed with their SHA-256 when numba writes them and
 checked against the seal before numba reads them: a damaged, foreign or unsealed entry is
-deleted and compiled again, with a note, and never unpickled.
+deleted and compiled again, with a note, and never unpickled (:mod:`.numba_seal`).
 
 Cache folder: ``$ODELAB_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/odelab``, else
 ``~/.cache/odelab``; builds go in its ``compiled/`` subfolder and can be deleted at any time.
@@ -31,15 +31,18 @@ from pathlib import Path
 from types import ModuleType
 
 from odelab import cachedir
+from odelab.solvers.compiled.numba_seal import guard_numba_cache
 
 __all__ = ["cache_dir", "compiled_folder", "guard_numba_cache", "is_built", "kernels_text", "load_kernels", "load_module", "module_digest"]
 
-#: The shared loops' module, in this order: the step-size rules (compiled by kernels.py), odezero's
-#: rule of event location (compiled by kernels_events.py), the loops,
-#: the loop with events and the stiff solvers' loops.
-_KERNELS = (Path(__file__).parent.parent / "controller.py", Path(__file__).parent.parent / "odezero.py",
-            Path(__file__).with_name("kernels.py"),
-            Path(__file__).with_name("kernels_events.py"), Path(__file__).with_name("kernels_stiff.py"))
+#: The texts of the shared loops' module, in this order: the step-size rules (odelab's own module
+#: controller.py, compiled by the loops' text), odezero's rule of event location (odezero.py, compiled by
+#: events.py.txt), the explicit and fixed-step loops, the loop with events, the stiff solvers' loops and
+#: the table naming them all. The ``loops/*.py.txt`` files are templates (package data), not modules:
+#: they use each other's names, which only the generated module has.
+_LOOPS = Path(__file__).with_name("loops")
+LOOP_TEXTS = (Path(__file__).parent.parent / "controller.py", Path(__file__).parent.parent / "odezero.py",
+              _LOOPS / "kernels.py.txt", _LOOPS / "events.py.txt", _LOOPS / "stiff.py.txt", _LOOPS / "table.py.txt")
 _LOADED: dict[str, ModuleType] = {}
 
 
@@ -64,8 +67,8 @@ def module_text(prelude: str, rhs: str) -> str:
 
 
 def load_kernels() -> ModuleType:
-    """The shared stepping loops (``controller.py``'s rules, ``kernels.py`` and ``kernels_events.py``),
-    imported from (and compiled into) the cache folder as one module."""
+    """The shared stepping loops (:data:`LOOP_TEXTS`), imported from (and compiled into) the cache
+    folder as one module."""
     return load_module(kernels_text(), prefix="odelab_kernels")
 
 
@@ -92,13 +95,12 @@ def is_built(text: str, prefix: str = "odelab_compiled", function: str | None = 
 
 
 def kernels_text() -> str:
-    """The text of the shared loops' module (``controller.py``, ``kernels.py``, ``kernels_events.py``,
-    ``kernels_stiff.py``)."""
+    """The text of the shared loops' module (:data:`LOOP_TEXTS`, joined)."""
     from odelab.solvers.lu import SMALL
 
     # the size up to which the stiff loops factor as odelab.solvers.lu does: in the text, so that
     # a change of it is a new module (numba's cache would keep the old value compiled in)
-    return "\n\n".join(path.read_text(encoding="utf-8") for path in _KERNELS) + f"\n\n_SMALL_LU = {SMALL}\n"
+    return "\n\n".join(path.read_text(encoding="utf-8") for path in LOOP_TEXTS) + f"\n\n_SMALL_LU = {SMALL}\n"
 
 
 def load_module(text: str, prefix: str = "odelab_compiled") -> ModuleType:
@@ -144,66 +146,3 @@ def _read(path: Path) -> bytes | None:
         return path.read_bytes()
     except OSError:
         return None
-
-
-def _ours(path: str) -> bool:
-    """An entry of one of odelab's compiled modules (numba names them after the module)."""
-    return os.path.basename(path).startswith(("odelab_compiled_", "odelab_kernels_"))
-
-
-def _trusted(path: str) -> bool:
-    return cachedir.unsafe(Path(os.path.dirname(path))) is None
-
-
-def guard_numba_cache() -> None:
-    """Make numba seal the index and data files of odelab's modules when it writes them, and
-    load them only if they match their seal and lie in a folder of the user's own (else it
-    compiles again, as for an empty cache). Installed once per process; numba's other caches
-    are left as they are."""
-    from numba.core import caching
-
-    cls = caching.IndexDataCacheFile
-    if getattr(cls, "_odelab_guarded", False):
-        return
-    load_index, save_index = cls._load_index, cls._save_index
-    load_data, save_data = cls._load_data, cls._save_data
-    import pickle
-
-    def _load_index(self):
-        path = self._index_path
-        if _ours(path) and os.path.lexists(path):
-            if not _trusted(path) or cachedir.verify(Path(path), "numba index") is None:
-                return {}
-            try:
-                return load_index(self)
-            except (pickle.UnpicklingError, EOFError, ValueError, TypeError, AttributeError, ImportError):
-                cachedir.note(f"the cached numba index {os.path.basename(path)} could not be read: compiled "
-                              "again")
-                return {}
-        return load_index(self)
-
-    def _save_index(self, overloads):
-        save_index(self, overloads)
-        if _ours(self._index_path):
-            cachedir.seal(Path(self._index_path))
-
-    def _load_data(self, name):
-        path = self._data_path(name)
-        if _ours(path):
-            if not _trusted(path) or cachedir.verify(Path(path), "numba machine code file") is None:
-                raise FileNotFoundError(path)  # numba's load() then compiles again
-            try:
-                return load_data(self, name)
-            except (pickle.UnpicklingError, EOFError, ValueError, TypeError, AttributeError, ImportError):
-                raise FileNotFoundError(path) from None
-        return load_data(self, name)
-
-    def _save_data(self, name, data):
-        save_data(self, name, data)
-        path = self._data_path(name)
-        if _ours(path):
-            cachedir.seal(Path(path))
-
-    cls._load_index, cls._save_index = _load_index, _save_index
-    cls._load_data, cls._save_data = _load_data, _save_data
-    cls._odelab_guarded = True

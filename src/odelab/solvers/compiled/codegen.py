@@ -280,7 +280,7 @@ def rhs(t, _y, _p, _out):
 CS_STEP = 1e-200  # odelab.systems.jacobian._H
 
 CS_PRELUDE = '''
-_JAC = _types.void(_types.float64, _V, _V, _types.float64[:, ::1])  # kernels_stiff.JAC
+_JAC = _types.void(_types.float64, _V, _V, _types.float64[:, ::1])  # JAC of loops/stiff.py.txt
 _LN10 = 2.302585092994046
 
 

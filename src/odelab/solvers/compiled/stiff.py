@@ -1,4 +1,4 @@
-"""ode23s and ode15s on the compiled backend: the stiff loops of :mod:`.kernels_stiff`.
+"""ode23s and ode15s on the compiled backend: the stiff loops of ``loops/stiff.py.txt``.
 
 An expression system's right-hand side and its exact Jacobian (complex step through generated
 code, :func:`odelab.solvers.compiled.codegen.jacobian_source`; a linear system's A) are
