@@ -18,6 +18,13 @@ def _num(value, digits: int = 7) -> str:
     return f"{value:.{digits}g}"
 
 
+def _solves(fit: dict) -> str:
+    if fit.get("jacobian") == "differences":
+        return (f"{fit['fmu_runs']} runs of the FMU (the Jacobian by central differences, two runs a parameter "
+                "per evaluation)")
+    return f"{fit['solves']} solves of states and sensitivities"
+
+
 def print_fit(console: Console, fit: dict) -> None:
     """Print one experiment's fit summary (``fit_summary``'s dict)."""
     from odelab.cli.grid import print_grid
@@ -25,10 +32,9 @@ def print_fit(console: Console, fit: dict) -> None:
     ok = fit["status"] == "converged"
     head = "[bold]fit[/]" if ok else "[bold red]fit FAILED[/]"
     noise = "sigma given in \\[data]" if fit["sigma_known"] else "noise estimated from the residuals"
-    console.print(f"{head}: {len(fit['names'])} parameters from {fit['n']} measurements "
+    console.print(f"{head}: {len(fit['names'])} parameter{'' if len(fit['names']) == 1 else 's'} from {fit['n']} measurements "
                   f"({', '.join(shown(q) for q in fit['quantities'])}; {noise}), {fit['iterations']} iterations, "
-                  f"{fit['solves']} solves of states and sensitivities ({shown(fit['method'])}, rtol "
-                  f"{fit['rtol']:g})")
+                  f"{_solves(fit)} ({shown(fit['method'])}, rtol {fit['rtol']:g})")
     failed = fit.get("failed_trials") or 0
     if failed:
         steps = "steps" if failed != 1 else "a step"

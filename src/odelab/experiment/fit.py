@@ -11,7 +11,7 @@ quantities = ["x"]               # default: every quantity [data] maps
 Loading checks the section (:func:`parse_fit`): every fitted parameter exists in
 [parameters], is a number (not computed from others), is used by the model, its bounds hold
 its initial value; the system is one odelab can differentiate (equations or a state-space
-model); there are more measurements than parameters. Nothing is solved then.
+model) or an FMU (``kind = "fmu"``: its runs differenced, :mod:`odelab.fmi.fitting`); there are more measurements than parameters. Nothing is solved then.
 
 :func:`fit_experiment` then builds, per case with [data], the model as complex-capable
 functions of the fitted parameters (the equations, outputs, A/B/C/D matrices, [initial] and
@@ -54,7 +54,7 @@ MAX_SOLVES = 10_000
 MAX_PARAMETERS = 100
 """Parameters fitted at once (the sensitivities of n states to m parameters are n*m more equations)."""
 
-_SUPPORTED = "systems of [system.equations] or kind = \"state-space\""
+_SUPPORTED = "systems of [system.equations], kind = \"state-space\" or kind = \"fmu\" (by differences)"
 
 
 @dataclass(frozen=True, eq=False)
@@ -62,8 +62,8 @@ class FitCase:
     """One case's share of the fit: its parametric model, measured quantities and weights."""
 
     name: str
-    model: Any  # an analysis.sensitivity.ParametricModel
-    observe: Callable  # g(t, X, P) -> (nq, k, m)
+    model: Any  # an analysis.sensitivity.ParametricModel, or an fmi.fitting.FmuFitModel
+    observe: Callable | None  # g(t, X, P) -> (nq, k, m); None for an FMU (its model differences itself)
     quantities: tuple[str, ...]
     t: np.ndarray
     measured: np.ndarray  # (k, nq)
@@ -284,6 +284,8 @@ def _fit_case(case, model: schema.Experiment, names: tuple[str, ...], quantities
 
     p = case.problem
     system = model.system
+    if system.kind == "fmu":
+        return _fmu_fit_case(case, model, names, quantities, spec)
     if system.kind not in ("ode", "state-space") or system.function is not None:
         raise _error(f"[fit] differentiates the model exactly, which needs {_SUPPORTED}; case {case.name!r} is a "
                      f"{'`function`' if system.function is not None else system.kind} system.", "fit")
@@ -396,10 +398,7 @@ def _fit_case(case, model: schema.Experiment, names: tuple[str, ...], quantities
                 rows.append(Y[outputs.index(q)])
         return np.array(np.broadcast_arrays(*rows))
 
-    data = p.data
-    case_quantities = tuple(q for q in quantities if q in data.values)
-    measured = np.column_stack([data.values[q] for q in case_quantities])
-    weights = np.array([1.0 / data.sigma[q] if q in data.sigma else 1.0 for q in case_quantities])
+    case_quantities, measured, weights, atol = _measured(p, quantities, spec)
     # parameters reach the model directly, or through parameters computed from them
     reach = set()
     for pname in names:
@@ -409,11 +408,42 @@ def _fit_case(case, model: schema.Experiment, names: tuple[str, ...], quantities
     t0, tf = float(p.tspan[0]), float(p.tspan[-1])
     for s in p.signals:
         breakpoints.extend(float(b) for b in s.breakpoints(t0, tf))
-    scale = float(np.max(np.abs(measured))) or 1.0
-    atol = float(spec.atol) if spec.atol is not None else float(spec.rtol) * scale
     model_obj = ParametricModel(states=tuple(states), parameters=names, rhs=rhs, initial=initial,
                                 breakpoints=tuple(sorted(set(breakpoints))))
-    return FitCase(case.name, model_obj, observe, case_quantities, data.t, measured, weights, t0, tf, atol), reach
+    return FitCase(case.name, model_obj, observe, case_quantities, p.data.t, measured, weights, t0, tf, atol), reach
+
+
+def _measured(p, quantities, spec: schema.Fit):
+    """A case's measured quantities, their values (k, nq), weights (1 / sigma) and the absolute tolerance."""
+    data = p.data
+    case_quantities = tuple(q for q in quantities if q in data.values)
+    measured = np.column_stack([data.values[q] for q in case_quantities])
+    weights = np.array([1.0 / data.sigma[q] if q in data.sigma else 1.0 for q in case_quantities])
+    scale = float(np.max(np.abs(measured))) or 1.0
+    atol = float(spec.atol) if spec.atol is not None else float(spec.rtol) * scale
+    return case_quantities, measured, weights, atol
+
+
+def _fmu_fit_case(case, model: schema.Experiment, names: tuple[str, ...], quantities, spec: schema.Fit):
+    """An FMU case's share of the fit: its runs at trial parameters, differenced (odelab.fmi.fitting)."""
+    from odelab.fmi.fitting import FmuFitModel
+
+    p = case.problem
+    if p.events is not None or p.linearize is not None:
+        raise _error(f"[fit] cannot fit case {case.name!r}, which has [events] or [linearize].", "fit")
+    dependent, derived, depends, _fixed, parameter_values = _dependent_parameters(
+        dict(model.parameters), dict(p.parameters), names)
+    fmu_parameters = p.fmu.model.parameters
+    variables = {n: fmu_parameters[n] for n in dependent if n in fmu_parameters}
+    reach = {n for n in names if n in variables or any(n in _closure(d, depends) and d in variables for d in derived)}
+    case_quantities, measured, weights, atol = _measured(p, quantities, spec)
+    lower = np.array([-math.inf if e.lower is None else float(e.lower) for e in spec.parameters.values()])
+    upper = np.array([math.inf if e.upper is None else float(e.upper) for e in spec.parameters.values()])
+    fit_model = FmuFitModel(run=p.fmu, x0=np.asarray(p.x0, dtype=float), dependent=tuple(dependent),
+                            parameter_values=parameter_values, variables=variables, states=tuple(p.states),
+                            outputs=tuple(p.outputs), quantities=case_quantities, lower=lower, upper=upper)
+    t0, tf = float(p.tspan[0]), float(p.tspan[-1])
+    return FitCase(case.name, fit_model, None, case_quantities, p.data.t, measured, weights, t0, tf, atol), reach
 
 
 def _dependent_parameters(raw_params: dict, values: dict, names: tuple[str, ...]):
@@ -480,6 +510,9 @@ def _solve_case(fc: FitCase, p: np.ndarray, spec: FitSpec, times=None):
     from odelab.analysis.sensitivity import observe, solve_sensitivities
 
     times = fc.t if times is None else times
+    if fc.observe is None:  # an FMU: its runs, differenced
+        return fc.model.solve(p, times, t0=fc.t0, tf=fc.tf, method=spec.method, rtol=spec.rtol, atol=fc.atol,
+                              max_steps=spec.max_steps or None)
     sol = solve_sensitivities(fc.model, p, times, t0=fc.t0, tf=fc.tf, method=spec.method, rtol=spec.rtol,
                               atol=fc.atol, max_steps=spec.max_steps or None)
     if sol.status != "success":
@@ -614,6 +647,9 @@ def fit_summary(result, spec: FitSpec) -> dict:
         "sigma_known": bool(result.sigma_known),
         "t_quantile": _finite(float(result.t_quantile)),
         "solves": int(result.solves) * len(spec.cases),
+        # "sensitivities": exact, with the states; "differences": an FMU's runs differenced (fmu_runs of them)
+        "jacobian": "differences" if any(fc.observe is None for fc in spec.cases) else "sensitivities",
+        "fmu_runs": sum(fc.model.runs[0] for fc in spec.cases if fc.observe is None) or None,
         "evaluations": int(result.solves),
         "iterations": int(result.iterations),
         # trial points where a case could not be solved: rejected steps of infinite cost

@@ -198,7 +198,8 @@ def load_files(paths: list[Path], config: RunConfig) -> tuple[list, list[str]]:
         loaded.remove(exp)
         bad.append(error_text(exc))
     if any(e.fit is not None for e in loaded) or config.validate_with is not None:
-        loaded = _fit_all(loaded, bad, config.validate_with)
+        with allow_native(config.allow_native):  # a fit reloads its file with the estimates (an FMU too)
+            loaded = _fit_all(loaded, bad, config.validate_with)
     return loaded, bad
 
 
