@@ -16,6 +16,7 @@ from odelab.report.graphviz import available, render_svg
 
 ROOT = Path(__file__).resolve().parents[2]
 SVG = "{http://www.w3.org/2000/svg}"
+PRINTED_WIDTH_PT = (210 - 24) / 25.4 * 72  # A4 less the report's 12 mm print margins
 
 if os.environ.get("ODELAB_REQUIRE_GRAPHVIZ") and shutil.which("dot") is None:
     # CI installs Debian's graphviz and sets this, so that both ways are tested
@@ -136,7 +137,7 @@ def check_drawing(dot: str, svg: bytes) -> list[str]:
                 problems.append(f"the boxes of {a!r} and {b!r} overlap")
     for i, (owner, text, tb) in enumerate(placed):  # no label on another, nor on a box but its own (an edge's: its ends')
         for other, text2, tb2 in placed[i + 1:]:
-            if text and text2 and overlap(tb, tb2, margin=1.0):
+            if text and text2 and overlap(tb, tb2, margin=3.0):  # widths are estimated: 3 pt of slack
                 problems.append(f"the labels {text!r} ({owner}) and {text2!r} ({other}) overlap")
         for ident, b in boxes:
             if text and ident not in re.split(r"->|--", owner) and overlap(tb, b, margin=1.0):
@@ -159,6 +160,11 @@ def test_every_block_element_and_signal_is_drawn_without_overlaps(name, engine):
     drawn, note = render_svg(dot, engine)
     assert drawn is not None, note
     assert check_drawing(dot, drawn.svg) == []
+    # printed at most a page wide (186 mm, 527 pt), its smallest text stays at 7 pt or more
+    root = ET.fromstring(drawn.svg)
+    width = float(root.get("width").removesuffix("pt"))
+    smallest = min(float(t.get("font-size")) for t in root.iter(SVG + "text"))
+    assert smallest * min(1.0, PRINTED_WIDTH_PT / width) >= 7.0, (width, smallest)
     if engine == "wasm":
         assert re.fullmatch(r"Graphviz \d+\.\d+\.\d+ via WebAssembly", drawn.by)
     else:

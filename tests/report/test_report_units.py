@@ -94,16 +94,24 @@ def test_anchor_for_is_safe_and_unique():
     assert anchor_for("***", taken) == "x"
 
 
-def test_step_table_caps_in_the_middle():
+def test_step_table_caps_in_the_middle_and_keeps_the_maxima():
     t = np.arange(100.0)
     rel = np.full(100, 1e-4)
     rel[0] = np.nan
-    table = StepTable("ode45", "ode45", "y", t, t + 1, t + 1, np.zeros(100), rel)
-    full = table.capped(100)
-    assert len(full.head) == 100 and full.omitted == 0 and full.head[0][4] is None
-    part = table.capped(40)
-    assert [len(part.head), part.omitted, len(part.tail)] == [20, 60, 20]
-    assert part.head[-1][0] == 19.0 and part.tail[0][0] == 80.0
+    rel[50] = 3e-4  # the largest relative error, in the middle
+    abs_err = np.zeros(100)
+    abs_err[60] = 1e-6  # the largest absolute error
+    table = StepTable("ode45", "ode45", "y", t, t + 1, t + 1, abs_err, rel)
+    full = table.lines(100)
+    assert len(full) == 100 and all(line.row is not None for line in full) and full[0].row[4] is None
+    part = table.lines(40)
+    shown = [line.row[0] for line in part if line.row is not None]
+    assert shown == [*map(float, range(20)), 50.0, 60.0, *map(float, range(80, 100))]
+    assert [line.gap for line in part if line.row is None] == [30, 9, 19]
+    # printing keeps the first and last rows and both maxima, and says how many rows it leaves out between
+    printed = table.lines(40, 20)
+    assert [line.row[0] for line in printed if line.row is not None and line.printed] == [0.0, 50.0, 60.0, 99.0]
+    assert [line.gap for line in printed if line.row is None and not line.screen] == [49, 9, 38]
     assert table.label == "ode45"
 
 

@@ -240,7 +240,9 @@ def build_report(
     figures: list[Figure] = []
     for section in sections:
         section.solution_figure = draw(section.solution_figure)
+        section.solution_parts = [draw(spec) for spec in section.solution_parts]
         section.error_figure = draw(section.error_figure)
+        section.error_parts = [draw(spec) for spec in section.error_parts]
         for view in section.linearisations:
             view.figures = [draw(spec) for spec in view.figures]
         if section.stiffness is not None:
@@ -251,7 +253,8 @@ def build_report(
         if section.fit is not None:
             section.fit.figures = [draw(spec) for spec in section.fit.figures]
             figures.extend(f for f in section.fit.figures if f is not None)
-        figures.extend(f for f in (section.solution_figure, section.error_figure) if f is not None)
+        figures.extend(f for f in (section.solution_figure, *section.solution_parts, section.error_figure,
+                                   *section.error_parts) if f is not None)
         figures.extend(f for view in section.linearisations for f in view.figures)
     for study in studies:
         study.figures = [draw(spec) for spec in study.figures]
@@ -274,6 +277,8 @@ def build_report(
             "md_step_rows": MD_STEP_ROWS,
             "print_rows": PRINT_STEP_ROWS,
             "headline_rule": HEADLINE_RULE,
+            "estimated": any(case.run.estimate for case in cases),  # the Est. error column has a number
+            "unreliable": any(case.unreliable for case in cases),  # a status says ok?
         },
         "sections": sections,
         "studies": studies,

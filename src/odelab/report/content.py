@@ -35,6 +35,7 @@ from odelab.report.figures import (
     linearisation_figures,
     side_by_side,
     solution_figure,
+    split_grid,
     stacked,
     with_error_row,
 )
@@ -70,12 +71,13 @@ REFERENCE_TEXT = {
 
 
 @dataclass(frozen=True)
-class CappedRows:
-    """A long table cut in the middle: the first and last rows, and how many were left out."""
+class StepLine:
+    """A line of a per-step table as shown: a row, or a gap saying how many rows are left out there."""
 
-    head: list[tuple]
-    omitted: int
-    tail: list[tuple]
+    row: tuple | None  # (t, y, reference, |f - y|, |f - y| / |f|), or None for a gap
+    gap: int = 0  # rows left out at a gap
+    printed: bool = True  # the line is printed
+    screen: bool = True  # the line is on screen
 
 
 @dataclass(frozen=True, eq=False)
@@ -103,25 +105,50 @@ class StepTable:
         return (float(self.t[i]), float(self.value[i]), float(self.reference[i]), float(self.abs_err[i]),
                 None if math.isnan(rel) else rel)
 
+    def maxima(self) -> set[int]:
+        """The rows of the largest absolute and the largest relative error."""
+        return {int(np.nanargmax(column)) for column in (self.abs_err, self.rel_err) if np.any(np.isfinite(column))}
+
     def print_rows(self, limit: int) -> set[int]:
         """Rows a printed report keeps: all up to ``limit``, else the first and last and the maxima."""
         n = len(self)
-        if n <= limit:
-            return set(range(n))
-        keep = {0, n - 1}
-        for column in (self.abs_err, self.rel_err):
-            if np.any(np.isfinite(column)):
-                keep.add(int(np.nanargmax(column)))
-        return keep
+        return set(range(n)) if n <= limit else {0, n - 1} | self.maxima()
 
-    def capped(self, limit: int) -> CappedRows:
-        """All rows if there are at most ``limit``, else the first and last ``limit // 2``."""
+    def lines(self, limit: int, print_limit: int | None = None) -> list[StepLine]:
+        """The table's lines: every row up to ``limit`` rows, else the first and last ``limit // 2``
+        and the rows of the maxima, with a gap line where rows are left out; with
+        ``print_limit``, the rows printed (:meth:`print_rows`) and the print's own gap lines."""
         n = len(self)
         if n <= limit:
-            return CappedRows([self._row(i) for i in range(n)], 0, [])
-        half = max(limit // 2, 1)
-        return CappedRows([self._row(i) for i in range(half)], n - 2 * half,
-                          [self._row(i) for i in range(n - half, n)])
+            shown = list(range(n))
+        else:
+            half = max(limit // 2, 1)
+            shown = sorted(set(range(half)) | set(range(n - half, n)) | self.maxima())
+        if print_limit is None:  # one medium: its gaps are the only ones
+            return [StepLine(None, i - last - 1) if row is None else StepLine(row)
+                    for last, i, row in self._with_gaps(shown)]
+        keep = self.print_rows(print_limit)
+        out: list[StepLine] = []
+        last, last_printed = -1, -1
+        for i in shown:
+            if i - last > 1:
+                out.append(StepLine(None, i - last - 1, printed=False))
+            if i in keep and i - last_printed > 1:
+                out.append(StepLine(None, i - last_printed - 1, screen=False))
+            if i in keep:
+                last_printed = i
+            out.append(StepLine(self._row(i), printed=i in keep))
+            last = i
+        return out
+
+    def _with_gaps(self, shown: list[int]):
+        """(previous index, index, None) before each jump in ``shown``, then (index, index, row)."""
+        last = -1
+        for i in shown:
+            if i - last > 1:
+                yield last, i, None
+            yield i, i, self._row(i)
+            last = i
 
 
 @dataclass(frozen=True, eq=False)
@@ -228,6 +255,8 @@ class Section:
     cases: list[CaseView]
     solution_figure: Any = None  # a FigureSpec, replaced by the drawn figure when rendering
     error_figure: Any = None
+    solution_parts: list = field(default_factory=list)  # the solution figure's continuations (figures.split_grid)
+    error_parts: list = field(default_factory=list)  # the error figure's
     step_tables: list[StepTable] = field(default_factory=list)
     linearisations: list[LinearisationView] = field(default_factory=list)
     event_tables: list = field(default_factory=list)  # report.events.EventTable per case with events
@@ -590,6 +619,10 @@ def build_sections(groups: list[ExperimentRuns]) -> tuple[list[Section], list[st
 
         section.solution_figure = apply_plot_settings(section.solution_figure, runs)
         section.error_figure = apply_plot_settings(section.error_figure, runs, scaled=False)
+        for which in ("solution", "error"):  # at most MAX_GRID x MAX_GRID panels a printed figure
+            parts = split_grid(getattr(section, f"{which}_figure"))
+            setattr(section, f"{which}_figure", parts[0] if parts else None)
+            setattr(section, f"{which}_parts", parts[1:])
         for r in runs:
             for name in referenced:
                 cols = [r.column(c) for c in (name, f"{name}_ref", f"{name}_abs_err", f"{name}_rel_err")]
@@ -615,7 +648,7 @@ def build_sections(groups: list[ExperimentRuns]) -> tuple[list[Section], list[st
                 section.notes.append(text)
                 continue
             stem = anchor if len(runs) == 1 else f"{anchor}-{anchor_for(r.case, set())}"
-            view.figures = linearisation_figures(stem, view, units)
+            view.figures = [part for spec in linearisation_figures(stem, view, units) for part in split_grid(spec)]
             section.linearisations.append(view)
         from odelab.report.control import control_view
 

@@ -124,17 +124,14 @@ def _bode_figure(stem: str, case: str, bode: dict, margins: list[dict], loop: di
                               color="#666666", linestyle=":")
                       for m in margins[:1] if m.get("gain_crossover") is not None
                       and math.isfinite(m["gain_crossover"]))
-    outside = False  # side by side: the legends stay inside their panels
     panels = (Panel("Magnitude", "frequency ω (rad/s)", "|G(jω)| (dB)", tuple(mag), xscale="log",
-                    reflines=(RefLine(0.0, "0 dB", color="#999999", linestyle="-"),) + crossings,
-                    legend_outside=outside),
+                    reflines=(RefLine(0.0, "0 dB", color="#999999", linestyle="-"),) + crossings, legend=False),
               Panel("Phase", "frequency ω (rad/s)", "phase of G(jω) (degrees)", tuple(phase), xscale="log",
-                    reflines=(RefLine(-180.0, "-180°", color="#999999", linestyle="-"),) + crossings,
-                    legend_outside=outside))
+                    reflines=(RefLine(-180.0, "-180°", color="#999999", linestyle="-"),) + crossings, legend=False))
     return FigureSpec(name=f"{stem}-bode", caption=f"Bode plot of the linear model ({case}): magnitude in dB "
                       "and phase in degrees over frequency in rad/s.",
                       alt=f"Bode magnitude and phase plots of {len(channels)} channel(s).", panels=panels,
-                      columns=2, panel_height=2.6)
+                      columns=2, panel_height=2.6, legend=True)  # one legend above both, off the curves
 
 
 def control_view(stem: str, runs, groups) -> ControlView | None:

@@ -20,6 +20,7 @@ Error figures plot the quantity the headline measures (:data:`odelab.analysis.er
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any
 
 import numpy as np
@@ -34,6 +35,7 @@ from odelab.report.plots import (
     SERIES_COLORS,
     FigureSpec,
     Line,
+    MAX_MARKERS,
     LineStyle,
     Panel,
     RefLine,
@@ -41,7 +43,7 @@ from odelab.report.plots import (
 )
 from odelab.report.setups import SetUp, case_label, reference_label, reference_union, stats_text, what_differs
 
-__all__ = ["AGAINST", "error_figure", "linearisation_figures", "side_by_side", "solution_figure", "stacked",
+__all__ = ["AGAINST", "MAX_GRID", "error_figure", "linearisation_figures", "side_by_side", "solution_figure", "split_grid", "stacked",
            "with_error_row"]
 
 _MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
@@ -134,6 +136,14 @@ def _title(text: str) -> str:
     return text.replace("→", "->")  # the figure font has no arrow
 
 
+def _shown_text(r: StoredRun, shown: list[str]) -> str:
+    """What a one-panel figure shows: "Every state" when it is all of them, else their names."""
+    drawn = [n for n in shown if r.column(n) is not None]
+    if len(drawn) > 1 and set(drawn) == set(r.states):
+        return "Every state"
+    return drawn[0] if len(drawn) == 1 else ", ".join(drawn[:-1]) + " and " + drawn[-1]
+
+
 def solution_figure(stem: str, groups: list[SetUp], shown: list[str], layout: str,
                     units: dict[str, str]) -> FigureSpec | None:
     runs = [r for g in groups for r in g.runs if r.t.size]
@@ -165,8 +175,10 @@ def solution_figure(stem: str, groups: list[SetUp], shown: list[str], layout: st
         panels = [Panel(f"{case_label(r)}: {stats}", t_label, ylabel, tuple(lines), legend_outside=True,
                         reflines=exact_time_lines(r))]
         against_ref = f", thin black lines the {reference_label(kind)}" if kind != "none" else ""
-        caption = ("Every state against t, as MATLAB's documentation plots the rigid body: hollow markers at the "
-                   f"output points{against_ref}. {case_label(r)}: {stats_text(r)}.")
+        caption = (f"{_shown_text(r, shown)} against t in one panel: "
+                   + ("hollow markers at the output points" if r.t.size <= MAX_MARKERS
+                      else "lines through the output points (too many to mark)")
+                   + f"{against_ref}. {case_label(r)}: {stats_text(r)}.")
         if r.events:
             caption += (" Red triangles mark the located events" + (", dotted vertical lines their exact times"
                                                                       if exact_time_lines(r) else "") + ".")
@@ -333,14 +345,14 @@ def linearisation_figures(stem: str, lin: Any, units: dict[str, str]) -> list[Fi
     panels = responses + ([error_panel] if error_panel is not None else [])
     if panels:
         n = len(panels)
-        cols = 4 if n >= 7 else 3 if n >= 5 else 2 if n >= 2 else 1
+        cols = 3 if n >= 5 else 2 if n >= 2 else 1  # at most MAX_GRID columns: 8pt ticks stay readable
         caption = ("Nonlinear model (black, solid) and linearised model (purple, dashed) for each step amplitude of "
                    "the input; each title gives the step and the error of the linearised model, relative to the peak "
                    "incremental response." if responses else "") + (" " + error_caption if error_caption else "")
         figures.append(FigureSpec(
             f"{stem}-linearisation", caption.strip(),
             f"{lin.case}: nonlinear and linearised responses per amplitude, and the error against amplitude",
-            tuple(panels), columns=cols, panel_height=1.6 if cols >= 3 else 2.0, legend=bool(responses)))
+            tuple(panels), columns=cols, panel_height=1.3 if cols >= 3 else 2.0, legend=bool(responses)))
     return figures
 
 
@@ -392,3 +404,57 @@ def with_error_row(solution: FigureSpec | None, error: FigureSpec | None) -> Fig
     panels += solution.panels[k * columns:]
     return dataclasses.replace(solution, panels=panels, caption=f"{solution.caption} Under each response: {error.caption}",
                                alt=f"{solution.alt}, with the error")
+
+
+#: A printed figure holds at most this many rows and columns of panels (issue 37: a 3 x 7 grid
+#: squeezed onto a page had unreadable axis text); a larger grid is split into figures of this size.
+MAX_GRID = 3
+
+
+def _rows_of(spec: FigureSpec) -> list[tuple[Panel, ...]]:
+    cols = max(1, min(spec.columns, len(spec.panels)))
+    return [spec.panels[i:i + cols] for i in range(0, len(spec.panels), cols)]
+
+
+def _is_error_row(row: tuple[Panel, ...]) -> bool:
+    """A row of errors drawn under the responses above it (with_error_row): it never starts a part."""
+    return all(p.height < 1.0 and not p.title and not p.xlabel and p.yscale == "log" for p in row)
+
+
+def split_grid(spec: FigureSpec | None, limit: int = MAX_GRID) -> list[FigureSpec]:
+    """``spec`` as figures of at most ``limit`` x ``limit`` panels, in order (itself if it fits).
+
+    More than ``limit`` columns of panels each titled on its own (an amplitude study) flow into
+    ``limit`` columns; more than ``limit`` rows are cut into parts of whole rows, never between a
+    response and the error row under it, each part titled with the first row's column titles
+    (the set-ups) and captioned as a continuation of the first."""
+    if spec is None:
+        return []
+    if spec.columns > limit and all(p.title for p in spec.panels):
+        spec = dataclasses.replace(spec, columns=limit)
+    rows = _rows_of(spec)
+    if len(rows) <= limit or spec.columns > limit:
+        return [spec]
+    size = math.ceil(len(rows) / math.ceil(len(rows) / limit))  # balanced: 4 rows as 2 + 2, not 3 + 1
+    parts: list[list[tuple[Panel, ...]]] = [[]]
+    for k, row in enumerate(rows):
+        nxt_is_error = k + 1 < len(rows) and _is_error_row(rows[k + 1])
+        full = len(parts[-1]) >= size or (len(parts[-1]) + 1 >= size and nxt_is_error and parts[-1])
+        if full and not _is_error_row(row) and len(parts[-1]) < limit or len(parts[-1]) >= limit:
+            parts.append([])
+        parts[-1].append(row)
+    heads = [p.title for p in rows[0]]
+    out = []
+    for i, part in enumerate(parts):
+        first = part[0]
+        if i and not any(p.title for p in first) and len(first) == len(heads):
+            first = tuple(dataclasses.replace(p, title=h) for p, h in zip(first, heads))
+        panels = first + tuple(p for row in part[1:] for p in row)
+        if i == 0:
+            caption = f"{spec.caption} (Continued in the next {len(parts) - 1} figure{'s' if len(parts) > 2 else ''}.)"
+            out.append(dataclasses.replace(spec, panels=panels, caption=caption))
+        else:
+            out.append(dataclasses.replace(spec, name=f"{spec.name}-{i + 1}", panels=panels,
+                                           caption=f"Continued ({i + 1} of {len(parts)}): the next rows of the "
+                                                   "figure above, in its styles.", alt=f"{spec.alt} (continued)"))
+    return out

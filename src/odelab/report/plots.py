@@ -45,6 +45,7 @@ __all__ = [
     "RefLine",
     "axis_label",
     "clipped_texts",
+    "legends_over_data",
     "draw_figure",
     "method_color",
     "method_style",
@@ -373,7 +374,9 @@ class _Grid:
 _STYLE = {"font.size": 9, "axes.titlesize": 10, "axes.labelsize": 9, "xtick.labelsize": 8, "ytick.labelsize": 8,
           "legend.fontsize": 8, "axes.spines.top": False, "axes.spines.right": False,
           # ticks such as 0.00025 as 2.5 with a 1e-4 above the axis: long tick labels crowd the margins
-          "axes.formatter.limits": (-3, 5)}
+          "axes.formatter.limits": (-3, 5),
+          # never an offset (a "1e-4+3.333" over the axis, read as part of the values): the ticks say it all
+          "axes.formatter.useoffset": False}
 
 
 def _pyplot():
@@ -420,6 +423,33 @@ def _lay_out(fig, axes: list, grid: _Grid, spec: FigureSpec, cols: int) -> None:
         margins = grid.measured(fig, axes)
     for ax, rect in zip(axes, grid.rects(*margins)):
         ax.set_position(rect)
+    moved = [ax for ax in axes if _legend_over_data(ax)]
+    for ax in moved:  # no place inside the axes is clear of the data: the legend goes right of it
+        legend = ax.get_legend()
+        ax.legend(legend.legend_handles, [t.get_text() for t in legend.get_texts()], fontsize=8, frameon=False,
+                  loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    if moved:
+        with ticks_once(axes):
+            margins = grid.measured(fig, axes)
+        for ax, rect in zip(axes, grid.rects(*margins)):
+            ax.set_position(rect)
+
+
+def _legend_over_data(ax) -> bool:
+    """Whether the legend inside ``ax`` lies over any of its curves (a line crossing its box)."""
+    legend = ax.get_legend()
+    if legend is None or not legend.get_visible() or legend.get_bbox_to_anchor() is not ax.bbox:
+        return False
+    box = legend.get_window_extent(renderer(ax.figure)).shrunk(0.98, 0.96)
+    for line in ax.lines:
+        if line.get_visible() and line.get_path().transformed(line.get_transform()).intersects_bbox(box, filled=False):
+            return True
+    return False
+
+
+def legends_over_data(fig) -> list[str]:
+    """The panels whose legend, inside the axes, covers a curve (none should: :func:`_lay_out` moves them)."""
+    return [ax.get_title() or f"panel {i + 1}" for i, ax in enumerate(fig.axes) if _legend_over_data(ax)]
 
 
 def _new_figure(height: float, n: int):

@@ -57,6 +57,26 @@ def _curve_color(label: str, method: str, i: int) -> str:
     return method_color(label) if label == method else SERIES_COLORS[i % len(SERIES_COLORS)]
 
 
+def off_log_axis(curves: list[dict]) -> str:
+    """A sentence naming the curves (or points) a log error axis cannot draw: an error of 0 (exact
+    to round-off) or none; empty when every point is drawn."""
+    gone, some = [], []
+    for c in curves:
+        err = np.array([np.nan if e is None else e for e in c["error"]], dtype=float)
+        bad = ~(np.isfinite(err) & (err > 0))
+        zero = bool(np.any(err[bad] == 0))
+        if bad.all():
+            gone.append(f"{c['label']} (its error is {'0' if zero else 'undefined'} at every point)")
+        elif bad.any():
+            some.append(f"{c['label']} ({int(bad.sum())} of {err.size} points, error {'0' if zero else 'undefined'})")
+    parts = []
+    if gone:
+        parts.append(("Not drawn: " + ", ".join(gone)) + ", which a log axis cannot show; the table lists it.")
+    if some:
+        parts.append("Points not drawn: " + ", ".join(some) + " (a log axis cannot show them).")
+    return " ".join(parts)
+
+
 
 
 @register_section("convergence")
@@ -95,8 +115,8 @@ def _convergence(record, study, section):
                   legend_outside=True, decades=16)  # every point down to round-off
     section.figures.append(FigureSpec(
         name=f"{section.anchor}-convergence", panels=(panel,), panel_height=3.0,
-        caption=f"Convergence: {what} of {study['quantity']} against {over}, log-log; dashed: the fitted C "
-                f"{over}^p, crosses: points left out of the fit.",
+        caption=(f"Convergence: {what} of {study['quantity']} against {over}, log-log; dashed: the fitted C "
+                 f"{over}^p, crosses: points left out of the fit. " + off_log_axis(study["curves"])).strip(),
         alt=f"log-log plot of the error against {over} for " + ", ".join(c["label"] for c in study["curves"])))
 
 
@@ -129,6 +149,7 @@ def _work_precision(record, study, section):
                       decades=16),
                 Panel(title="time", xlabel=f"{study['quantity']} error (log)", ylabel="seconds (log)",
                       lines=tuple(time_lines), xscale="log", yscale="log", decades=16)),
-        caption=f"{title}: {what} of {study['quantity']} against function evaluations (left) and time (right), "
-                "one curve per method, from loose to tight tolerances. Times of a few milliseconds are noisy.",
+        caption=(f"{title}: {what} of {study['quantity']} against function evaluations (left) and time (right), "
+                 "one curve per method, from loose to tight tolerances. Times of a few milliseconds are noisy. "
+                 + off_log_axis(study["curves"])).strip(),
         alt="work-precision diagram of " + ", ".join(c["label"] for c in study["curves"])))

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from odelab.systems.diagram.graph import Wiring
 
-__all__ = ["to_dot", "dot_string", "dot_problem"]
+__all__ = ["LABEL_WIDTH", "to_dot", "dot_string", "dot_problem", "wrap_label"]
 
 def dot_string(text: str) -> str:
     """``text`` as a DOT double-quoted string; a newline becomes a centred line break."""
@@ -22,11 +22,41 @@ def dot_string(text: str) -> str:
     return f'"{out}"'
 
 
+#: A label line longer than this is wrapped (at ", ", " / " or a space nearest its middle): a
+#: drawing of long one-line labels (a PID's gains, a transfer function) grows past a printed
+#: page's width, and Graphviz's text would be scaled below reading size.
+LABEL_WIDTH = 24
+
+
+def wrap_label(text: str, width: int = LABEL_WIDTH) -> str:
+    """``text`` with every line longer than ``width`` broken in two (again, while too long)."""
+    out = []
+    for line in str(text).split("\n"):
+        pending = [line]
+        while pending:
+            part = pending.pop(0)
+            if len(part) <= width:
+                out.append(part)
+                continue
+            cuts = []
+            for sep in (", ", " / ", " "):  # the first kind of break the line has, nearest its middle
+                cuts = [i + len(sep) for i in range(1, len(part) - len(sep)) if part.startswith(sep, i)]
+                if cuts:
+                    break
+            if not cuts:
+                out.append(part)
+                continue
+            cut = min(cuts, key=lambda c: abs(c - len(part) / 2))
+            pending[:0] = [part[:cut].rstrip(), part[cut:].lstrip()]
+    return "\n".join(out)
+
+
 def to_dot(wiring: Wiring, *, title: str | None = None) -> str:
     """DOT text for the diagram: one node per block, one edge per connection (labelled with the
     port and, into a sum, the sign), and a plain node per named output."""
-    # ratio: at least 0.4 high per unit wide, so a long chain is not a thin strip on a phone
-    lines = ["digraph diagram {", "  rankdir=LR; ratio=0.4;", '  node [fontname="Helvetica", fontsize=11];',
+    # ratio: at least 0.4 high per unit wide, so a long chain is not a thin strip on a phone;
+    # ranksep 0.3 in: the thermostat's seven ranks fit a printed page with its text at 7 pt or more
+    lines = ["digraph diagram {", "  rankdir=LR; ratio=0.4; ranksep=0.3;", '  node [fontname="Helvetica", fontsize=11];',
              '  edge [fontname="Helvetica", fontsize=10, arrowsize=0.7];']
     if title:
         lines.append(f"  label={dot_string(title)}; labelloc=t;")
@@ -34,7 +64,7 @@ def to_dot(wiring: Wiring, *, title: str | None = None) -> str:
         label, shape, extra = block.node(name)
         style = ', style="rounded,filled", fillcolor="#eef3fb"' if block.SOURCE else ""
         extra = "".join(f", {k}={dot_string(v) if isinstance(v, str) else str(v).lower()}" for k, v in extra.items())
-        lines.append(f"  {dot_string('b:' + name)} [label={dot_string(label)}, shape={shape}{style}{extra}];")
+        lines.append(f"  {dot_string('b:' + name)} [label={dot_string(wrap_label(label))}, shape={shape}{style}{extra}];")
     for name, feeds in wiring.sources.items():
         block = wiring.blocks[name]
         for i, (src, port) in enumerate(feeds):
@@ -74,7 +104,8 @@ _NODE = _re.compile(rf"  ({_Q})(?: (?:->|--) ({_Q}))?(?: \[(.*)\])?;")
 # the fixed lines of the two drawings odelab writes: block diagrams (to_dot) and networks
 # (odelab.systems.network.draw.network_dot)
 _HEADERS = ("digraph diagram {", "graph network {")
-_FIXED = {"}", "  rankdir=LR; ratio=0.4;", '  node [fontname="Helvetica", fontsize=11];',
+_FIXED = {"}", "  rankdir=LR; ratio=0.4;", "  rankdir=LR; ratio=0.4; ranksep=0.3;",
+          "  rankdir=LR; nodesep=0.3; ranksep=0.45;", '  node [fontname="Helvetica", fontsize=11];',
           '  edge [fontname="Helvetica", fontsize=10, arrowsize=0.7];', "  rankdir=LR; nodesep=0.3; ranksep=1.2;",
           '  edge [fontname="Helvetica", fontsize=10];'}
 _TITLE = _re.compile(rf"  label={_Q}; labelloc=t;")

@@ -408,9 +408,13 @@ class _HybridRun:
             t, X = _at_user_times(t, X, self.user, self.status == "success")
         notes, message = self.notes, self.message
         counts = {n: len(v) for n, v in sw.times.items()}
-        if counts:
-            notes.append("zero crossings located: " + ", ".join(f"{n} ({blocks[n].TYPE}) {c}"
-                                                                 for n, c in counts.items()))
+        if counts:  # a block that never crossed is said in words: a bare "0" reads as a fault
+            crossed = {n: c for n, c in counts.items() if c}
+            still = [f"{n} ({blocks[n].TYPE})" for n, c in counts.items() if not c]
+            parts = [", ".join(f"{n} ({blocks[n].TYPE}) {c}" for n, c in crossed.items())] if crossed else []
+            if still:
+                parts.append(", ".join(still) + " never changed mode (no zero crossing)")
+            notes.append(("zero crossings located: " if crossed else "") + "; ".join(parts))
         if self.hit_times.size:
             rates_txt = ", ".join(f"{n} every {blocks[n].sample}" for n in self.rates)
             notes.append(f"sample hits: {self.hit_times.size} ({rates_txt})")

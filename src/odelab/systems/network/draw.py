@@ -6,7 +6,7 @@ structure."""
 
 from __future__ import annotations
 
-from odelab.systems.diagram.draw import dot_string
+from odelab.systems.diagram.draw import dot_string, wrap_label
 from odelab.systems.network.graph import GROUND
 
 __all__ = ["network_dot"]
@@ -21,7 +21,7 @@ def _label(name, el) -> str:
     coefficients += [f"{key} = {value}" for key, value in el.values.items()]
     if coefficients:
         parts.append(", ".join(coefficients))
-    return "\n".join(str(p) if len(str(p)) <= 48 else str(p)[:45] + "..." for p in parts)
+    return wrap_label("\n".join(str(p) if len(str(p)) <= 48 else str(p)[:45] + "..." for p in parts), 28)
 
 
 def network_dot(elements: dict, *, title: str | None = None) -> str:
@@ -29,7 +29,7 @@ def network_dot(elements: dict, *, title: str | None = None) -> str:
     edge from its second node to its first (the arrow points at the + side, where its across
     variable is measured to), each coupling as a box joined to its four nodes, and a ground
     symbol at every connection to ground (as a circuit diagram draws them)."""
-    lines = ["graph network {", "  rankdir=LR; nodesep=0.3; ranksep=1.2;",
+    lines = ["graph network {", "  rankdir=LR; nodesep=0.3; ranksep=0.45;",  # the DC motor fits a printed page
              '  node [fontname="Helvetica", fontsize=11];', '  edge [fontname="Helvetica", fontsize=10];']
     if title:
         lines.append(f"  label={dot_string(title)}; labelloc=t;")
@@ -42,7 +42,7 @@ def network_dot(elements: dict, *, title: str | None = None) -> str:
             grounds += 1
             ident = dot_string(f"g:{grounds}")
             lines.append(f"  {ident} [label=\"\", shape=invtriangle, width=0.25, height=0.2, fixedsize=true, "
-                         f"style=filled, fillcolor=\"#888888\", xlabel={dot_string('ground')}, fontsize=8];")
+                         f"style=filled, fillcolor=\"#888888\", xlabel={dot_string('ground')}, fontsize=10];")
             return ident
         ident = dot_string(f"n:{domain}:{n}")
         if (domain, n) not in seen:
