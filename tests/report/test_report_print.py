@@ -86,6 +86,7 @@ def test_the_lab_report_prints_in_twelve_pages_as_a_lab_report(lab_print):
 
 def test_the_shipped_set_prints_as_a_lab_report(shipped_print):
     report, pdf, pages = shipped_print
+    assert report.result.warnings == ()  # every shipped file is in it: the studies too (stored per target)
     assert len(pages) <= SHIPPED_MAX_PAGES, len(pages)
     assert check_print(report, pdf, pages) == []
     text = "\n".join(p.text for p in pages)

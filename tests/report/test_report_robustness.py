@@ -72,6 +72,20 @@ def test_experiment_filter(lab_runs, tmp_path):
     assert "no_such_experiment" in root.find("div", id="problems").text()
 
 
+
+def test_a_study_is_asked_for_by_its_files_name(lab_runs, tmp_path):
+    # work-precision.toml stores one record per target: work-precision_exercise1, _exercise2, _rigid_body
+    report = build(lab_runs, tmp_path, experiments=["work-precision", "exercise1"])
+    root, _, _ = parse_html(report.html)
+    assert report.result.warnings == ()
+    assert [s.attrs["id"] for s in root.find_all("section", cls="experiment")] == ["exercise1"]
+    assert sorted(s.attrs["id"] for s in root.find_all("section", cls="study")) == [
+        f"work-precision_{t}" for t in ("exercise1", "exercise2", "rigid_body")]
+    # a name matches a study by its whole file name, never by a piece of it
+    with pytest.raises(InputError, match="no stored runs of 'work'"):
+        build(lab_runs, tmp_path / "piece", experiments=["work"])
+
+
 @pytest.mark.parametrize("formats", [("md",), ("html",), "html", "both"])
 def test_formats(lab_runs, tmp_path, formats):
     result = build_report(lab_runs, tmp_path, formats=formats, experiments=["exercise1"])

@@ -217,16 +217,17 @@ def build_report(
     _check_out(out)  # before any figure is drawn
     html_env, md_env = environments(template_dir)
 
-    from odelab.report.studies import collect_studies, study_sections
+    from odelab.report.studies import asked_for, collect_studies, study_sections
 
     records, study_warnings = collect_studies(runs, experiments)
-    swept = {r["experiment"] for r in records}
+    # stored as a sweep, or as a study's records (named by its file, stored per target)
+    swept = {r["experiment"] for r in records} | {asked_for(r, experiments) for r in records if experiments}
     groups, warnings = collect_runs(runs, experiments)
-    warnings = [w for w in warnings if not any(f"experiment {name!r}" in w for name in swept)]  # stored as a sweep
+    warnings = [w for w in warnings if not any(f"experiment {name!r}" in w for name in swept)]
     warnings.extend(study_warnings)
     if not groups and not records and not experiments:
         warnings.append(f"{runs} holds no stored runs; run experiments with `odelab run` first")
-    if experiments and not groups:  # never overwrite a report with an empty one
+    if experiments and not groups and not records:  # never overwrite a report with an empty one
         raise InputError(f"`experiments`: no stored runs of {', '.join(map(repr, experiments))} in {runs}; run "
                          f"them first (`odelab run FILE --runs {runs}`), or check the names. The report in {out} "
                          "was left as it was.", key="experiments")

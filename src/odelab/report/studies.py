@@ -27,7 +27,7 @@ from odelab.report.study_sections import MARKERS as _MARKERS
 from odelab.report.study_sections import draw_study
 from odelab.store.sweeps import SWEEP_FORMAT
 
-__all__ = ["StudySection", "collect_studies", "study_sections"]
+__all__ = ["StudySection", "asked_for", "collect_studies", "study_sections"]
 
 
 @dataclass(eq=False)
@@ -67,9 +67,20 @@ def collect_studies(runs: Path, experiments: list[str] | None = None) -> tuple[l
         except (OSError, ValueError) as exc:
             warnings.append(f"{path}: skipped, it cannot be read: {exc}")
             continue
-        if experiments is None or record["experiment"] in experiments:
+        if experiments is None or asked_for(record, experiments):
             records.append(record)
     return records, warnings
+
+
+def asked_for(record: dict, experiments: list[str]) -> str | None:
+    """The name in ``experiments`` that asks for this sweep record: its own, or, for a study, its
+    file's name (a study file ``work-precision`` stores one record per target, ``work-precision_exercise1``)."""
+    name = str(record.get("experiment", ""))
+    if name in experiments:
+        return name
+    if isinstance(record.get("study"), dict):
+        return next((n for n in experiments if name.startswith(f"{n}_")), None)
+    return None
 
 
 _METRICS = (("overshoot_percent", "overshoot (%)"), ("max", "peak"), ("final", "final value"))
