@@ -20,6 +20,7 @@ from odelab.experiment import schema
 from odelab.experiment.cases import Built
 from odelab.experiment.fields import check_keys, check_names, constant, expr
 from odelab.experiment.userfiles import check_python_source, resolve_user_file
+from odelab.systems.outputs import ExpressionOutputs, LinearOutputs
 
 __all__ = ["build_function_system", "build_ode", "build_state_space", "build_inputs", "build_signal", "load_function",
            "SIGNAL_KEYS"]
@@ -68,10 +69,7 @@ def build_ode(model: schema.Experiment, params: dict[str, float]) -> Built:
                                   key=f"system.outputs.{dup[0]}")
         G = ex.compile_vector(list(system.outputs.values()), args=args, constants=params,
                               keys=[f"system.outputs.{n}" for n in outputs])
-
-        def output_fn(t, x, u=None, _G=G):
-            cols = [t, *x.T] + ([] if u is None else [*u.T])
-            return np.asarray(_G(*cols), dtype=float).reshape(len(outputs), -1).T
+        output_fn = ExpressionOutputs(G, len(outputs))
 
         resolved["outputs"] = dict(system.outputs)
     if delayed:
@@ -183,13 +181,8 @@ def build_state_space(model: schema.Experiment, params: dict[str, float]) -> Bui
         "C": ss.C.tolist(),
         "D": ss.D.tolist(),
     }
-    A, C, D = ss.A, ss.C, ss.D
-
-    def output_fn(t, x, u=None):
-        y = x @ C.T
-        if u is not None and D.size:
-            y = y + u @ D.T
-        return y
+    A = ss.A
+    output_fn = LinearOutputs(ss.C, ss.D)
 
     from odelab.solvers.compiled import CompiledSystem
 

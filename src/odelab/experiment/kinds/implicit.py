@@ -32,8 +32,9 @@ import numpy as np
 from odelab.exceptions import ExperimentError, InputError
 from odelab.experiment import schema
 from odelab.experiment.cases import Built
-from odelab.experiment.fields import check_keys, constant
+from odelab.experiment.fields import constant
 from odelab.solvers.registry import join_names, methods_with
+from odelab.systems.outputs import ExpressionOutputs
 
 __all__ = ["build_implicit", "is_implicit_system", "implicit_method_name", "check_implicit_case",
            "split_initial", "consistent_start"]
@@ -92,9 +93,7 @@ def build_implicit(model: schema.Experiment, params: dict[str, float]) -> Built:
                                   key=f"system.outputs.{dup[0]}")
         G = ex.compile_vector(list(system.outputs.values()), args=["t", *states], constants=params,
                               keys=[f"system.outputs.{n}" for n in outputs])
-
-        def output_fn(t, x, u=None, _G=G):
-            return np.asarray(_G(t, *x.T), dtype=float).reshape(len(outputs), -1).T
+        output_fn = ExpressionOutputs(G, len(outputs))  # no inputs: g(t, x)
 
         resolved["outputs"] = dict(system.outputs)
     return Built(states=states, inputs=(), outputs=outputs, fun=implicit, output_fn=output_fn, resolved=resolved)

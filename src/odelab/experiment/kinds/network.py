@@ -17,6 +17,7 @@ import numpy as np
 from odelab.exceptions import ExperimentError, InputError
 from odelab.experiment import schema
 from odelab.experiment.cases import Built
+from odelab.systems.outputs import ExpressionOutputs, LinearOutputs
 
 __all__ = ["build_network", "network_of"]
 
@@ -82,12 +83,7 @@ def build_network(model: schema.Experiment, params: dict[str, float]) -> Built:
             ss = net.compile(params)
             A, B, C, D = ss.A, ss.B, ss.C, ss.D
             resolved.update({"A": A.tolist(), "B": B.tolist(), "C": C.tolist(), "D": D.tolist()})
-
-            def output_fn(t, x, u=None):
-                y = x @ C.T
-                if u is not None and D.size:
-                    y = y + u @ D.T
-                return y
+            output_fn = LinearOutputs(C, D)
 
             fun = None
             if not inputs:
@@ -109,10 +105,7 @@ def build_network(model: schema.Experiment, params: dict[str, float]) -> Built:
             out_texts = d.output_texts()
             G = compile_vector([out_texts[y] for y in outputs], args=args, constants=params,
                                keys=[f"system.outputs.{y}" for y in outputs])
-
-            def output_fn(t, x, u=None, _G=G):
-                cols = [t, *x.T] + ([] if u is None else [*u.T])
-                return np.asarray(_G(*cols), dtype=float).reshape(len(outputs), -1).T
+            output_fn = ExpressionOutputs(G, len(outputs))
         sys_obj = net.compile(params)
         fun = None
         if not inputs:

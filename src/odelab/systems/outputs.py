@@ -1,0 +1,45 @@
+"""A built system's outputs y = g(t, x, u) as objects, not closures rebuilt per system kind.
+
+``output_fn(t, x, u=None)`` takes the times (k,), the states (k, n) and the inputs (k, m) or
+None, and returns the outputs (k, p). Two kinds cover every system odelab builds:
+:class:`LinearOutputs` (``y = x C^T + u D^T``: state-space models and linear networks) and
+:class:`ExpressionOutputs` (compiled expressions of t, the states and the inputs: equation
+systems, nonlinear networks, implicit systems). Both are plain frozen dataclasses; the linear
+one pickles with its matrices.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+__all__ = ["LinearOutputs", "ExpressionOutputs"]
+
+
+@dataclass(frozen=True, eq=False)
+class LinearOutputs:
+    """y = C x + D u, row by row: ``x @ C.T (+ u @ D.T)``."""
+
+    C: np.ndarray
+    D: np.ndarray
+
+    def __call__(self, t, x, u=None):
+        y = x @ self.C.T
+        if u is not None and self.D.size:
+            y = y + u @ self.D.T
+        return y
+
+
+@dataclass(frozen=True, eq=False)
+class ExpressionOutputs:
+    """y = g(t, x, u) from compiled expressions (``compile_vector``'s function of t, the states and the
+    inputs, in that order), ``count`` of them."""
+
+    G: Any
+    count: int
+
+    def __call__(self, t, x, u=None):
+        cols = [t, *x.T] + ([] if u is None else [*u.T])
+        return np.asarray(self.G(*cols), dtype=float).reshape(self.count, -1).T
