@@ -297,3 +297,92 @@ def test_every_module_imports_on_its_own():
     assert not new, f"modules that fail to import on their own: {list(new.values())}"
     stale = sorted(set(CANNOT_IMPORT_ALONE) - set(failed))
     assert not stale, f"these modules import on their own now: remove them from CANNOT_IMPORT_ALONE: {stale}"
+
+
+# --- dispatch by table (issue 38 item 5): a solver is its module, its registry entry (and its compiled twin) ---
+
+MAX_FILES_NAMING_A_SOLVER = 4
+# Solvers named in more files today (name: files), to come down; a count may not grow, and one at or under the
+# limit leaves this table. ode45 is every default; dde23 the delay systems' own solver.
+NAMED_IN_MORE_FILES: dict[str, int] = {"ode45": 12, "dde23": 8, "ode113": 6, "ode15i": 5, "ode78": 5, "DOP853": 5}
+
+
+def _code_words(tree: ast.AST) -> str:
+    """The names a module's code uses: identifiers, imported names and one-word strings (a method named as a
+    key or value: "ode23tb", `m.name == "ode15s"`), not its docstrings, comments or sentences (messages and
+    help text that mention a method to the user)."""
+    docs = {id(node.body[0].value) for node in ast.walk(tree)
+            if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and node.body
+            and isinstance(node.body[0], ast.Expr) and isinstance(node.body[0].value, ast.Constant)}
+    words = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docs:
+            if not any(c.isspace() for c in node.value.strip()):
+                words.append(node.value)
+        elif isinstance(node, ast.Name):
+            words.append(node.id)
+        elif isinstance(node, ast.Attribute):
+            words.append(node.attr)
+        elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            words.append(node.name)
+        elif isinstance(node, ast.alias):
+            words += [node.name, node.asname or ""]
+        elif isinstance(node, ast.ImportFrom):
+            words.append(node.module or "")
+    return "\n".join(words)
+
+
+def files_naming_solvers(names) -> dict[str, list[str]]:
+    """For each solver name, the files of src/odelab whose code names it (see :func:`_code_words`).
+
+    Counted: every module, and the compiled loops' templates (solvers/compiled/loops/) as the one module
+    they are joined into. Not counted: formats/ (the MATLAB and Simulink readers, which read those programs'
+    own texts, whose vocabulary includes MATLAB's solver names), docs and tests."""
+    import re
+
+    texts = {str(path.relative_to(SRC)): _code_words(ast.parse(path.read_text(encoding="utf-8")))
+             for path in SRC.rglob("*.py") if path.relative_to(SRC).parts[0] != "formats"}
+    texts["solvers/compiled/loops/"] = "\n".join(_code_words(ast.parse(p.read_text(encoding="utf-8")))
+                                                 for p in LOOP_TEMPLATES)
+    out = {}
+    for name in names:
+        word = re.compile(rf"(?<![A-Za-z0-9]){re.escape(name)}(?![A-Za-z0-9])")
+        out[name] = sorted(f for f, text in texts.items() if word.search(text))
+    return out
+
+
+def test_at_most_four_files_name_a_solver():
+    from odelab.solvers.registry import METHODS
+
+    named = files_naming_solvers(METHODS)
+    over = {name: files for name, files in named.items() if len(files) > MAX_FILES_NAMING_A_SOLVER}
+    grown = {name: files for name, files in over.items() if len(files) > NAMED_IN_MORE_FILES.get(name, 0)}
+    assert not grown, f"solvers named in more than {MAX_FILES_NAMING_A_SOLVER} files (dispatch by the registry): {grown}"
+    down = {name: len(named[name]) for name, limit in NAMED_IN_MORE_FILES.items() if len(named[name]) < limit}
+    assert not down, f"named in fewer files now: lower (or remove) them in NAMED_IN_MORE_FILES: {down}"
+    # the stiff solvers: their module, their registry entry, the public name in odelab/__init__ (and their twin)
+    assert named["ode23tb"] == ["__init__.py", "solvers/implicit/ode23tb.py", "solvers/registry.py"]
+    assert named["ode23s"] == ["__init__.py", "solvers/compiled/loops/", "solvers/implicit/ode23s.py",
+                               "solvers/registry.py"]
+
+
+def test_the_solvers_dispatch_by_table():
+    """No method's name and no driver kind is compared in the dispatch: DRIVERS maps each kind to its driver
+    function, and each stiff solver registers its step class."""
+    from odelab.solvers.implicit import step_class
+    from odelab.solvers.registry import DRIVERS, METHODS
+
+    for kind, driver in DRIVERS.items():
+        assert callable(driver.run), kind
+    for name, method in METHODS.items():
+        assert method.kind in DRIVERS
+        if method.kind == "implicit":
+            assert step_class(name).__module__ == f"odelab.solvers.implicit.{name}"
+    for path in (SRC / "solvers" / "api.py", SRC / "solvers" / "implicit" / "__init__.py",
+                 SRC / "solvers" / "compiled" / "stiff.py"):
+        compared = [ast.unparse(node) for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+                    if isinstance(node, ast.Compare) and any(
+                        isinstance(side, ast.Attribute) and side.attr in ("kind", "name")
+                        and isinstance(side.value, ast.Name) and side.value.id in ("m", "method")
+                        for side in (node.left, *node.comparators))]
+        assert not compared, f"{path.name} dispatches by comparing a method's kind or name: {compared}"

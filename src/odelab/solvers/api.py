@@ -13,7 +13,7 @@ from odelab.solution import Solution, Stats
 from odelab.solvers import engine
 from odelab.solvers.controller import min_step
 from odelab.solvers.options import SolverOptions, as_tspan, as_y0, normalize_options, resolve_options
-from odelab.solvers.registry import Method, get_method, join_names, methods_with
+from odelab.solvers.registry import DRIVERS, Method, get_method, join_names, methods_with
 from odelab.solvers.status import Status
 
 __all__ = ["ode23", "ode45", "solve", "odextend"]
@@ -242,15 +242,30 @@ def _solve_method(fun, tspan, y0, method: str, options: dict) -> Solution:
                          f"use {names} (MATLAB's solver for delay equations).", key="method")
     if hasattr(fun, "residual") and hasattr(fun, "partials") and hasattr(fun, "start"):
         return _solve_implicit_system(fun, tspan, y0, m, options)
-    if m.kind == "residual":
-        raise InputError(f"{m.name} solves fully implicit systems F(t, y, y') = 0 from y0 and a consistent slope "
-                         f"yp0: call odelab.{m.name}(F, tspan, y0, yp0) (odelab.decic makes them consistent); "
-                         "for y' = f(t, y) use ode15s.", key="method")
-    tspan_arr = as_tspan(tspan)
-    if m.kind == "delay":  # dde23 (odelab.solvers.dde23), which evaluates the delayed states itself
-        from odelab.solvers.dde23 import solve_delay
+    return DRIVERS[m.kind].run(fun, tspan, y0, m, options)  # the driver of the method's kind
 
-        return solve_delay(fun, tspan_arr, as_y0(y0), normalize_options(options, m))
+
+# --- the drivers (registry.DRIVERS): run(fun, tspan, y0, method, options) -> Solution ---------------------------
+
+def drive_residual(fun, tspan, y0, m: Method, options: dict) -> Solution:
+    """Methods of kind ``"residual"`` (ode15i) take F(t, y, y'), through :func:`solve_residual`, not f(t, y)."""
+    raise InputError(f"{m.name} solves fully implicit systems F(t, y, y') = 0 from y0 and a consistent slope "
+                     f"yp0: call odelab.{m.name}(F, tspan, y0, yp0) (odelab.decic makes them consistent); "
+                     "for y' = f(t, y) use ode15s.", key="method")
+
+
+def drive_delay(fun, tspan, y0, m: Method, options: dict) -> Solution:
+    """dde23 (:mod:`odelab.solvers.dde23`), which evaluates the delayed states itself."""
+    from odelab.solvers.dde23 import solve_delay
+
+    tspan_arr = as_tspan(tspan)
+    return solve_delay(fun, tspan_arr, as_y0(y0), normalize_options(options, m))
+
+
+def _prepared(fun, tspan, y0, m: Method, options: dict):
+    """The arrays, the options resolved once and ``fun`` with MATLAB's extra arguments bound:
+    ``(fun, user_fun, tspan, y0, given, opts)``."""
+    tspan_arr = as_tspan(tspan)
     y0_arr = as_y0(y0, allow_complex=True)
     if np.iscomplexobj(y0_arr) and not m.complex_y0:
         raise InputError(f"a complex `y0` is integrated by {'/'.join(methods_with(lambda x: x.complex_y0))} "
@@ -264,36 +279,72 @@ def _solve_method(fun, tspan, y0, method: str, options: dict) -> Solution:
         def fun(t, y, _f=user_fun):
             return _f(t, y, *args)
 
-    if m.kind == "scipy":
-        from odelab.solvers.scipy_adapter import solve_scipy
+    return fun, user_fun, tspan_arr, y0_arr, given, opts
 
-        return solve_scipy(fun, tspan_arr, y0_arr, m, opts)
 
+def _started(fun, tspan_arr, y0_arr, m: Method, opts: SolverOptions):
+    """The first derivative, checked: ``(rhs, f0, None)``, or ``(None, None, failed)`` with the
+    solution of a run that could not start."""
     t0 = float(tspan_arr[0])
     try:
         f0_raw = fun(t0, y0_arr.copy())
     except Exception as exc:
-        return _failed_at_start(m, tspan_arr, y0_arr, opts, f"the right-hand side raised {_describe(exc)} "
-                                f"at t = {t0:g} (the first call)", Status.FUN_RAISED)
+        return None, None, _failed_at_start(m, tspan_arr, y0_arr, opts, f"the right-hand side raised "
+                                            f"{_describe(exc)} at t = {t0:g} (the first call)", Status.FUN_RAISED)
     rhs, f0 = _checked_rhs(fun, f0_raw, y0_arr)
     if not np.all(np.isfinite(f0)):
-        return _failed_at_start(m, tspan_arr, y0_arr, opts, f"the derivative at t = {t0:g} is not finite "
-                                f"({_fmt_vec(f0)}): check the right-hand side at the initial state")
-    # the driver of the method's kind (registry.DRIVERS); the only place that reads Method.kind
-    if m.kind == "implicit":
-        return _solve_implicit(rhs, tspan_arr, y0_arr, f0, m, opts)
-    if m.kind in ("adaptive", "multistep"):
-        return _solve_adaptive(rhs, tspan_arr, y0_arr, f0, m, opts, {"fun": user_fun, "options": given})
+        return None, None, _failed_at_start(m, tspan_arr, y0_arr, opts, f"the derivative at t = {t0:g} is not "
+                                            f"finite ({_fmt_vec(f0)}): check the right-hand side at the initial state")
+    return rhs, f0, None
+
+
+def drive_scipy(fun, tspan, y0, m: Method, options: dict) -> Solution:
+    """SciPy's solver classes, stepped (:mod:`odelab.solvers.scipy_adapter`)."""
+    from odelab.solvers.scipy_adapter import solve_scipy
+
+    fun, _, tspan_arr, y0_arr, _, opts = _prepared(fun, tspan, y0, m, options)
+    return solve_scipy(fun, tspan_arr, y0_arr, m, opts)
+
+
+def drive_adaptive(fun, tspan, y0, m: Method, options: dict, multistep: bool = False) -> Solution:
+    """odelab's explicit pairs (the engine)."""
+    fun, user_fun, tspan_arr, y0_arr, given, opts = _prepared(fun, tspan, y0, m, options)
+    rhs, f0, failed = _started(fun, tspan_arr, y0_arr, m, opts)
+    if failed is not None:
+        return failed
+    return _solve_adaptive(rhs, tspan_arr, y0_arr, f0, m, opts, {"fun": user_fun, "options": given}, multistep)
+
+
+def drive_multistep(fun, tspan, y0, m: Method, options: dict) -> Solution:
+    """ode113 (Adams PECE, :mod:`odelab.solvers.adams`): the explicit pairs' preparation and output."""
+    return drive_adaptive(fun, tspan, y0, m, options, multistep=True)
+
+
+def drive_implicit(fun, tspan, y0, m: Method, options: dict) -> Solution:
+    """odelab's stiff solvers (:mod:`odelab.solvers.implicit`: a step class each, registered by name)."""
+    fun, _, tspan_arr, y0_arr, _, opts = _prepared(fun, tspan, y0, m, options)
+    rhs, f0, failed = _started(fun, tspan_arr, y0_arr, m, opts)
+    if failed is not None:
+        return failed
+    return _solve_implicit(rhs, tspan_arr, y0_arr, f0, m, opts)
+
+
+def drive_fixed(fun, tspan, y0, m: Method, options: dict) -> Solution:
+    """odelab's explicit Runge-Kutta methods on a fixed step ``h``."""
+    fun, _, tspan_arr, y0_arr, _, opts = _prepared(fun, tspan, y0, m, options)
+    rhs, _, failed = _started(fun, tspan_arr, y0_arr, m, opts)
+    if failed is not None:
+        return failed
     return _solve_fixed(rhs, tspan_arr, y0_arr, m, opts)
 
 
 def solve_residual(fun, tspan, y0, yp0, method: str = "ode15i", **options) -> Solution:
     """Solve a fully implicit system ``F(t, y, y') = 0`` from consistent ``y0, yp0`` (``odelab.ode15i``).
 
-    The driver of the methods of kind ``"residual"`` (:data:`odelab.solvers.registry.DRIVERS`);
+    The entry point of the methods of kind ``"residual"`` (:data:`odelab.solvers.registry.DRIVERS`);
     ``fun(t, y, yp)`` returns the residual, ``options`` as :func:`odelab.ode15i` documents them."""
     m = get_method(method)
-    if m.kind != "residual":
+    if not m.residual:
         raise InputError(f"{m.name} solves y' = f(t, y); a fully implicit F(t, y, y') = 0 is solved by "
                          f"{join_names(methods_with(lambda x: True, residual=True), 'or')}.", key="method")
     if not callable(fun):
@@ -436,7 +487,7 @@ def _checked_rhs(fun, raw, y0: np.ndarray):
     )
 
 
-def _solve_adaptive(fun, tspan, y0, f0, m: Method, opts: SolverOptions, setup: dict) -> Solution:
+def _solve_adaptive(fun, tspan, y0, f0, m: Method, opts: SolverOptions, setup: dict, multistep: bool) -> Solution:
     tab = m.tableau
     t0 = float(tspan[0])
     extra_fevals = 0
@@ -460,7 +511,7 @@ def _solve_adaptive(fun, tspan, y0, f0, m: Method, opts: SolverOptions, setup: d
     if opts.output_fcn is not None:
         output = _output_function(opts, tspan, y0)
     threshold = opts.atol / opts.rtol
-    if m.kind == "multistep":  # ode113: Adams PECE, its own driver and interpolant
+    if multistep:  # ode113: Adams PECE, its own driver and interpolant
         from odelab.solvers.adams import integrate_ode113
 
         (t, y, nsteps, nfailed, nfevals, status, t_stop, h_stop, exc, found, interpolant) = integrate_ode113(

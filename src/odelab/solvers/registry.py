@@ -10,6 +10,7 @@ about what a method cannot do lists the methods that can from :data:`METHODS`
 from __future__ import annotations
 
 import difflib
+import importlib
 import re
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
@@ -18,19 +19,43 @@ from odelab.exceptions import InputError
 from odelab.solvers import tableau as tb
 from odelab.solvers import verner
 
-__all__ = ["Method", "METHODS", "DRIVERS", "get_method", "register_method", "methods_with", "listing",
+__all__ = ["Method", "METHODS", "DRIVERS", "Driver", "get_method", "register_method", "methods_with", "listing",
            "join_names", "dense_output_text"]
 
-# The drivers: what runs a method of each kind (odelab.solvers.api dispatches on it, and only it).
+@dataclass(frozen=True)
+class Driver:
+    """What runs the methods of one kind: ``run(fun, tspan, y0, method, options) -> Solution``.
+
+    ``target`` is the driver function's ``module:function`` (imported when first run: the
+    drivers import this registry, so it cannot import them); ``sentence`` says what it is."""
+
+    target: str
+    sentence: str
+
+    @property
+    def run(self) -> Callable:
+        module, _, function = self.target.partition(":")
+        return getattr(importlib.import_module(module), function)
+
+
+# The drivers: what runs a method of each kind (odelab.solvers.api calls DRIVERS[method.kind].run, and only it).
 DRIVERS = {
-    "adaptive": "odelab.solvers.engine.integrate_adaptive: an explicit Runge-Kutta pair, MATLAB's controller",
-    "fixed": "odelab.solvers.engine.integrate_fixed: an explicit Runge-Kutta method on a fixed step h",
-    "multistep": "odelab.solvers.adams.integrate_ode113: Adams-Bashforth-Moulton PECE (Shampine & Gordon)",
-    "implicit": "odelab.solvers.implicit.solve_implicit: odelab's stiff solvers (one module each)",
-    "residual": "odelab.solvers.api.solve_residual: fully implicit F(t, y, y') = 0 from consistent y0 and y'0 "
-                "(odelab.solvers.implicit.ode15i)",
-    "delay": "odelab.solvers.dde23.solve_delay: delay equations with constant lags",
-    "scipy": "odelab.solvers.scipy_adapter.solve_scipy: SciPy's solve_ivp solver classes, stepped",
+    "adaptive": Driver("odelab.solvers.api:drive_adaptive",
+                       "odelab.solvers.engine.integrate_adaptive: an explicit Runge-Kutta pair, MATLAB's controller"),
+    "fixed": Driver("odelab.solvers.api:drive_fixed",
+                    "odelab.solvers.engine.integrate_fixed: an explicit Runge-Kutta method on a fixed step h"),
+    "multistep": Driver("odelab.solvers.api:drive_multistep",
+                        "odelab.solvers.adams.integrate_ode113: Adams-Bashforth-Moulton PECE (Shampine & Gordon)"),
+    "implicit": Driver("odelab.solvers.api:drive_implicit",
+                       "odelab.solvers.implicit.solve_implicit: odelab's stiff solvers (one module each, its step "
+                       "class registered by name)"),
+    "residual": Driver("odelab.solvers.api:drive_residual",
+                       "odelab.solvers.api.solve_residual: fully implicit F(t, y, y') = 0 from consistent y0 and "
+                       "y'0 (odelab.solvers.implicit.ode15i)"),
+    "delay": Driver("odelab.solvers.api:drive_delay", "odelab.solvers.dde23.solve_delay: delay equations with "
+                    "constant lags"),
+    "scipy": Driver("odelab.solvers.api:drive_scipy",
+                    "odelab.solvers.scipy_adapter.solve_scipy: SciPy's solve_ivp solver classes, stepped"),
 }
 
 # The options of each family of methods (odelab's names; MATLAB's spellings in odelab.solvers.options).

@@ -1,4 +1,7 @@
-"""The rest of MATLAB's ODE suite as functions: ``odelab.ode15s(fun, tspan, y0, ...)`` and co.
+"""More of MATLAB's ODE suite as functions: ``odelab.ode113(fun, tspan, y0, ...)`` and co.
+
+The stiff solvers' (``odelab.ode15s``, ``ode23s``, ``ode23t``, ``ode23tb``) live in their own
+modules (:mod:`odelab.solvers.implicit`), beside their step classes.
 
 Each takes MATLAB's arguments and ``odeset`` option names (``RelTol``, ``AbsTol``,
 ``MaxStep``, ``InitialStep``, ``Refine``, ``Events``, and for the stiff solvers ``Jacobian``,
@@ -16,49 +19,7 @@ from odelab.exceptions import SolverWarning
 from odelab.solution import Solution
 from odelab.solvers.api import solve, solve_residual
 
-__all__ = ["ode15s", "ode23s", "ode23t", "ode23tb", "ode113", "ode78", "ode89", "ode15i"]
-
-
-def ode15s(fun, tspan, y0, **options) -> Solution:
-    """Solve a stiff ODE or an index-1 DAE ``M y' = f(t, y)`` with MATLAB's ``ode15s``.
-
-    Variable-order (1-5) numerical differentiation formulas (Shampine & Reichelt 1997).
-    Options: ``rtol``/``RelTol`` (1e-3), ``atol``/``AbsTol`` (1e-6), ``max_step``
-    (0.1*|tf - t0|), ``initial_step``, ``refine`` (1), ``max_steps``, ``max_order``/``MaxOrder``
-    (5), ``bdf``/``BDF`` (False: NDFs; True: the backward differentiation formulas),
-    ``jacobian`` (a constant matrix or ``J(t, y)``; default finite differences),
-    ``jpattern`` (sparsity of df/dy: fewer evaluations and sparse LU), ``vectorized``
-    (``fun(t, Y)`` accepts a matrix of states, one per column), ``mass`` (constant M,
-    singular for a DAE with consistent initial values).
-
-    Examples
-    --------
-    >>> import odelab
-    >>> vdp = lambda t, y: [y[1], 1000 * (1 - y[0] ** 2) * y[1] - y[0]]
-    >>> sol = odelab.ode15s(vdp, [0, 3000], [2, 0])
-    >>> sol.success, sol.stats.nsteps < 1000
-    (True, True)
-    """
-    return solve(fun, tspan, y0, method="ode15s", **options)
-
-
-def ode23s(fun, tspan, y0, **options) -> Solution:
-    """Solve a stiff ODE with MATLAB's ``ode23s``: a modified Rosenbrock (2,3) W-method.
-
-    One Jacobian per step, no Newton iteration: effective at crude tolerances. Options as
-    :func:`ode15s` without ``max_order``/``bdf``; ``mass`` must be nonsingular.
-    """
-    return solve(fun, tspan, y0, method="ode23s", **options)
-
-
-def ode23t(fun, tspan, y0, **options) -> Solution:
-    """MATLAB's ``ode23t`` name (trapezoidal rule, moderately stiff problems and DAEs)."""
-    return solve(fun, tspan, y0, method="ode23t", **options)
-
-
-def ode23tb(fun, tspan, y0, **options) -> Solution:
-    """MATLAB's ``ode23tb`` name (TR-BDF2, stiff problems at crude tolerances)."""
-    return solve(fun, tspan, y0, method="ode23tb", **options)
+__all__ = ["ode113", "ode78", "ode89", "ode15i"]
 
 
 def ode113(fun, tspan, y0, **options) -> Solution:

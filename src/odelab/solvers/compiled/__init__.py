@@ -49,8 +49,8 @@ MAX_GENERATED_SIZE = 400
 #: Seconds a compile costs, measured on a 2-core machine (bench/bench_compiled.py), idle: the
 #: shared adaptive loop (once per machine), the events loop, one system's rhs, and loading a
 #: cached build (numba's import and the cache index).
-COMPILE_SECONDS = {"adaptive": 2.5, "events": 4.0, "rhs": 0.6, "load": 0.5, "ode23s": 8.0, "ode15s": 12.0,
-                   "jacobian": 1.0}
+#: A stiff solver's loop: its step class's ``compile_seconds`` (:mod:`odelab.solvers.implicit`).
+COMPILE_SECONDS = {"adaptive": 2.5, "events": 4.0, "rhs": 0.6, "load": 0.5, "jacobian": 1.0}
 
 
 @dataclass(frozen=True, eq=False)
@@ -271,12 +271,14 @@ def expected_compile_seconds(system: CompiledSystem, loop: str = "adaptive") -> 
     (:data:`COMPILE_SECONDS`). ``backend = "auto"`` weighs it against the Python run."""
     from odelab.solvers.compiled import cache
 
-    stiff = loop in ("ode23s", "ode15s")
+    from odelab.solvers.compiled.methods import STIFF_METHODS
+
+    stiff = loop in STIFF_METHODS
     try:
         seconds = COMPILE_SECONDS["load"]
-        function = {"events": "_adaptive_events", "ode23s": "_ode23s", "ode15s": "_ode15s"}.get(loop, "_adaptive")
+        function = f"_{loop}" if stiff else {"events": "_adaptive_events"}.get(loop, "_adaptive")
         if not cache.is_built(cache.kernels_text(), "odelab_kernels", function):
-            seconds += COMPILE_SECONDS[loop]
+            seconds += _stiff_compile_seconds(loop) if stiff else COMPILE_SECONDS[loop]
         if not cache.is_built(system.source(jacobian=stiff)):
             seconds += COMPILE_SECONDS["rhs"]
             if stiff:  # complex arithmetic compiles slowly: 74 s for the 100-mass chain (size 325), loaded machine
@@ -284,6 +286,12 @@ def expected_compile_seconds(system: CompiledSystem, loop: str = "adaptive") -> 
         return seconds
     except ImportError:  # pragma: no cover - numba missing: why_not_compiled says so first
         return float("inf")
+
+
+def _stiff_compile_seconds(name: str) -> float:
+    from odelab.solvers.implicit import step_class
+
+    return step_class(name).compile_seconds
 
 
 def _python_rhs(rhs, p: np.ndarray, n: int):

@@ -75,7 +75,7 @@ def solve_stiff(system, m, tspan_arr: np.ndarray, y0_arr: np.ndarray, options: d
     """Run ``m`` (ode23s or ode15s) compiled; ``options`` as :func:`odelab.solve` takes them."""
     from odelab.solvers import api
     from odelab.solvers.compiled.cache import load_kernels
-    from odelab.solvers.implicit import resolve_extras
+    from odelab.solvers.implicit import resolve_extras, step_class
     from odelab.solvers.options import normalize_options, resolve_options
 
     reason = why_not_stiff(m.name, system, options)
@@ -107,15 +107,8 @@ def solve_stiff(system, m, tspan_arr: np.ndarray, y0_arr: np.ndarray, options: d
             float(opts.max_step), float(opts.initial_step), int(opts.refine), int(opts.max_steps), int(capacity))
     perm, kl, ku = _band_of(system)
     args = (*args, perm, kl, ku)
-    if m.name == "ode15s":
-        from odelab.solvers.implicit.ode15s import GAMMA, KAPPA
-
-        kappa = np.zeros(6) if extra["bdf"] else KAPPA
-        alpha = (1.0 - kappa) * GAMMA  # integrate_ode15s's, bit for bit
-        erconst = kappa * GAMMA + 1.0 / np.arange(1, 7)
-        result = kernels.loop("ode15s")(*args, int(extra["max_order"]), np.array(GAMMA), alpha, erconst)
-    else:
-        result = kernels.loop("ode23s")(*args)
+    # the loop of the method's name (loops/table.py.txt), with what its step class adds (ode15s: its orders)
+    result = kernels.loop(m.name)(*args, *step_class(m.name).compiled_arguments(extra))
     t_out, y_out, count, nsteps, nfailed, nfevals, npds, ndecomps, nsolves, status, t_stop, h_stop = result
     t, y = t_out[:count], y_out[:count]
     if count < t_out.size // 2:  # do not keep a mostly empty buffer alive

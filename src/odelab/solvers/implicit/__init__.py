@@ -1,18 +1,23 @@
 """odelab's own stiff solvers, written from the MATLAB ODE Suite papers (one module each).
 
-:func:`solve_implicit` runs one of them for :func:`odelab.solve`; :func:`resolve_extras`
+:func:`solve_implicit` runs one of them for :func:`odelab.solve`: each module registers its step
+class under its method's name (``@register_step("ode23t")``), found by :func:`step_class`, and
+:func:`~odelab.solvers.implicit.driver.integrate` drives it; :func:`resolve_extras`
 checks MATLAB's options that only they take (``Jacobian``, ``JPattern``, ``Vectorized``,
 ``Mass``, ``MaxOrder``, ``BDF``). SciPy is imported only when a solve starts.
 """
 
 from __future__ import annotations
 
+import importlib
+
 import numpy as np
 
 from odelab.exceptions import InputError
+from odelab.solvers.implicit.driver import STEPS, Stepper, integrate
 from odelab.solvers.optionset import as_bool
 
-__all__ = ["resolve_extras", "solve_implicit", "EXTRA_DEFAULTS"]
+__all__ = ["resolve_extras", "solve_implicit", "step_class", "EXTRA_DEFAULTS"]
 
 EXTRA_DEFAULTS = {"jacobian": None, "jpattern": None, "vectorized": False, "mass": None, "max_order": 5,
                   "bdf": False}
@@ -105,29 +110,14 @@ def solve_implicit(fun, tspan, y0, f0, m, opts, events=None):
     work = Work(fun, n, jacobian=extra["jacobian"], jpattern=jpattern, vectorized=extra["vectorized"], mass=mass)
     atol = np.broadcast_to(np.asarray(opts.atol, dtype=float), (n,))
     nonnegative = opts.nonnegative  # the right-hand side is already wrapped (odelab.solvers.api)
-    name = m.name
-    if name == "ode15s":
-        from odelab.solvers.implicit.ode15s import integrate_ode15s
-
-        dae = mass is not None and np.linalg.matrix_rank(mass.toarray() if hasattr(mass, "toarray") else mass) < n
-        result = integrate_ode15s(work, tspan, y0, f0, opts.rtol, atol, opts.max_step, opts.initial_step,
-                                  opts.refine, opts.max_steps, max_order=extra["max_order"], bdf=extra["bdf"], dae=dae,
-                                  events=events, nonnegative=nonnegative)
-    elif name == "ode23s":
-        from odelab.solvers.implicit.ode23s import integrate_ode23s
-
-        result = integrate_ode23s(work, tspan, y0, f0, opts.rtol, atol, opts.max_step, opts.initial_step,
-                                  opts.refine, opts.max_steps, events)
-    elif name == "ode23t":
-        from odelab.solvers.implicit.ode23t import integrate_ode23t
-
-        result = integrate_ode23t(work, tspan, y0, f0, opts.rtol, atol, opts.max_step, opts.initial_step,
-                                  opts.refine, opts.max_steps, events, nonnegative)
-    elif name == "ode23tb":
-        from odelab.solvers.implicit.ode23tb import integrate_ode23tb
-
-        result = integrate_ode23tb(work, tspan, y0, f0, opts.rtol, atol, opts.max_step, opts.initial_step,
-                                   opts.refine, opts.max_steps, events, nonnegative)
-    else:  # pragma: no cover - the registry lists only the solvers above as implicit
-        raise ValueError(name)
+    stepper = step_class(m.name).for_run(work, tspan, opts.rtol, atol, extra, nonnegative)
+    result = integrate(stepper, tspan, y0, f0, opts.max_step, opts.initial_step, opts.refine, opts.max_steps, events)
     return result, work
+
+
+def step_class(name: str) -> type[Stepper]:
+    """The step class of the stiff method ``name``: its module, ``odelab.solvers.implicit.<name>``,
+    registers it when imported (:func:`~odelab.solvers.implicit.driver.register_step`)."""
+    if name not in STEPS:
+        importlib.import_module(f"{__name__}.{name}")
+    return STEPS[name]

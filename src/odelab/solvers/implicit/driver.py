@@ -27,7 +27,7 @@ from odelab.solvers.implicit.common import Work
 from odelab.solvers.output import STIFF_RULES, NonNegative, StepOutput
 from odelab.solvers.status import Status
 
-__all__ = ["Stepper", "integrate"]
+__all__ = ["STEPS", "Stepper", "integrate", "register_step"]
 
 
 class Stepper:
@@ -48,6 +48,21 @@ class Stepper:
     #: the last accepted step (:meth:`accept` sets them).
     fields: tuple = ()
     rows: tuple = ()
+
+    @classmethod
+    def for_run(cls, work: Work, tspan, rtol: float, atol: np.ndarray, extra: dict, nonnegative=None):
+        """The step of one run from its resolved options (``extra``: the stiff solvers' own, see
+        :func:`odelab.solvers.implicit.resolve_extras`); a method with options of its own overrides it."""
+        return cls(work, tspan, rtol, atol, nonnegative)
+
+    #: Seconds the first compile of the method's compiled twin costs (its loop in
+    #: solvers/compiled/loops/, if it has one), measured on a 2-core machine, idle (bench/bench_compiled.py).
+    compile_seconds: float | None = None
+
+    @classmethod
+    def compiled_arguments(cls, extra: dict) -> tuple:
+        """What the compiled twin's loop takes after the arguments every stiff loop takes (its own options)."""
+        return ()
 
     def __init__(self, work: Work, tspan, rtol: float, atol: np.ndarray, nonnegative=None):
         self.work = work
@@ -107,6 +122,22 @@ class Stepper:
     def dense(self, y_final: np.ndarray, store):
         """The solution's dense output for ``deval`` from the steps' records (or None)."""
         return None
+
+
+#: Each stiff solver's step class by its method's name (the registry's), registered by its own module with
+#: :func:`register_step`; :func:`odelab.solvers.implicit.solve_implicit` looks the class up here.
+STEPS: dict[str, type[Stepper]] = {}
+
+
+def register_step(name: str):
+    """Register the decorated :class:`Stepper` subclass as the step of the method ``name``."""
+    def add(cls: type[Stepper]) -> type[Stepper]:
+        if name in STEPS and STEPS[name] is not cls:
+            raise ValueError(f"a step class for {name!r} is registered already ({STEPS[name].__name__})")
+        STEPS[name] = cls
+        return cls
+
+    return add
 
 
 class _Interpolant:

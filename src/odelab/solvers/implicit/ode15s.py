@@ -24,12 +24,14 @@ import math
 
 import numpy as np
 
+from odelab.solution import Solution
+from odelab.solvers.api import solve
 from odelab.solvers.controller import first_step, given_step, grow, shrink, shrink_after_newton
 from odelab.solvers.implicit.common import EPS, SQRT_EPS, Newton, Work, jacobian_times, newton
-from odelab.solvers.implicit.driver import Stepper, integrate
+from odelab.solvers.implicit.driver import Stepper, integrate, register_step
 from odelab.solvers.ordered import backwards, matmul
 
-__all__ = ["integrate_ode15s", "NDFStep", "KAPPA"]
+__all__ = ["integrate_ode15s", "NDFStep", "KAPPA", "ode15s"]
 
 # MATLAB's ode15s: alpha = [-37/200, -1/9, -0.0823, -0.0415, 0] for orders 1..5 (index 0 unused).
 KAPPA = np.array([0.0, -37 / 200, -1 / 9, -0.0823, -0.0415, 0.0])
@@ -60,10 +62,29 @@ def change_differences(D: np.ndarray, order: int, factor: float) -> None:
     D[: order + 1] = matmul(RU.T, D[: order + 1])
 
 
+@register_step("ode15s")
 class NDFStep(Stepper):
     """ode15s's own part of the step: the backward differences ``D`` of the solution (scaled for
     the step ``absh_D``), the order ``k``, the iteration matrix and its LU (keyed on ``|h|`` and
     ``k``), and ``nconhk``, the steps taken at constant step size and order."""
+
+    compile_seconds = 12.0
+
+    @classmethod
+    def compiled_arguments(cls, extra: dict) -> tuple:
+        """The compiled loop's MaxOrder, GAMMA, alpha and error constants (as __init__ forms them, bit for bit)."""
+        kappa = np.zeros(6) if extra["bdf"] else KAPPA
+        alpha = (1.0 - kappa) * GAMMA
+        erconst = kappa * GAMMA + 1.0 / np.arange(1, 7)
+        return int(extra["max_order"]), np.array(GAMMA), alpha, erconst
+
+    @classmethod
+    def for_run(cls, work, tspan, rtol, atol, extra, nonnegative=None):
+        """MaxOrder and BDF from the run's options; a DAE when the mass matrix is singular."""
+        mass, n = work.mass, work.n
+        dae = mass is not None and np.linalg.matrix_rank(mass.toarray() if hasattr(mass, "toarray") else mass) < n
+        return cls(work, tspan, rtol, atol, max_order=extra["max_order"], bdf=extra["bdf"], dae=dae,
+                   nonnegative=nonnegative)
 
     def __init__(self, work: Work, tspan, rtol, atol, max_order=5, bdf=False, dae=False, nonnegative=None):
         super().__init__(work, tspan, rtol, atol, nonnegative)
@@ -231,3 +252,26 @@ def integrate_ode15s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
     kept >= 0 (MATLAB's NonNegative), or None."""
     stepper = NDFStep(work, tspan, rtol, atol, max_order=max_order, bdf=bdf, dae=dae, nonnegative=nonnegative)
     return integrate(stepper, tspan, y0, f0, hmax, htry, refine, max_steps, events)
+
+
+def ode15s(fun, tspan, y0, **options) -> Solution:
+    """Solve a stiff ODE or an index-1 DAE ``M y' = f(t, y)`` with MATLAB's ``ode15s``.
+
+    Variable-order (1-5) numerical differentiation formulas (Shampine & Reichelt 1997).
+    Options: ``rtol``/``RelTol`` (1e-3), ``atol``/``AbsTol`` (1e-6), ``max_step``
+    (0.1*|tf - t0|), ``initial_step``, ``refine`` (1), ``max_steps``, ``max_order``/``MaxOrder``
+    (5), ``bdf``/``BDF`` (False: NDFs; True: the backward differentiation formulas),
+    ``jacobian`` (a constant matrix or ``J(t, y)``; default finite differences),
+    ``jpattern`` (sparsity of df/dy: fewer evaluations and sparse LU), ``vectorized``
+    (``fun(t, Y)`` accepts a matrix of states, one per column), ``mass`` (constant M,
+    singular for a DAE with consistent initial values).
+
+    Examples
+    --------
+    >>> import odelab
+    >>> vdp = lambda t, y: [y[1], 1000 * (1 - y[0] ** 2) * y[1] - y[0]]
+    >>> sol = odelab.ode15s(vdp, [0, 3000], [2, 0])
+    >>> sol.success, sol.stats.nsteps < 1000
+    (True, True)
+    """
+    return solve(fun, tspan, y0, method="ode15s", **options)

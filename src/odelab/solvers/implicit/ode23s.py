@@ -26,21 +26,30 @@ import math
 
 import numpy as np
 
+from odelab.solution import Solution
+from odelab.solvers.api import solve
 from odelab.solvers.controller import grow, shrink
 from odelab.solvers.implicit.common import SQRT_EPS, Work, initial_step
-from odelab.solvers.implicit.driver import Stepper, integrate
+from odelab.solvers.implicit.driver import Stepper, integrate, register_step
 
-__all__ = ["integrate_ode23s", "RosenbrockStep", "D", "E32"]
+__all__ = ["integrate_ode23s", "RosenbrockStep", "D", "E32", "ode23s"]
 
 D = 1.0 / (2.0 + math.sqrt(2.0))
 E32 = 6.0 + math.sqrt(2.0)
 POWER = 1.0 / 3.0
 
 
+@register_step("ode23s")
 class RosenbrockStep(Stepper):
     """ode23s's own part of the step: ``F0 = f(t, y)`` (FSAL), the Jacobian and ``T = df/dt``
     formed once per step (kept through its failed attempts; a W-method needs no Newton
     iteration, so an attempt never fails to converge), and the stages ``k1, k2``."""
+
+    compile_seconds = 8.0
+
+    @classmethod
+    def for_run(cls, work, tspan, rtol, atol, extra, nonnegative=None):
+        return cls(work, tspan, rtol, atol)  # as MATLAB's ode23s: no NonNegative
 
     def start(self, t, y, f0, hmax, htry):
         self.F0 = f0
@@ -95,3 +104,12 @@ def integrate_ode23s(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
     ``events``: ``(ev, v0)`` (MATLAB's Events), located on the step's interpolant; the events
     found are left in ``work.found``."""
     return integrate(RosenbrockStep(work, tspan, rtol, atol), tspan, y0, f0, hmax, htry, refine, max_steps, events)
+
+
+def ode23s(fun, tspan, y0, **options) -> Solution:
+    """Solve a stiff ODE with MATLAB's ``ode23s``: a modified Rosenbrock (2,3) W-method.
+
+    One Jacobian per step, no Newton iteration: effective at crude tolerances. Options as
+    :func:`ode15s` without ``max_order``/``bdf``; ``mass`` must be nonsingular.
+    """
+    return solve(fun, tspan, y0, method="ode23s", **options)

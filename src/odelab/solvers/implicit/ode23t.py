@@ -49,13 +49,15 @@ import math
 
 import numpy as np
 
+from odelab.solution import Solution
+from odelab.solvers.api import solve
 from odelab.solvers.controller import first_step, given_step, shrink, shrink_after_newton
 from odelab.solvers.implicit.common import (EPS, SQRT_EPS, Newton, QuadraticRecords, QuadraticSteps, Work,
                                            consistent_slope, jacobian_times, quadratic_through, rate_test)
-from odelab.solvers.implicit.driver import Stepper, integrate
+from odelab.solvers.implicit.driver import Stepper, integrate, register_step
 
 __all__ = ["integrate_ode23t", "TrapezoidalStep", "predict", "local_error", "rings", "interpolant", "solve_z",
-           "hermite_midpoint"]
+           "hermite_midpoint", "ode23t"]
 
 POWER = 1.0 / 3.0
 MAX_NEWTON = 5
@@ -145,6 +147,7 @@ def solve_z(work: Work, lu, tnew: float, ynew: np.ndarray, znew: np.ndarray, gam
     return y, z, False
 
 
+@register_step("ode23t")
 class TrapezoidalStep(QuadraticRecords, Stepper):
     """ode23t's own part of the step: ``z = h y'``, the last three accepted points (``history``:
     prediction, error estimate, interpolant), whether the step is BDF1 (``bdf1``: the first
@@ -309,3 +312,8 @@ def integrate_ode23t(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine, 
     ``work.found``. ``nonnegative``: the indices kept >= 0 (MATLAB's NonNegative), or None."""
     stepper = TrapezoidalStep(work, tspan, rtol, atol, nonnegative)
     return integrate(stepper, tspan, y0, f0, hmax, htry, refine, max_steps, events)
+
+
+def ode23t(fun, tspan, y0, **options) -> Solution:
+    """MATLAB's ``ode23t`` name (trapezoidal rule, moderately stiff problems and DAEs)."""
+    return solve(fun, tspan, y0, method="ode23t", **options)

@@ -35,12 +35,14 @@ import math
 
 import numpy as np
 
+from odelab.solution import Solution
+from odelab.solvers.api import solve
 from odelab.solvers.controller import grow, shrink, shrink_after_newton
 from odelab.solvers.implicit.common import (Newton, QuadraticRecords, QuadraticSteps, Work, initial_step, newton,
                                            quadratic_through)
-from odelab.solvers.implicit.driver import Stepper, integrate
+from odelab.solvers.implicit.driver import Stepper, integrate, register_step
 
-__all__ = ["integrate_ode23tb", "TRBDF2Step", "trbdf2_attempt", "GAMMA", "D", "W", "B", "BHAT"]
+__all__ = ["integrate_ode23tb", "TRBDF2Step", "trbdf2_attempt", "GAMMA", "D", "W", "B", "BHAT", "ode23tb"]
 
 GAMMA = 2.0 - math.sqrt(2.0)
 D = GAMMA / 2.0  # = (1 - gamma) / (2 - gamma): the same diagonal for both stages
@@ -82,6 +84,7 @@ def trbdf2_attempt(work: Work, lu, t: float, y: np.ndarray, z: np.ndarray, zslop
     return ynew, yg, znew, est, True
 
 
+@register_step("ode23tb")
 class TRBDF2Step(QuadraticRecords, Stepper):
     """ode23tb's own part of the step: ``y'`` and ``y''`` at the step's start (FSAL; the first
     stage's starting guess), the LU of ``M - d h J`` keyed on ``h``, and the accepted steps'
@@ -149,3 +152,8 @@ def integrate_ode23tb(work: Work, tspan, y0, f0, rtol, atol, hmax, htry, refine,
     ``work.found``. ``nonnegative``: the indices kept >= 0 (MATLAB's NonNegative), or None."""
     return integrate(TRBDF2Step(work, tspan, rtol, atol, nonnegative), tspan, y0, f0, hmax, htry, refine, max_steps,
                      events)
+
+
+def ode23tb(fun, tspan, y0, **options) -> Solution:
+    """MATLAB's ``ode23tb`` name (TR-BDF2, stiff problems at crude tolerances)."""
+    return solve(fun, tspan, y0, method="ode23tb", **options)
