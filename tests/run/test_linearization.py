@@ -76,3 +76,15 @@ def test_linearize_keys_are_checked_when_loading(tmp_path):
     path.write_text(text.replace('quantity = "y"', 'quantity = "z"'))
     with pytest.raises(InputError, match=r"`linearize.quantity` is 'z', not a state or output \(x, v, y\)"):
         load_experiment(path)
+
+
+def test_a_linearised_network_keeps_its_drawing_and_derivation():
+    # a [linearize] case runs apart from the others (run/linearization.py); its network's drawing and
+    # derivation were missing from its result, so the report drew no network for it
+    exp = load_experiment(ROOT / "experiments" / "networks" / "network_nonlinear_spring.toml")
+    result = run_case(exp.cases[0])
+    assert "linearization" in result.extra
+    network = result.extra["network"]
+    for element in exp.cases[0].problem.network.elements:
+        assert element in network["dot"], element
+    assert network["sections"] and not network["linear"]

@@ -81,7 +81,7 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
     if p.linearize is not None:
         from odelab.run.linearization import run_linearization_case
 
-        return run_linearization_case(case, max_steps=max_steps)
+        return _drawings(run_linearization_case(case, max_steps=max_steps), p)
     options = dict(p.options)
     capped = False
     if max_steps and "h" not in options:
@@ -127,13 +127,7 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
     if status == "success" and case.config.get("expect") in ("max-steps", "failure"):
         result.warnings.append(f"the file expects this case to stop (expect = {case.config['expect']!r}), but it "
                                "reached the end of its span: remove `expect` if that is now right.")
-    if p.diagram is not None:
-        result.extra["diagram"] = diagram_record(p)
-        result.warnings.extend(n for n in p.diagram.notes if n not in result.warnings)
-    if getattr(p, "network", None) is not None:  # kind = "network": its drawing and derivation
-        from odelab.experiment.kinds.network import network_record
-
-        result.extra["network"] = network_record(p)
+    _drawings(result, p)
     if p.analysis is not None:
         from odelab.exceptions import InputError
 
@@ -141,6 +135,19 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
             result.extra["analysis"] = analyze_problem(p)
         except InputError as exc:  # e.g. no equilibrium to linearise about
             result.warnings.append(f"[analysis] could not be computed: {exc.message}")
+    return result
+
+
+def _drawings(result: CaseResult, p) -> CaseResult:
+    """A diagram's or a network's drawing (and a network's derivation) on its result, whatever ran the case
+    (a [linearize] case too: the report draws the system it linearised)."""
+    if p.diagram is not None:
+        result.extra["diagram"] = diagram_record(p)
+        result.warnings.extend(n for n in p.diagram.notes if n not in result.warnings)
+    if getattr(p, "network", None) is not None:  # kind = "network": its drawing and derivation
+        from odelab.experiment.kinds.network import network_record
+
+        result.extra["network"] = network_record(p)
     return result
 
 
