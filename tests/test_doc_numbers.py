@@ -143,3 +143,72 @@ def test_control_tutorial_quotes_the_loop_margins():
     loop = pi["loop"]
     assert f"{loop['phase_margin']:.3g}" == pm and f"{loop['gain_crossover']:.3g}" == wc
     assert loop["gain_margin"] is None or loop["gain_margin"] == float("inf")
+
+
+@lru_cache(maxsize=None)
+def study_records(tmp: str) -> dict:
+    """The sweep records of the shipped work-precision study and damping sweep, stored by `odelab run`."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from odelab.cli import app
+
+    out = CliRunner().invoke(app, ["run", str(EXPERIMENTS / "work-precision.toml"), str(EXPERIMENTS / "damping.toml"),
+                                   "--runs", tmp])
+    assert out.exit_code == 0, out.output
+    return {p.parent.name: json.loads(p.read_text(encoding="utf-8")) for p in Path(tmp).glob("*/sweep.json")}
+
+
+@pytest.fixture(scope="module")
+def studies(tmp_path_factory):
+    return study_records(str(tmp_path_factory.mktemp("studies")))
+
+
+def test_studies_tutorial_quotes_the_work_precision_of_the_rigid_body(studies):
+    """The numbers of the report's work-precision table (tightest error, its evaluations, the
+    evaluations' factor per digit, as the report prints it: ×{10**slope:.2f})."""
+    (ode23, ode45, dop853, ode78_err, ode78, f23, f45, fdop, f78, ode113_err, ode113, f113) = quoted(
+        "docs/tutorials/studies.md",
+        r"costs ode23 (\d+) function evaluations, ode45 (\d+) and DOP853 under (\d+) \(ode78 reaches ([\d.e-]+) "
+        r"with (\d+)\); each further digit multiplies ode23's work by ([\d.]+), ode45's by ([\d.]+), DOP853's by "
+        r"([\d.]+) and ode78's by ([\d.]+) \(about 10\^\(1/p\) for order p\)\. ode113 \(variable order up to 13, two "
+        r"evaluations a step\) reaches ([\d.e-]+) with (\d+) evaluations, x([\d.]+) per digit")
+    curves = {c["label"]: c for c in studies["work-precision_rigid_body"]["study"]["curves"]}
+
+    def tightest(label):
+        return int(curves[label]["nfevals"][-1])
+
+    def per_digit(label):
+        return f"{10 ** curves[label]['slope']:.2f}"
+
+    assert (tightest("ode23"), tightest("ode45"), tightest("DOP853"), tightest("ode78"), tightest("ode113")) == (
+        int(ode23), int(ode45), int(dop853), int(ode78), int(ode113))
+    assert [per_digit(m) for m in ("ode23", "ode45", "DOP853", "ode78", "ode113")] == [f23, f45, fdop, f78, f113]
+    assert f"{curves['ode78']['error'][-1]:.0e}" == ode78_err
+    assert f"{curves['ode113']['error'][-1]:.2g}" == f"{float(ode113_err):.2g}"
+    # "an error of about 5e-8": ode23's and ode45's tightest, within a factor 3 of it
+    for m in ("ode23", "ode45"):
+        assert 5e-8 / 3 <= curves[m]["error"][-1] <= 5e-8 * 3, m
+
+
+def test_studies_tutorial_quotes_the_damping_sweep(studies):
+    overshoot, b0, critical, within = quoted(
+        "docs/tutorials/studies.md", r"overshoot \((\d+) % at b = ([\d.]+), none above critical damping "
+                                     r"b = ([\d.]+): at most ([\d.e-]+) %")
+    rows = {row["swept"]["parameters.b"]: row["metrics"]["y"]["overshoot_percent"] for row in studies["damping"]["rows"]}
+    assert round(rows[float(b0)]) == int(overshoot)
+    import math
+
+    assert f"{2 * math.sqrt(3.0 * 1.0):.2f}" == critical  # b = 2 sqrt(k m), Exercise 2's k = 3, m = 1
+    above = [v for b, v in rows.items() if b > float(critical)]
+    assert above and max(above) <= float(within) and max(above) > float(within) / 10
+    assert min(v for b, v in rows.items() if b < float(critical)) > 0.1  # below it, a real overshoot
+
+
+def test_python_guide_quotes_the_ode15s_steps_on_van_der_pol():
+    import odelab
+
+    (steps,) = quoted("docs/guide/python.md", r"odelab.ode15s\(vdp, \[0, 3000\], \[2, 0\]\) # (\d+) steps;")
+    vdp = lambda t, y: [y[1], 1000 * (1 - y[0] ** 2) * y[1] - y[0]]
+    assert odelab.ode15s(vdp, [0, 3000], [2, 0]).stats.nsteps == int(steps)
