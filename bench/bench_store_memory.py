@@ -2,15 +2,17 @@
 
 ``odelab run`` of the rigid body (experiments/rigid_body.toml) over [0, 200000] with
 ``--max-steps 0``: about 980,000 ode45 steps on the compiled backend and 3.9 million output
-rows (Refine 4), stored as trajectory.npz (t and three states, 8 bytes a value: 126 MB; the
+rows (Refine 4), stored as trajectory.npz (t and three states, 8 bytes a value; the
 file's high-accuracy [reference] is set to "none" unless ``--reference``). The run
 is a subprocess; its peak resident memory is read from ``getrusage(RUSAGE_CHILDREN)`` (the
 largest of the processes it waited for) and set against the stored trajectory's size and
-against the same interpreter with odelab's run imports and numba loaded and nothing run (the
-floor a run cannot go under). Once with a cold compile cache (a fresh ``ODELAB_CACHE_DIR``: numba
-compiles the loop) and once warm (the same folder again). Target: peak <= 2 x the trajectory.
+against the floor a run cannot go under: the same run over [0, 1] (Python, numpy, numba, the
+compiled loops and this system's module loaded, a few steps run). Once with a cold compile
+cache (a fresh ``ODELAB_CACHE_DIR``: numba compiles the loop) and once warm (the same folder
+again). Target: peak <= 2 x the trajectory. ``--extra "--no-estimate"`` leaves out the error
+estimate's second solve (default on for a case without a reference, docs/guide/trust.md).
 
-    python bench/bench_store_memory.py [--stop 200000] [--keep DIR]
+    python bench/bench_store_memory.py [--stop 200000] [--keep DIR] [--extra "--no-estimate"]
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import argparse
 import os
 import re
 import resource
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -26,8 +29,6 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 TARGET = 2.0
-FLOOR = ("import odelab.cli.app, odelab.run.runfiles, odelab.solvers.compiled, numba, numpy; "
-         "from odelab.solvers.compiled.cache import load_kernels; load_kernels()")
 
 
 def _child_peak(cmd: list[str], env: dict) -> tuple[int, float, subprocess.CompletedProcess]:
@@ -57,6 +58,7 @@ def main() -> int:
                         help="keep the file's high-accuracy [reference] (13 columns: each state's reference and "
                              "errors; its values at 3.9 million points take minutes)")
     parser.add_argument("--keep", type=Path, help="keep the results folder and cache here")
+    parser.add_argument("--extra", default="", help="more `odelab run` options, space separated")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         base = args.keep or Path(tmp)
@@ -67,22 +69,28 @@ def main() -> int:
         if not args.reference:  # as measured in issue 38: t and the three states, 126 MB
             text = text.replace('method = "high-accuracy"', 'method = "none"')
         path.write_text(text)
+        short = base / "rigid_body_floor.toml"
+        short.write_text(re.sub(r"(?m)^stop = .*$", "stop = 1", text))
         env = dict(os.environ, ODELAB_CACHE_DIR=str(base / "cache"), COLUMNS="120")
         env.setdefault("PYTHONPATH", str(ROOT / "src"))
-        floor, _, _ = _child_peak([sys.executable, "-c", FLOOR], env)
         rows = []
         for label in ("cold cache", "warm cache"):
             runs = base / f"runs-{label.split()[0]}"
+            shutil.rmtree(runs, ignore_errors=True)
             peak, cpu, done = _child_peak([sys.executable, "-m", "odelab.cli", "run", str(path), "--runs", str(runs),
-                                           "--max-steps", "0", "--jobs", "1"], env)
+                                           "--max-steps", "0", "--jobs", "1", *args.extra.split()], env)
             if done.returncode != 0:
                 print(done.stdout)
                 return 1
             stored = sorted(runs.rglob("trajectory.*"))
             size = sum(p.stat().st_size for p in stored)
             rows.append((label, peak, cpu, size, stored))
-        print(f"odelab run rigid body over [0, {args.stop:g}], --max-steps 0 (PYTHONPATH={env['PYTHONPATH']})")
-        print(f"  floor (imports, numba and the loops loaded, nothing run): {floor / 1e6:.0f} MB")
+        floor, _, _ = _child_peak([sys.executable, "-m", "odelab.cli", "run", str(short), "--runs",
+                                   str(base / "runs-floor"), "--jobs", "1", "--backend", "compiled",
+                                   *args.extra.split()], env)
+        print(f"odelab run rigid body over [0, {args.stop:g}], --max-steps 0 {args.extra} "
+              f"(PYTHONPATH={env['PYTHONPATH']})")
+        print(f"  floor (the same run over [0, 1] on the compiled backend, warm cache): {floor / 1e6:.0f} MB")
         for label, peak, cpu, size, stored in rows:
             print(f"  {label}: peak RSS {peak / 1e6:.0f} MB, stored {', '.join(p.name for p in stored)} "
                   f"{size / 1e6:.0f} MB: peak / trajectory {peak / size:.2f}x (target <= {TARGET:g}x), "

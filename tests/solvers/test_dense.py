@@ -124,3 +124,19 @@ def test_deval_slope_at_the_start_of_each_step_is_f_there(method):
     weights = np.abs(d.coefficients) @ np.abs(basis_slopes(0.0, d.coefficients.shape[1], d.basis))[:, 0]
     terms = np.einsum("j,kjn->kn", weights, np.abs(d.K))
     assert (np.abs(yp - f) <= 16 * np.finfo(float).eps * (terms + np.abs(f))).all()
+
+
+@pytest.mark.parametrize("method, options", [("ode45", {}), ("ode78", {}), ("ode45", {"NonNegative": [1]})])
+def test_deval_block_by_block_is_deval_at_once_to_the_bit(monkeypatch, method, options):
+    # a long query is evaluated DEVAL_BLOCK times at a time (bounded temporaries); each time from its own step
+    from odelab.solvers import dense
+
+    sol = odelab.solve(rigid, [0, 12], [0, 1, 1], method=method, **RIGID, **options)
+    times = np.concatenate([np.linspace(0, 12, 997), sol.t[::3], [12.0]])
+    whole = sol.deval(times, derivative=True)
+    monkeypatch.setattr(dense, "DEVAL_BLOCK", 64)
+    blocks = sol.deval(times, derivative=True)
+    for a, b in zip(whole, blocks):
+        assert a.shape == b.shape == (times.size, 3)
+        assert a.tobytes() == b.tobytes()
+    assert sol.deval(times[:5]).tobytes() == whole[0][:5].tobytes() and sol(3.0).shape == (3,)

@@ -317,6 +317,31 @@ def test_the_whole_block_csv_is_the_value_by_value_text_and_round_trips(tmp_path
     assert _trajectory_csv(["t", "y"], np.empty((0, 2))) == "t,y\n"
 
 
+@pytest.mark.parametrize("rows", [0, 1, 7, 64, 65, 200])
+def test_the_streamed_npz_is_np_savez_of_the_whole_block_byte_for_byte(monkeypatch, rows):
+    # trajectory.npz is written a block of rows at a time from the run's columns, never as one block: the
+    # same archive np.savez(f, names=..., data=block) writes (the zip's times fixed for the comparison)
+    import io
+    import time
+
+    from odelab.store import results
+
+    monkeypatch.setattr(results, "NPZ_BLOCK_ROWS", 16)
+    rng = np.random.default_rng(7)
+    columns = {"t": np.linspace(0.0, 1.0, rows), "x": rng.standard_normal(rows), "event": np.arange(rows) % 3,
+               "v": rng.standard_normal((rows, 2))[:, 1]}  # a strided view, as a state column of y
+    block = np.empty((rows, len(columns)))
+    for i, values in enumerate(columns.values()):
+        block[:, i] = values
+    monkeypatch.setattr(time, "time", lambda: 1.7e9)
+    expected, streamed = io.BytesIO(), io.BytesIO()
+    np.savez(expected, names=np.array(list(columns), dtype=str), data=block)
+    results._trajectory_npz(columns, rows)(streamed)
+    assert streamed.getvalue() == expected.getvalue()
+    with np.load(io.BytesIO(streamed.getvalue())) as back:
+        assert back["data"].tobytes() == block.tobytes() and list(back["names"]) == list(columns)
+
+
 def test_reading_stored_runs_imports_neither_the_loader_nor_pydantic(tmp_path):
     """The report reads runs: it needs no experiment schema (pydantic's models cost tens of ms to build)."""
     import subprocess

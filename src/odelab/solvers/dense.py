@@ -28,6 +28,12 @@ __all__ = ["basis_values", "clip_nonnegative", "query_times", "refine_weights", 
            "StageCompletion", "DenseOutput", "deval", "odextend"]
 
 
+#: Times a deval evaluates at once (DenseOutput.__call__): larger queries go block by block, so that
+#: evaluating a long solution at a million times (the error estimate's second solve) does not hold the
+#: stages of every time at once (about 1 kB a time for ode45: 8 MB a block).
+DEVAL_BLOCK = 8192
+
+
 def query_times(tq, start: float, stop: float) -> tuple[np.ndarray, bool]:
     """``deval``'s times as a flat float array, and whether a scalar was given.
 
@@ -225,6 +231,23 @@ class DenseOutput:
         derivative d/dt at those times (MATLAB's ``[y, yp] = deval(sol, t)``).
         """
         times, scalar = query_times(tq, self.t_start, self.t_end)
+        if times.size <= DEVAL_BLOCK:
+            values, slopes = self._evaluate(times, derivative)
+        else:  # a block at a time: the temporaries (stages, weights: ~1 kB a time) stay bounded, the bits the same
+            n = self.y.shape[1]
+            values = np.empty((times.size, n), dtype=np.result_type(self.y, self.K))
+            slopes = np.empty_like(values) if derivative else None
+            for lo in range(0, times.size, DEVAL_BLOCK):
+                part, part_slopes = self._evaluate(times[lo:lo + DEVAL_BLOCK], derivative)
+                values[lo:lo + DEVAL_BLOCK] = part
+                if derivative:
+                    slopes[lo:lo + DEVAL_BLOCK] = part_slopes
+        if derivative:
+            return (values[0], slopes[0]) if scalar else (values, slopes)
+        return values[0] if scalar else values
+
+    def _evaluate(self, times: np.ndarray, derivative: bool):
+        """``(values, slopes or None)`` at the checked ``times``; each time's row from its own step alone."""
         tdir = 1.0 if self.h[0] > 0 else -1.0
         # Step i covers [t_i, t_i + h_i); a time on a step boundary takes the later step at s = 0,
         # which is that step's stored start state exactly.
@@ -250,9 +273,7 @@ class DenseOutput:
                 part = slopes[:, self.nonnegative]
                 slopes[:, self.nonnegative] = np.where(values[:, self.nonnegative] < 0, 0.0, part)
             clip_nonnegative(values, self.nonnegative)
-        if derivative:
-            return (values[0], slopes[0]) if scalar else (values, slopes)
-        return values[0] if scalar else values
+        return values, (slopes if derivative else None)
 
     def extended(self, other: "DenseOutput") -> "DenseOutput":
         """This extension followed by ``other`` (which must start where this one ends)."""

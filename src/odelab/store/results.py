@@ -187,7 +187,8 @@ def summary(result: CaseResult) -> dict[str, Any]:
 LONG_RUN_ROWS = 100_000
 
 
-def _trajectory_columns(result: CaseResult) -> tuple[list[str], np.ndarray]:
+def _trajectory_columns(result: CaseResult) -> dict[str, np.ndarray]:
+    """The trajectory's columns by name, in the file's order (the run's own arrays where it has them)."""
     columns = {"t": result.t, **result.series()}
     if result.event_marks is not None:  # 1-based number of the event (result.json "events") at that row
         columns["event"] = result.event_marks
@@ -196,11 +197,16 @@ def _trajectory_columns(result: CaseResult) -> tuple[list[str], np.ndarray]:
         columns[f"{name}_ref"] = ref
         columns[f"{name}_abs_err"] = abs_err
         columns[f"{name}_rel_err"] = rel_err
-    names = list(columns)
-    data = np.empty((np.size(result.t), len(names)))
-    for i, n in enumerate(names):  # filled in place: no list of columns, no extra copy
-        data[:, i] = np.asarray(columns[n], dtype=float)
-    return names, data
+    return columns
+
+
+def _trajectory_block(columns: dict[str, np.ndarray], rows: int, lo: int = 0, hi: int | None = None) -> np.ndarray:
+    """Rows ``lo:hi`` of the trajectory as one float block (rows, columns), filled column by column."""
+    hi = rows if hi is None else hi
+    block = np.empty((hi - lo, len(columns)))
+    for i, values in enumerate(columns.values()):
+        block[:, i] = np.asarray(values, dtype=float) if hi - lo == rows else np.asarray(values)[lo:hi]
+    return block
 
 
 def _trajectory_csv(names: list[str], data: np.ndarray) -> str:
@@ -219,13 +225,31 @@ def _trajectory_csv(names: list[str], data: np.ndarray) -> str:
     return header + (body.replace("nan", "") if np.isnan(data).any() else body)
 
 
-def _trajectory_npz(names: list[str], data: np.ndarray):
-    """A writer of the ``.npz`` file, called with the open file: the archive goes straight to the
-    disk instead of through a buffer in memory (then a copy of it), two copies of the trajectory
-    fewer at the peak of a long run's store."""
+#: Rows of a long trajectory written at a time (trajectory.npz): 2 MB for four columns.
+NPZ_BLOCK_ROWS = 65536
+
+
+def _trajectory_npz(columns: dict[str, np.ndarray], rows: int):
+    """A writer of the ``.npz`` file, called with the open file: ``np.savez(f, names=..., data=...)``
+    byte for byte (the same zip archive, member names, .npy headers and data), but the ``data``
+    block is never built: its rows go to the archive a block at a time from the run's own arrays,
+    so storing a long run adds a few megabytes to its memory, not a copy of its trajectory."""
+    import zipfile
+
+    from numpy.lib import format as npy
+
+    names = np.array(list(columns), dtype=str)
 
     def write(f) -> None:
-        np.savez(f, names=np.array(names, dtype=str), data=data)
+        # np.savez's archive: numpy's zipfile_factory (allowZip64), stored members, each forced to zip64
+        with zipfile.ZipFile(f, mode="w", compression=zipfile.ZIP_STORED, allowZip64=True) as archive:
+            with archive.open("names.npy", "w", force_zip64=True) as member:
+                npy.write_array(member, names, allow_pickle=True)
+            with archive.open("data.npy", "w", force_zip64=True) as member:
+                npy.write_array_header_1_0(member, {"descr": npy.dtype_to_descr(np.dtype(float)),
+                                                    "fortran_order": False, "shape": (rows, len(columns))})
+                for lo in range(0, rows, NPZ_BLOCK_ROWS):
+                    member.write(_trajectory_block(columns, rows, lo, min(rows, lo + NPZ_BLOCK_ROWS)).tobytes())
 
     return write
 
@@ -256,12 +280,15 @@ def write_case(result: CaseResult, runs: Path, *, mat: bool = False, durable: bo
         "versions": dict(versions()),
         "config": case.config,
     })
-    names, data = _trajectory_columns(result)
+    columns = _trajectory_columns(result)
+    rows = int(np.size(result.t))
     trajectory = trajectory_file(result)
     record["trajectory_file"] = trajectory
-    files = {trajectory: (_trajectory_npz if trajectory.endswith(".npz") else _trajectory_csv)(names, data),
-             "resolved.toml": _resolved_toml(result, tomli_w)}
-    del data
+    if trajectory.endswith(".npz"):  # streamed from the columns when the folder is written
+        files = {trajectory: _trajectory_npz(columns, rows)}
+    else:
+        files = {trajectory: _trajectory_csv(list(columns), _trajectory_block(columns, rows))}
+    files["resolved.toml"] = _resolved_toml(result, tomli_w)
     if mat:
         files["result.mat"] = _mat_bytes(result)
     files["result.json"] = result_json(record)

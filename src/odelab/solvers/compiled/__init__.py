@@ -28,6 +28,7 @@ import numpy as np
 from odelab.exceptions import InputError
 from odelab.solution import Solution, Stats
 from odelab.solvers.compiled.methods import method_refusal
+from odelab.solvers.compiled.rows import exact_rows
 from odelab.solvers.status import Status
 
 __all__ = ["BACKENDS", "AUTO_STEPS", "COMPILE_SECONDS", "CompiledSystem", "expected_compile_seconds", "unavailable",
@@ -425,10 +426,8 @@ def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dic
         no_events = np.empty(0)
         (t_out, y_out, count, nsteps, nfailed, nfevals, status, t_stop, h_stop, *_) = kernels.loop("adaptive")(
             *args, None, no_events, no_events, no_events)
-    t = t_out[:count]
-    y = y_out[:count]
-    if count < t_out.size // 2:  # do not keep a mostly empty buffer alive
-        t, y = t.copy(), y.copy()
+    t, y = exact_rows(t_out, y_out, count)
+    del t_out, y_out
     message = api._status_message(status, m, t_stop, h_stop, y, y0_arr, opts, None, tspan_arr,
                                   list(found.get("te", ())), list(found.get("ie", ())),
                                   fun=_python_rhs(rhs, p, n))  # a step-limit message's stiffness check

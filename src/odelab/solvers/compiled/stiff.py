@@ -26,6 +26,7 @@ import numpy as np
 from odelab.exceptions import InputError
 from odelab.solution import Solution, Stats
 from odelab.solvers.compiled.methods import STIFF_METHODS, method_refusal
+from odelab.solvers.compiled.rows import exact_rows
 from odelab.solvers.registry import METHODS
 from odelab.solvers.status import Status
 
@@ -110,9 +111,8 @@ def solve_stiff(system, m, tspan_arr: np.ndarray, y0_arr: np.ndarray, options: d
     # the loop of the method's name (loops/table.py.txt), with what its step class adds (ode15s: its orders)
     result = kernels.loop(m.name)(*args, *step_class(m.name).compiled_arguments(extra))
     t_out, y_out, count, nsteps, nfailed, nfevals, npds, ndecomps, nsolves, status, t_stop, h_stop = result
-    t, y = t_out[:count], y_out[:count]
-    if count < t_out.size // 2:  # do not keep a mostly empty buffer alive
-        t, y = t.copy(), y.copy()
+    t, y = exact_rows(t_out, y_out, count)
+    del t_out, y_out, result
     message = api._status_message(status, m, t_stop, h_stop, y, y0_arr, opts, None, tspan_arr)
     return Solution(t=t, y=y, stats=Stats(nsteps=nsteps, nfailed=nfailed, nfevals=nfevals + 1, npds=npds,
                                           ndecomps=ndecomps, nsolves=nsolves),
