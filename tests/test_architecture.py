@@ -386,3 +386,16 @@ def test_the_solvers_dispatch_by_table():
                         and isinstance(side.value, ast.Name) and side.value.id in ("m", "method")
                         for side in (node.left, *node.comparators))]
         assert not compared, f"{path.name} dispatches by comparing a method's kind or name: {compared}"
+
+
+def test_matlab_option_spellings_through_the_option_registrys_public_api():
+    """issue 38 item 3: the loader, sweeps and rubrics map MATLAB's odeset spellings with
+    odelab.solvers.optionset.canonical, not a private table of solvers/options.py."""
+    private = []
+    for mod, path in _modules().items():
+        if mod.startswith("odelab.solvers."):
+            continue
+        for node in _imports(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom) and node.module in ("odelab.solvers.options", "odelab.solvers.optionset"):
+                private += [f"{mod}: {a.name}" for a in node.names if a.name.startswith("_")]
+    assert not private, f"private names of the option registry imported from outside solvers/: {private}"

@@ -327,12 +327,12 @@ def _normalize_solver(config: dict, src: str, case: str | None) -> dict:
     solver = config.get("solver")
     if not isinstance(solver, dict):
         return config
-    from odelab.solvers.options import _ALIASES
+    from odelab.solvers.optionset import canonical as option_name
 
     out: dict[str, Any] = {}
     origin: dict[str, str] = {}
     for key, value in solver.items():
-        canonical = key if key == "method" else _ALIASES.get(key.lower().replace("_", ""), key)
+        canonical = key if key == "method" else option_name(key) or key
         if canonical in out:
             where = f" (in case {case!r})" if case else ""
             raise ExperimentError(f"`solver.{key}` and `solver.{origin[canonical]}` set the same option{where}; "

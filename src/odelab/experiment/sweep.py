@@ -188,10 +188,10 @@ def _check_path(key: str, base: dict, case_overrides: list[dict]) -> None:
                               f"change.{hint} Sweepable sections: {', '.join(_SECTIONS)}.", key=where)
     if section == "solver":
         from odelab.experiment.schema import SOLVER_KEYS
-        from odelab.solvers.options import _ALIASES
+        from odelab.solvers.optionset import canonical as option_name
 
         leaf = parts[1]
-        canonical = _ALIASES.get(leaf.lower().replace("_", ""), leaf)
+        canonical = option_name(leaf) or leaf
         if len(parts) != 2 or (leaf != "method" and canonical not in SOLVER_KEYS):
             close = difflib.get_close_matches(leaf, SOLVER_KEYS, n=1)
             hint = f" Did you mean \"solver.{close[0]}\"?" if close else ""

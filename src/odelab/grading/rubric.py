@@ -138,12 +138,12 @@ class Rubric:
 def solver_key(name: str) -> str | None:
     """odelab's name of a [solver] key written in odelab's or MATLAB's spelling (RelTol -> rtol), else None."""
     from odelab.experiment.schema import SOLVER_KEYS
-    from odelab.solvers.options import _ALIASES  # the loader's own map of MATLAB's odeset names
+    from odelab.solvers.optionset import canonical  # the option registry's map of MATLAB's odeset names
 
     if name == "method":
         return "method"
-    canonical = _ALIASES.get(name.lower().replace("_", ""), name)
-    return canonical if canonical in SOLVER_KEYS else None
+    name = canonical(name) or name
+    return name if name in SOLVER_KEYS else None
 
 
 def _fail(message: str, path: Path, key: str | None = None) -> RubricError:

@@ -22,26 +22,6 @@ __all__ = ["SolverOptions", "normalize_options", "as_tspan", "as_y0", "resolve_o
 EPS = float(np.finfo(float).eps)
 
 
-class _AliasMap(Mapping):
-    """Any accepted spelling, lower case without underscores -> odelab's name (read from the registry)."""
-
-    def _table(self) -> dict[str, str]:
-        return {s.lower().replace("_", ""): o.name for o in OPTIONS.values() for s in o.spellings}
-
-    def __getitem__(self, key):
-        return self._table()[key]
-
-    def __iter__(self):
-        return iter(self._table())
-
-    def __len__(self):
-        return len(self._table())
-
-
-# kept for callers that map names themselves (the loader, sweeps, rubrics): spelling -> odelab's name
-_ALIASES = _AliasMap()
-
-
 def method_options(method: Method) -> tuple[str, ...]:
     """The options ``method`` takes: those its registry entry lists, then registered options that take it."""
     extra = tuple(o.name for o in OPTIONS.values()
