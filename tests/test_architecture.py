@@ -399,3 +399,29 @@ def test_matlab_option_spellings_through_the_option_registrys_public_api():
             if isinstance(node, ast.ImportFrom) and node.module in ("odelab.solvers.options", "odelab.solvers.optionset"):
                 private += [f"{mod}: {a.name}" for a in node.names if a.name.startswith("_")]
     assert not private, f"private names of the option registry imported from outside solvers/: {private}"
+
+
+def test_the_default_tolerances_are_written_once():
+    """issue 38 item 3: rtol's 1e-3 and atol's 1e-6 are the option registry's (optionset.DEFAULT_RTOL/ATOL, read
+    from its entries): no code elsewhere writes them as a parameter's default or a lookup's fallback."""
+    written = []
+    for mod, path in _modules().items():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            pairs = []
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                args = node.args
+                positional = args.posonlyargs + args.args
+                pairs += list(zip([a.arg for a in positional[len(positional) - len(args.defaults):]], args.defaults))
+                pairs += [(a.arg, d) for a, d in zip(args.kwonlyargs, args.kw_defaults) if d is not None]
+            elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                  and node.func.attr in ("get", "setdefault") and len(node.args) == 2
+                  and isinstance(node.args[0], ast.Constant)):
+                pairs.append((node.args[0].value, node.args[1]))
+            elif isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and node.value is not None:
+                pairs.append((node.target.id, node.value))
+            elif isinstance(node, ast.Dict):
+                pairs += [(k.value, v) for k, v in zip(node.keys, node.values) if isinstance(k, ast.Constant)]
+            written += [f"{mod} line {value.lineno}: {name} = {value.value}" for name, value in pairs
+                        if name in ("rtol", "atol") and isinstance(value, ast.Constant)
+                        and value.value in (1e-3, 1e-6) and type(value.value) is float]
+    assert not written, f"the default tolerances written again (use optionset.DEFAULT_RTOL/DEFAULT_ATOL): {written}"

@@ -23,6 +23,7 @@ from odelab.experiment.fields import check_keys, constant, expr
 from odelab.experiment.limits import DEFAULT_LIMITS, Limits, check_count, check_solve
 from odelab.experiment.section_checks import (check_analysis, check_jacobian, check_linearize, check_report,
                                               check_units)
+from odelab.solvers.optionset import DEFAULT_ATOL, DEFAULT_RTOL
 from odelab.solvers.registry import get_method, join_names, methods_with
 
 __all__ = ["compile_case"]
@@ -88,8 +89,8 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
 
         check_backend(backend, method, fast, "solver.backend", options, events)
     if method.matlab_defaults:
-        resolved["solver"].setdefault("rtol", 1e-3)
-        resolved["solver"].setdefault("atol", 1e-6)
+        resolved["solver"].setdefault("rtol", DEFAULT_RTOL)
+        resolved["solver"].setdefault("atol", DEFAULT_ATOL)
     if system.kind == "ode" and system.jacobian is not None and built.jacobian is not None:
         check_jacobian(built.jacobian, system, states, params, float(tspan[0]), x0)
     if "jacobian" in method.options and built.jacobian is not None:

@@ -19,6 +19,7 @@ import numpy as np
 
 from odelab.exceptions import InputError
 from odelab.fmi.ccode import c_function, c_number
+from odelab.solvers.optionset import DEFAULT_RTOL
 
 __all__ = ["ExportModel", "Variable", "model_of_case", "refusal"]
 
@@ -274,7 +275,7 @@ def model_of_case(case, output_texts: dict[str, str] | None = None, name: str | 
         breaks.extend(float(b) for b in signal.breakpoints(t0, tf))
     units = dict(config.get("units") or {})
     variables = _variables(problem, parameters, p, first, units)
-    rtol = float(problem.options.get("rtol", config.get("solver", {}).get("rtol", 1e-3)) or 1e-3)
+    rtol = float(problem.options.get("rtol", config.get("solver", {}).get("rtol", DEFAULT_RTOL)) or DEFAULT_RTOL)
     step = float(problem.options.get("h") or (tf - t0) / 500.0)
     title = config.get("title") or case.experiment
     description = " ".join(filter(None, [title, config.get("description")]))

@@ -16,6 +16,7 @@ import time
 import numpy as np
 
 from odelab.analysis.estimate import ESTIMATE_FACTOR, compare_solves
+from odelab.solvers.optionset import DEFAULT_ATOL, DEFAULT_RTOL
 from odelab.solvers.registry import get_method
 
 __all__ = ["estimate_case", "estimate_warning", "wants_estimate", "UNRELIABLE"]
@@ -70,8 +71,8 @@ def estimate_case(result, integrate, max_steps: int | None = None, backend: str 
             return {"skipped": f"h/2 takes {steps:,} steps, over the run's budget of {max_steps:,} steps per solve "
                                "(--max-steps)"}
     else:
-        rtol = float(options.get("rtol", 1e-3))
-        atol = np.asarray(options.get("atol", 1e-6), dtype=float)
+        rtol = float(options.get("rtol", DEFAULT_RTOL))
+        atol = np.asarray(options.get("atol", DEFAULT_ATOL), dtype=float)
         options["rtol"] = rtol / ESTIMATE_FACTOR
         options["atol"] = (atol / ESTIMATE_FACTOR).tolist() if atol.ndim else float(atol) / ESTIMATE_FACTOR
         factor = proportion = ESTIMATE_FACTOR
@@ -110,7 +111,7 @@ def estimate_case(result, integrate, max_steps: int | None = None, backend: str 
     tight_values = {n: np.asarray(v)[tight_rows] for n, v in tight_series.items()}
     atol_map = None
     if rtol is not None:
-        atol = np.broadcast_to(np.asarray(p.options.get("atol", 1e-6), dtype=float), (len(p.states),))
+        atol = np.broadcast_to(np.asarray(p.options.get("atol", DEFAULT_ATOL), dtype=float), (len(p.states),))
         atol_map = {name: float(a) for name, a in zip(p.states, atol)}
     est = compare_solves(t[rows], run_values, tight_values, factor=factor, proportion=proportion, rtol=rtol,
                          atol=atol_map, advice=ADVICE)

@@ -63,6 +63,7 @@ def case_cost(case) -> float:
     rtol^(-1/order) per unit of span (the step size an error-per-step controller settles at),
     which orders a tolerance sweep correctly. Anything else counts 1.
     """
+    from odelab.solvers.optionset import DEFAULT_RTOL
     from odelab.solvers.registry import get_method
 
     p = case.problem
@@ -74,7 +75,7 @@ def case_cost(case) -> float:
         h = p.options.get("h")
         if not method.adaptive and h:
             return stages * span / float(h)
-        rtol = float(p.options.get("rtol", 1e-3))
+        rtol = float(p.options.get("rtol", DEFAULT_RTOL))
         order = float(method.order or 4)
         return stages * max(span, 1e-300) * rtol ** (-1.0 / order)
     except (TypeError, ValueError, KeyError, AttributeError, ZeroDivisionError, OverflowError):

@@ -12,6 +12,7 @@ from odelab.exceptions import InputError, SolverWarning
 from odelab.solution import Solution, Stats
 from odelab.solvers import engine
 from odelab.solvers.controller import min_step
+from odelab.solvers.optionset import DEFAULT_ATOL, DEFAULT_RTOL
 from odelab.solvers.options import SolverOptions, as_tspan, as_y0, normalize_options, resolve_options
 from odelab.solvers.registry import DRIVERS, Method, get_method, join_names, methods_with
 from odelab.solvers.status import Status
@@ -19,7 +20,7 @@ from odelab.solvers.status import Status
 __all__ = ["ode23", "ode45", "solve", "odextend"]
 
 
-def ode23(fun, tspan, y0, *, rtol=1e-3, atol=1e-6, max_step=None, initial_step=None, refine=None,
+def ode23(fun, tspan, y0, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, max_step=None, initial_step=None, refine=None,
           norm_control=False, **matlab_options) -> Solution:
     """Solve a non-stiff ODE with MATLAB's ``ode23`` (Bogacki-Shampine 3(2)).
 
@@ -88,7 +89,7 @@ def ode23(fun, tspan, y0, *, rtol=1e-3, atol=1e-6, max_step=None, initial_step=N
                           matlab_options)
 
 
-def ode45(fun, tspan, y0, *, rtol=1e-3, atol=1e-6, max_step=None, initial_step=None, refine=None,
+def ode45(fun, tspan, y0, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, max_step=None, initial_step=None, refine=None,
           norm_control=False, **matlab_options) -> Solution:
     """Solve a non-stiff ODE with MATLAB's ``ode45`` (Dormand-Prince 5(4)).
 
@@ -111,8 +112,8 @@ def _matlab_solver(name, fun, tspan, y0, rtol, atol, max_step, initial_step, ref
     # Explicit keywords count only when they differ from the defaults, so MATLAB's names in
     # **extra can be used alone without a clash.
     for key, value, default in (
-        ("rtol", rtol, 1e-3),
-        ("atol", atol, 1e-6),
+        ("rtol", rtol, DEFAULT_RTOL),
+        ("atol", atol, DEFAULT_ATOL),
         ("max_step", max_step, None),
         ("initial_step", initial_step, None),
         ("refine", refine, None),
@@ -219,7 +220,7 @@ def _solve(fun, tspan, y0, method: str, options: dict) -> Solution:
 
 
 def _atol_of(sol: Solution, options: dict):
-    atol = normalize_options(options, get_method(sol.method)).get("atol", 1e-6)
+    atol = normalize_options(options, get_method(sol.method)).get("atol", DEFAULT_ATOL)
     return np.asarray(atol, dtype=float).ravel()
 
 
@@ -441,7 +442,7 @@ def _solve_implicit_system(system, tspan, y0, m: Method, options: dict) -> Solut
     tspan_arr = as_tspan(tspan)
     y0_arr = as_y0(y0)
     try:
-        y_start, yp_start = system.start(float(tspan_arr[0]), y0_arr, given.get("rtol", 1e-3), given.get("atol", 1e-6))
+        y_start, yp_start = system.start(float(tspan_arr[0]), y0_arr, given.get("rtol", DEFAULT_RTOL), given.get("atol", DEFAULT_ATOL))
     except DecicError as exc:
         opts = resolve_options(m, given, tspan_arr, y0_arr.size)
         return _failed_at_start(m, tspan_arr, y0_arr, opts, f"no consistent initial slope at t = {tspan_arr[0]:g}: "

@@ -54,6 +54,7 @@ from odelab.solution import Solution, Stats
 from odelab.solvers.controller import clamp_step, first_step, given_step, grow, shrink
 from odelab.solvers.dense import query_times
 from odelab.solvers.events import CallbackError, as_event_function, locate_events
+from odelab.solvers.optionset import DEFAULT_ATOL, DEFAULT_RTOL
 
 __all__ = ["dde23", "DDESolution", "HermiteMesh", "discontinuities"]
 
@@ -471,12 +472,12 @@ def _setup(lags, history, tspan, opts: dict) -> _Setup:
         new_discont = np.array([t0])
         minlag = math.inf
 
-    rtol = float(_positive("RelTol", opts.get("rtol", 1e-3))[0])
+    rtol = float(_positive("RelTol", opts.get("rtol", DEFAULT_RTOL))[0])
     warns: list[str] = []
     if rtol < 100 * np.finfo(float).eps:
         rtol = 100 * float(np.finfo(float).eps)
         warns.append(f"RelTol raised to {rtol:g}, MATLAB's smallest.")
-    atol = _positive("AbsTol", opts.get("atol", 1e-6), n)
+    atol = _positive("AbsTol", opts.get("atol", DEFAULT_ATOL), n)
     norm_control = bool(opts.get("norm_control", False))
     if norm_control and atol.size != 1:
         raise InputError("with NormControl on, AbsTol must be a scalar.", key="AbsTol")

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from odelab.exceptions import InputError
-from odelab.solvers.optionset import OPTIONS, OptionContext, canonical, fmt, index_list
+from odelab.solvers.optionset import DEFAULT_ATOL, DEFAULT_RTOL, OPTIONS, OptionContext, canonical, fmt, index_list
 from odelab.solvers.registry import Method, join_names, methods_with
 
 __all__ = ["SolverOptions", "normalize_options", "as_tspan", "as_y0", "resolve_options", "method_options", "takers"]
@@ -158,8 +158,8 @@ def as_y0(y0, *, allow_complex: bool = False) -> np.ndarray:
 class SolverOptions:
     """Options resolved for one solve (defaults filled in, MATLAB's adjustments applied)."""
 
-    rtol: float = 1e-3
-    atol: np.ndarray | float = 1e-6
+    rtol: float = DEFAULT_RTOL
+    atol: np.ndarray | float = DEFAULT_ATOL
     max_step: float = math.inf
     initial_step: float = math.nan
     refine: int = 1
@@ -210,7 +210,7 @@ def resolve_options(method: Method, opts: Mapping[str, object], tspan: np.ndarra
             )
         return SolverOptions(h=_check("h", opts["h"], ctx), args=_check("args", opts.get("args", ()), ctx),
                              more=_more(method, opts, ctx))
-    defaults = {"rtol": 1e-3, "norm_control": False, "atol": 1e-6, "refine": method.refine, "max_steps": 0,
+    defaults = {"rtol": DEFAULT_RTOL, "norm_control": False, "atol": DEFAULT_ATOL, "refine": method.refine, "max_steps": 0,
                 "args": ()}
     for name in _CHECK_ORDER:
         value = opts.get(name, defaults.get(name))

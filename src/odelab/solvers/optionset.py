@@ -21,7 +21,8 @@ import numpy as np
 
 from odelab.exceptions import InputError
 
-__all__ = ["SolverOption", "OptionContext", "OPTIONS", "register_option", "canonical", "TOML_TYPES"]
+__all__ = ["SolverOption", "OptionContext", "OPTIONS", "register_option", "canonical", "TOML_TYPES", "DEFAULT_RTOL",
+           "DEFAULT_ATOL"]
 
 EPS = float(np.finfo(float).eps)
 
@@ -285,3 +286,8 @@ for _option in (
     SolverOption("jpattern", "The sparsity pattern of df/dy (MATLAB's JPattern).", ("JPattern",)),
 ):
     register_option(_option)
+
+
+#: MATLAB's default tolerances as numbers, read from their entries above (the one place they are written).
+DEFAULT_RTOL = float(OPTIONS["rtol"].default)
+DEFAULT_ATOL = float(OPTIONS["atol"].default)

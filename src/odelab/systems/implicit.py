@@ -31,6 +31,7 @@ import numpy as np
 
 from odelab.exceptions import ExpressionError, InputError
 from odelab.expressions.parse import DER, parse_expression
+from odelab.solvers.optionset import DEFAULT_ATOL, DEFAULT_RTOL
 
 __all__ = ["ImplicitSystem", "uses_der"]
 
@@ -187,7 +188,7 @@ class ImplicitSystem:
         other.fixed_yp0 = None if fixed_yp0 is None else np.array(fixed_yp0, dtype=int)
         return other
 
-    def start(self, t0: float, y0, rtol=1e-3, atol=1e-6):
+    def start(self, t0: float, y0, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL):
         """Consistent ``(y0, yp0)`` to start at ``(t0, y0)``: the carried ones when they are these, else
         decic's from the carried slope (a restart after an event's reset moves the states)."""
         y0 = np.asarray(y0, dtype=float)

@@ -33,6 +33,7 @@ from odelab.exceptions import ExperimentError, InputError
 from odelab.experiment import schema
 from odelab.experiment.cases import Built
 from odelab.experiment.fields import constant
+from odelab.solvers.optionset import DEFAULT_ATOL, DEFAULT_RTOL
 from odelab.solvers.registry import join_names, methods_with
 from odelab.systems.outputs import ExpressionOutputs
 
@@ -181,8 +182,8 @@ def consistent_start(model: schema.Experiment, built: Built, x0: np.ndarray, slo
                 raise ExperimentError(f"`initial.fixed.{key}`: {name!r} is not a state ({', '.join(states)}); write a "
                                       "state (its value) or \"der(state)\" (its slope).", key=f"initial.fixed.{key}")
             (fixed_yp if match else fixed_y)[states.index(name)] = int(flag)
-    rtol = float(options.get("rtol", 1e-3))
-    atol = options.get("atol", 1e-6)
+    rtol = float(options.get("rtol", DEFAULT_RTOL))
+    atol = options.get("atol", DEFAULT_ATOL)
     try:
         y, yp, resnrm = decic(system.residual, t0, x0, fixed_y, yp0, fixed_yp,
                               {"RelTol": rtol, "AbsTol": atol, "Jacobian": system.partials})

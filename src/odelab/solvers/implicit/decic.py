@@ -21,6 +21,7 @@ import numpy as np
 
 from odelab.exceptions import InputError
 from odelab.solvers.implicit.residual import ResidualWork, check_jacobian_option
+from odelab.solvers.optionset import DEFAULT_ATOL, DEFAULT_RTOL
 
 __all__ = ["decic", "DecicError"]
 
@@ -227,7 +228,7 @@ def _residual(work: ResidualWork, t0: float, y0: np.ndarray, yp0: np.ndarray) ->
 def _options(options, n: int):
     from odelab.solvers.optionset import canonical
 
-    rtol, atol, jacobian = 1e-3, 1e-6, None
+    rtol, atol, jacobian = DEFAULT_RTOL, DEFAULT_ATOL, None
     if not isinstance(options, dict):
         raise InputError(f"`options` must be a dict such as {{'RelTol': 1e-6}}; got {options!r}.", key="options")
     for name, value in options.items():

@@ -22,6 +22,7 @@ import numpy as np
 
 from odelab.exceptions import InputError
 from odelab.solvers.implicit.common import Work
+from odelab.solvers.optionset import DEFAULT_ATOL
 
 __all__ = ["ResidualWork", "check_jacobian_option", "index_problem"]
 
@@ -59,7 +60,7 @@ def check_jacobian_option(value, n: int):
 class ResidualWork(Work):
     """``F(t, y, yp)``, its partials and MATLAB's counters (``nfevals``, ``npds``, ``ndecomps``, ``nsolves``)."""
 
-    def __init__(self, fun, n: int, *, jacobian=None, atol=1e-6):
+    def __init__(self, fun, n: int, *, jacobian=None, atol=DEFAULT_ATOL):
         super().__init__(fun, n)
         self.atol = np.broadcast_to(np.asarray(atol, dtype=float), (n,))
         self.partials_function = jacobian if callable(jacobian) else None
