@@ -134,7 +134,9 @@ def test_eight_concurrent_runs_into_one_folder_store_every_case_whole(tmp_path):
 
 
 def _draws(folder: Path, since: float) -> bool:
-    return any(p.stat().st_mtime > since for p in folder.glob("*.png")) if folder.is_dir() else False
+    """A figure was drawn: a new PNG in the figure cache (odelab.report.figcache stores each one as it is drawn;
+    the report's own figures/ are written at the end, with index.html, too late to interrupt the drawing)."""
+    return any(p.stat().st_mtime > since for p in folder.rglob("*.png")) if folder.is_dir() else False
 
 
 @pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
@@ -155,7 +157,7 @@ def test_interrupting_a_report_leaves_the_previous_one_whole(tmp_path, sig, code
                              "1"], cwd=tmp_path, preexec_fn=_default_sigint, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=env)
     end = time.monotonic() + 120
-    while not _draws(tmp_path / "report" / "figures", start):
+    while not _draws(tmp_path / "cold-cache", start):
         assert proc.poll() is None and time.monotonic() < end, "the report ended before it drew a figure"
         time.sleep(0.02)
     proc.send_signal(sig)
