@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import os
 import signal
+from collections.abc import Iterable
 
 import numpy as np
 
@@ -52,12 +53,14 @@ def cores() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def _draw_all(specs: list, jobs: int) -> list[bytes]:
+def _draw_all(specs: list, jobs: int) -> Iterable[bytes]:
+    """The PNGs of ``specs`` in order; drawn here one at a time (each cached by the caller as soon as it
+    is drawn, so an interrupted report keeps what it drew), or in a pool."""
     from odelab.report import plots
 
     jobs = min(jobs, len(specs))
     if len(specs) < POOL_MIN or jobs < 2 or not _can_fork():
-        return [plots._draw_png(spec) for spec in specs]
+        return (plots._draw_png(spec) for spec in specs)
     return _draw_in_pool(specs, jobs)
 
 
