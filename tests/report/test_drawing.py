@@ -144,10 +144,10 @@ def _broken(k: int) -> FigureSpec:
 def test_a_figure_that_fails_in_a_worker_raises_here_as_drawn_serially(tmp_path, monkeypatch):
     monkeypatch.setenv("ODELAB_CACHE_DIR", str(tmp_path))
     specs = [spec(k) for k in range(4)] + [_broken(0)]
-    with pytest.raises(ValueError) as serial:
-        drawing._draw_all(specs, 1)
+    with pytest.raises(ValueError) as serial:  # drawn one by one as they are taken (878ec8d)
+        list(drawing._draw_all(specs, 1))
     with pytest.raises(ValueError) as pooled:
-        drawing._draw_all(specs, 3)
+        list(drawing._draw_all(specs, 3))
     assert str(pooled.value) == str(serial.value) and "not-a-colour" in str(serial.value)
     assert not multiprocessing_children()
 
@@ -169,7 +169,7 @@ specs = [FigureSpec(name=f"m{k}", caption="c", alt="a", columns=3, panels=tuple(
           lines=(Line(t, np.abs(np.sin(t * (j + 1))) + 1e-9 * (k + 1), "ode45", "#D55E00"),)) for j in range(12)))
     for k in range(200)]
 print("drawing", flush=True)
-drawing._draw_all(specs, 2)
+list(drawing._draw_all(specs, 2))
 """
 
 
