@@ -110,13 +110,7 @@ def model_description(m: ExportModel, fmi: int = 2) -> bytes:
     ET.SubElement(ET.SubElement(me, "SourceFiles"), "File", {"name": "model.c"})
     cs = ET.SubElement(root, "CoSimulation", {**common, "canHandleVariableCommunicationStepSize": "true"})
     ET.SubElement(ET.SubElement(cs, "SourceFiles"), "File", {"name": "model.c"})
-    units = sorted({v.unit for v in m.variables if v.unit})
-    if units:
-        defs = ET.SubElement(root, "UnitDefinitions")
-        for unit in units:
-            ET.SubElement(defs, "Unit", {"name": unit})
-    ET.SubElement(root, "DefaultExperiment", {"startTime": _number(m.start), "stopTime": _number(m.stop),
-                                              "tolerance": _number(m.tolerance), "stepSize": _number(m.step)})
+    _units_and_experiment(root, m)
     variables = ET.SubElement(root, "ModelVariables")
     for v in m.variables:
         attrs = {"name": v.name, "valueReference": str(v.vr), "causality": v.causality, "variability": v.variability}
@@ -154,6 +148,17 @@ def model_description(m: ExportModel, fmi: int = 2) -> bytes:
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
 
 
+def _units_and_experiment(root, m: ExportModel) -> None:
+    """The UnitDefinitions (every unit a variable names) and the DefaultExperiment, alike in FMI 2.0 and 3.0."""
+    units = sorted({v.unit for v in m.variables if v.unit})
+    if units:
+        defs = ET.SubElement(root, "UnitDefinitions")
+        for unit in units:
+            ET.SubElement(defs, "Unit", {"name": unit})
+    ET.SubElement(root, "DefaultExperiment", {"startTime": _number(m.start), "stopTime": _number(m.stop),
+                                              "tolerance": _number(m.tolerance), "stepSize": _number(m.step)})
+
+
 def model_description3(m: ExportModel) -> bytes:
     """modelDescription.xml (FMI 3.0): the same variables as FMI 2.0's, then the event indicators
     (FMI 3.0 names them as variables) and time, the independent variable; ``derivative`` by value
@@ -166,13 +171,7 @@ def model_description3(m: ExportModel) -> bytes:
               "providesAdjointDerivatives": "false"}
     ET.SubElement(root, "ModelExchange", {**common, "needsCompletedIntegratorStep": "false"})
     ET.SubElement(root, "CoSimulation", {**common, "canHandleVariableCommunicationStepSize": "true"})
-    units = sorted({v.unit for v in m.variables if v.unit})
-    if units:
-        defs = ET.SubElement(root, "UnitDefinitions")
-        for unit in units:
-            ET.SubElement(defs, "Unit", {"name": unit})
-    ET.SubElement(root, "DefaultExperiment", {"startTime": _number(m.start), "stopTime": _number(m.stop),
-                                              "tolerance": _number(m.tolerance), "stepSize": _number(m.step)})
+    _units_and_experiment(root, m)
     variables = ET.SubElement(root, "ModelVariables")
     end = max((v.vr for v in m.variables), default=-1) + 1
     ET.SubElement(variables, "Float64", {"name": "time", "valueReference": str(end + m.n_indicators),
