@@ -21,8 +21,9 @@ _LAZY = {
     "odextend": "odelab.solvers.api",
     "OdelabWarning": "odelab.exceptions",
     "SolverWarning": "odelab.exceptions",
-    **{name: "odelab.solvers.suite" for name in ("ode113", "ode78", "ode89", "ode15i")},
-    **{name: f"odelab.solvers.implicit.{name}" for name in ("ode15s", "ode23s", "ode23t", "ode23tb")},
+    "ode113": "odelab.solvers.adams",
+    **{name: "odelab.solvers.suite" for name in ("ode78", "ode89")},
+    **{name: f"odelab.solvers.implicit.{name}" for name in ("ode15s", "ode15i", "ode23s", "ode23t", "ode23tb")},
     "decic": "odelab.solvers.implicit.decic",
     "METHODS": "odelab.solvers.registry",
     "Solution": "odelab.solution",
@@ -83,15 +84,17 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from odelab.experiment.loader import load_experiment
     from odelab.run.runner import run_experiment
     from odelab.solution import Solution, Stats, deval
+    from odelab.solvers.adams import ode113
     from odelab.solvers.api import ode23, ode45, odextend, solve
     from odelab.solvers.dde23 import dde23
     from odelab.solvers.registry import METHODS
     from odelab.solvers.implicit.decic import decic
+    from odelab.solvers.implicit.ode15i import ode15i
     from odelab.solvers.implicit.ode15s import ode15s
     from odelab.solvers.implicit.ode23s import ode23s
     from odelab.solvers.implicit.ode23t import ode23t
     from odelab.solvers.implicit.ode23tb import ode23tb
-    from odelab.solvers.suite import ode15i, ode113, ode78, ode89
+    from odelab.solvers.suite import ode78, ode89
     from odelab.systems.nonlinear import NonlinearSystem
     from odelab.systems.simulate import Response, simulate
     from odelab.systems.statespace import StateSpace

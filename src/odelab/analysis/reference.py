@@ -28,6 +28,8 @@ from typing import Callable
 
 import numpy as np
 
+from odelab.solvers.registry import METHODS, REFERENCE_METHOD
+
 __all__ = ["AUTO", "PROBE_STEPS", "STIFF_SOLVER", "Reference", "high_accuracy", "cached", "clear_cache",
            "DENSE_SOLVERS"]
 
@@ -93,7 +95,7 @@ def _run(fun, t0, tf, y0, name, rtol, atol, max_steps, progress, probe, jac=None
 
     cls = getattr(integrate, name)
     kwargs = dict(rtol=rtol, atol=atol)
-    if jac is not None and name in ("Radau", "BDF", "LSODA"):
+    if jac is not None and METHODS[name].stiff:  # SciPy's implicit methods take a Jacobian
         kwargs["jac"] = jac
     solver = cls(fun, t0, np.array(y0, dtype=float), tf, **kwargs)
     ends, pieces = [], []
@@ -149,7 +151,7 @@ def high_accuracy(fun: Callable, t0: float, tf: float, y0, *, solver: str = AUTO
             raised.append(exc)
             raise
 
-    name = "DOP853" if solver == AUTO else solver
+    name = REFERENCE_METHOD if solver == AUTO else solver
     if name not in DENSE_SOLVERS:
         raise ValueError(f"high_accuracy runs SciPy's {', '.join(DENSE_SOLVERS)} (or 'auto'); got {solver!r}")
     try:
@@ -158,12 +160,12 @@ def high_accuracy(fun: Callable, t0: float, tf: float, y0, *, solver: str = AUTO
         ref, stiff = _run(rhs, t0, tf, y0, name, rtol, atol, max_steps, progress, probe=solver == AUTO, jac=jac)
         if stiff is not None:
             t_stiff, diagnosis = stiff
-            note = (f"the problem is stiff: DOP853's steps were held by stability at t = {t_stiff:.4g} "
+            note = (f"the problem is stiff: {name}'s steps were held by stability at t = {t_stiff:.4g} "
                     f"(|h| rho(J) = {diagnosis.h_rho:.3g} at its limit {diagnosis.boundary:.3g}, the fastest mode "
                     f"{diagnosis.rho / max(diagnosis.rate, 1e-300):.3g} times faster than the solution), so the "
                     f"reference is {STIFF_SOLVER}'s")
             if progress is not None:
-                progress(f"stiff (DOP853 held by stability at t = {t_stiff:.3g}); reference by {STIFF_SOLVER}")
+                progress(f"stiff ({name} held by stability at t = {t_stiff:.3g}); reference by {STIFF_SOLVER}")
             ref, _ = _run(rhs, t0, tf, y0, STIFF_SOLVER, rtol, atol, max_steps, progress, probe=False, jac=jac)
             ref.note = note
     except Exception as exc:

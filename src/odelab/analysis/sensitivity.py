@@ -30,6 +30,8 @@ from typing import Callable
 
 import numpy as np
 
+from odelab.solvers.registry import SENSITIVITY_METHOD
+
 __all__ = ["ParametricModel", "SensitivitySolution", "solve_sensitivities", "observe", "STEP"]
 
 STEP = 1e-200
@@ -101,7 +103,7 @@ def augmented_rhs(model: ParametricModel, p, piece: tuple[float, float] = (-math
     return fun
 
 
-def solve_sensitivities(model: ParametricModel, p, times, *, t0: float, tf: float, method: str = "ode78",
+def solve_sensitivities(model: ParametricModel, p, times, *, t0: float, tf: float, method: str = SENSITIVITY_METHOD,
                         rtol: float = 1e-10, atol: float = 1e-12, max_steps: int | None = None
                         ) -> SensitivitySolution:
     """Integrate the states and their sensitivities from ``t0`` to ``tf``; return them at ``times``.

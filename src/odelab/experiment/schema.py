@@ -14,6 +14,8 @@ from typing import Annotated, Any, Literal, Optional, Union
 from pydantic import (BaseModel, ConfigDict, Field, StrictBool, StrictFloat, StrictInt, StrictStr, WrapValidator,
                       create_model)
 
+from odelab.solvers.registry import DEFAULT_METHOD, SENSITIVITY_METHOD
+
 Number = Union[StrictInt, StrictFloat]
 Value = Union[StrictInt, StrictFloat, StrictStr]
 Matrix = Union[Value, list[Value], list[list[Value]]]
@@ -60,7 +62,7 @@ class Time(_Section):
 class Solver(_Section):
     """[solver]: the method, then the solver options of the option registry (see :func:`solver_model`)."""
 
-    method: StrictStr = "ode45"
+    method: StrictStr = DEFAULT_METHOD
 
 
 # The [solver] keys that are not solver options: which engine runs, and the diagrams' zero crossings.
@@ -216,7 +218,7 @@ class Fit(_Section):
     parameters: dict[str, FitParameter] | None = None  # required: checked by experiment/fit.py with its message
     quantities: list[StrictStr] | None = None  # default: every quantity [data] maps
     validate_: StrictStr | None = Field(None, alias="validate")  # a second data set to check the fitted model against
-    method: StrictStr = "ode78"  # the solver of states and sensitivities
+    method: StrictStr = SENSITIVITY_METHOD  # the solver of states and sensitivities
     rtol: Number = 1e-10
     atol: Number | None = None  # default: rtol times each measured quantity's scale
     max_solves: StrictInt = 500

@@ -20,6 +20,7 @@ import numpy as np
 from odelab.exceptions import InputError
 from odelab.fmi.ccode import c_function, c_number
 from odelab.solvers.optionset import DEFAULT_RTOL
+from odelab.solvers.registry import METHODS
 
 __all__ = ["ExportModel", "Variable", "model_of_case", "refusal"]
 
@@ -79,7 +80,7 @@ def refusal(case) -> str | None:
     if "function" in system:
         return ("its system is a Python function, whose code odelab cannot write as C: write it as "
                 "[system.equations] to export it")
-    if problem.method == "dde23" or "history" in config:
+    if getattr(METHODS.get(problem.method), "delays", False) or "history" in config:
         return "it is a delay equation (lag), whose history an FMU's interface cannot carry"
     if problem.events is not None:
         return "its [events] (an FMU's state events with resets) are not exported yet; remove [events] to export"

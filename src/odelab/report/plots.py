@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from odelab.report.mplreuse import renderer, ticks_once
+from odelab.solvers.registry import METHODS
 
 __all__ = [
     "INPUT",
@@ -52,25 +53,9 @@ __all__ = [
     "render_png",
 ]
 
-# Okabe & Ito's colour-blind-safe palette (Okabe, Ito 2008, "Color Universal Design"),
-# one colour per method; ode23 and ode45, the lab's pair, get the two most distinct ones.
-METHOD_COLORS: dict[str, str] = {
-    "ode23": "#0072B2",  # blue
-    "ode45": "#D55E00",  # vermillion
-    "rk4": "#009E73",  # bluish green
-    "euler": "#CC79A7",  # reddish purple
-    "heun": "#E69F00",  # orange
-    "midpoint": "#56B4E9",  # sky blue
-    "ralston": "#8C6D31",
-    "rk3": "#7F7F7F",
-    "RK23": "#2B4C7E",
-    "RK45": "#8E2C0E",
-    "DOP853": "#3E7D5E",
-    "Radau": "#6A3D9A",
-    "BDF": "#B15928",
-    "LSODA": "#1B9E77",
-    "ode113": "#7570B3",  # its own: the hashed colour of an unknown name coincided with ode89's
-}
+# Each method's colour is its registry entry's (odelab.solvers.registry: Okabe & Ito's colour-blind-safe palette,
+# Okabe, Ito 2008, "Color Universal Design"; the lab's pair, ode23 and ode45, get the two most distinct ones).
+METHOD_COLORS: dict[str, str] = {m.name: m.color for m in METHODS.values() if m.color}
 # Methods odelab does not know (a newer registry) still get a stable colour from this list.
 _EXTRA_METHOD_COLORS = ("#882255", "#44AA99", "#999933", "#AA4499", "#332288", "#117733")
 REFERENCE_COLOR = "#000000"
@@ -87,8 +72,9 @@ DPI = 130
 
 def method_color(method: str) -> str:
     """The report-wide colour of a solver method (stable for unknown names too)."""
-    if method in METHOD_COLORS:
-        return METHOD_COLORS[method]
+    known = METHODS.get(method)
+    if known is not None and known.color:
+        return known.color
     return _EXTRA_METHOD_COLORS[zlib.crc32(method.encode("utf-8")) % len(_EXTRA_METHOD_COLORS)]
 
 
@@ -102,11 +88,7 @@ class LineStyle:
     linewidth: float = 1.2
 
 
-# The lab's pair differ in colour, marker *and* dash, so they stay apart in grey-scale print.
-_METHOD_MARKERS = {"ode23": "o", "ode45": "s", "rk4": "^", "euler": "v", "heun": "D", "midpoint": "P",
-                   "ralston": "X", "rk3": "<", "RK23": "h", "RK45": "d", "DOP853": "*", "Radau": ">",
-                   "BDF": "p", "LSODA": "8", "ode113": "H"}
-_METHOD_DASHES = {"ode23": "-", "ode45": "--", "rk4": "-.", "euler": ":"}
+# The lab's pair differ in colour, marker *and* dash (their registry entries), so they stay apart in grey-scale print.
 _EXTRA_MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "h")
 _EXTRA_DASHES = ("-", "--", "-.", ":")
 
@@ -119,8 +101,9 @@ REFERENCE_ZORDER = 10.0
 def method_style(method: str) -> LineStyle:
     """The report-wide colour, marker and dash of a solver method (stable for unknown names too)."""
     h = zlib.crc32(method.encode("utf-8"))
-    marker = _METHOD_MARKERS.get(method) or _EXTRA_MARKERS[h % len(_EXTRA_MARKERS)]
-    dash = _METHOD_DASHES.get(method) or _EXTRA_DASHES[(h >> 8) % len(_EXTRA_DASHES)]
+    known = METHODS.get(method)
+    marker = (known and known.marker) or _EXTRA_MARKERS[h % len(_EXTRA_MARKERS)]
+    dash = (known and known.dash) or _EXTRA_DASHES[(h >> 8) % len(_EXTRA_DASHES)]
     return LineStyle(method_color(method), marker, dash, 1.1)
 
 

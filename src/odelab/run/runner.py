@@ -12,6 +12,7 @@ from odelab.experiment.cases import Case, LoadedExperiment
 from odelab.experiment.loader import load_experiment
 from odelab.store.result import CaseResult, Integration
 from odelab.solution import Stats
+from odelab.solvers.registry import REFERENCE_METHOD
 
 __all__ = ["CaseResult", "run_case", "run_experiment"]
 
@@ -240,7 +241,7 @@ def _reference(result: CaseResult, max_steps: int | None = None) -> None:
             rt, rx, ru = t, shared.values(t), None
         else:
             options = {"rtol": rtol, "atol": atol, **({"max_steps": max_steps} if max_steps else {})}
-            solver = "DOP853" if solver == "auto" else solver
+            solver = REFERENCE_METHOD if solver == "auto" else solver
             ran = _integrate(p, t, solver, options)
             rt, rx, ru = ran.t, ran.x, ran.u
             if ran.status != "success" or rt.size != t.size:

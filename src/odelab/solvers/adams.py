@@ -30,7 +30,8 @@ MATLAB's ``ode113`` differs from ``STEP`` in the error norm (the MATLAB weight
 ``max(|y|, atol/rtol)`` and the max norm, or the 2-norm with ``NormControl``, tested against
 ``rtol``), its initial step, hmin ``16 eps(t)``, MaxStep and landing on ``tfinal``; this module
 follows MATLAB there. Like ``ode45`` in :mod:`odelab.solvers.engine` the driver is plain arrays
-and scalars.
+and scalars. :func:`ode113` is the public ``odelab.ode113``; :func:`drive_multistep` the registry's driver of
+its kind (the explicit pairs' preparation and output, :func:`odelab.solvers.api.drive_adaptive`).
 """
 
 from __future__ import annotations
@@ -40,13 +41,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from odelab.solution import Solution
+from odelab.solvers.api import drive_adaptive, solve
 from odelab.solvers.controller import clamp_step, first_step, given_step
 from odelab.solvers.dense import clip_nonnegative, query_times
 from odelab.solvers.ordered import backwards, combine, norm as _norm2
 from odelab.solvers.output import DriverResult, NonNegative, StepOutput
 from odelab.solvers.status import Status
 
-__all__ = ["MAX_ORDER", "integrate_ode113", "AdamsDenseOutput", "ntrp113"]
+__all__ = ["ode113", "drive_multistep", "MAX_ORDER", "integrate_ode113", "AdamsDenseOutput", "ntrp113"]
 
 MAX_ORDER = 12  # highest predictor order k; the corrector (local extrapolation) is order k+1 <= 13
 # Shampine & Gordon's gstar_i: the constant-step error constants |gamma*_i| (book, Table 5.1 / STEP's
@@ -529,3 +532,28 @@ def integrate_ode113(fun, tspan, y0, f0, rtol, threshold, hmax, htry, refine, no
     t_arr, y_arr = out.finish()
     return DriverResult(t_arr, y_arr, nsteps, nfailed, nfevals, status, t, abs(h), exception, out.found,
                         _dense_output(out.store, orders, psi_rows, cut_ref, nonnegative, y_arr[-1]))
+
+
+def drive_multistep(fun, tspan, y0, m, options: dict) -> Solution:
+    """The driver of the methods of kind ``"multistep"`` (:data:`odelab.solvers.registry.DRIVERS`): the explicit
+    pairs' preparation and output, stepped by :func:`integrate_ode113`."""
+    return drive_adaptive(fun, tspan, y0, m, options, multistep=integrate_ode113)
+
+
+def ode113(fun, tspan, y0, **options) -> Solution:
+    """Solve a non-stiff ODE with MATLAB's ``ode113``: variable-order Adams-Bashforth-Moulton PECE.
+
+    Shampine & Gordon's method (orders 1-13 as MATLAB counts them): two evaluations of ``fun``
+    per step, so it wins at tight tolerances and when ``fun`` is expensive. Options as
+    :func:`odelab.ode45` (``RelTol``, ``AbsTol``, ``MaxStep``, ``InitialStep``, ``Refine``
+    (default 1), ``NormControl``, ``Events``, ``NonNegative``, ``Mass``, ``OutputFcn``...);
+    ``deval``/``sol(t)`` evaluate the Adams interpolant (MATLAB's ``ntrp113``).
+
+    Examples
+    --------
+    >>> import numpy as np, odelab
+    >>> sol = odelab.ode113(lambda t, y: np.cos(t), [0, np.pi], 2.0)
+    >>> sol.stats
+    Stats(nsteps=14, nfailed=0, nfevals=29)
+    """
+    return solve(fun, tspan, y0, method="ode113", **options)

@@ -14,7 +14,7 @@ from odelab.solvers import engine
 from odelab.solvers.controller import min_step
 from odelab.solvers.optionset import DEFAULT_ATOL, DEFAULT_RTOL
 from odelab.solvers.options import SolverOptions, as_tspan, as_y0, normalize_options, resolve_options
-from odelab.solvers.registry import DRIVERS, Method, get_method, join_names, methods_with
+from odelab.solvers.registry import DRIVERS, RESIDUAL_METHOD, Method, get_method, join_names, methods_with
 from odelab.solvers.status import Status
 
 __all__ = ["ode23", "ode45", "solve", "odextend"]
@@ -255,14 +255,6 @@ def drive_residual(fun, tspan, y0, m: Method, options: dict) -> Solution:
                      "for y' = f(t, y) use ode15s.", key="method")
 
 
-def drive_delay(fun, tspan, y0, m: Method, options: dict) -> Solution:
-    """dde23 (:mod:`odelab.solvers.dde23`), which evaluates the delayed states itself."""
-    from odelab.solvers.dde23 import solve_delay
-
-    tspan_arr = as_tspan(tspan)
-    return solve_delay(fun, tspan_arr, as_y0(y0), normalize_options(options, m))
-
-
 def _prepared(fun, tspan, y0, m: Method, options: dict):
     """The arrays, the options resolved once and ``fun`` with MATLAB's extra arguments bound:
     ``(fun, user_fun, tspan, y0, given, opts)``."""
@@ -307,18 +299,15 @@ def drive_scipy(fun, tspan, y0, m: Method, options: dict) -> Solution:
     return solve_scipy(fun, tspan_arr, y0_arr, m, opts)
 
 
-def drive_adaptive(fun, tspan, y0, m: Method, options: dict, multistep: bool = False) -> Solution:
-    """odelab's explicit pairs (the engine)."""
+def drive_adaptive(fun, tspan, y0, m: Method, options: dict, multistep=None) -> Solution:
+    """odelab's explicit pairs (the engine); ``multistep``: a multistep method's integrator instead, which the
+    driver of that kind passes (:func:`odelab.solvers.adams.drive_multistep`), with the same preparation and
+    output."""
     fun, user_fun, tspan_arr, y0_arr, given, opts = _prepared(fun, tspan, y0, m, options)
     rhs, f0, failed = _started(fun, tspan_arr, y0_arr, m, opts)
     if failed is not None:
         return failed
     return _solve_adaptive(rhs, tspan_arr, y0_arr, f0, m, opts, {"fun": user_fun, "options": given}, multistep)
-
-
-def drive_multistep(fun, tspan, y0, m: Method, options: dict) -> Solution:
-    """ode113 (Adams PECE, :mod:`odelab.solvers.adams`): the explicit pairs' preparation and output."""
-    return drive_adaptive(fun, tspan, y0, m, options, multistep=True)
 
 
 def drive_implicit(fun, tspan, y0, m: Method, options: dict) -> Solution:
@@ -339,7 +328,7 @@ def drive_fixed(fun, tspan, y0, m: Method, options: dict) -> Solution:
     return _solve_fixed(rhs, tspan_arr, y0_arr, m, opts)
 
 
-def solve_residual(fun, tspan, y0, yp0, method: str = "ode15i", **options) -> Solution:
+def solve_residual(fun, tspan, y0, yp0, method: str = RESIDUAL_METHOD, **options) -> Solution:
     """Solve a fully implicit system ``F(t, y, y') = 0`` from consistent ``y0, yp0`` (``odelab.ode15i``).
 
     The entry point of the methods of kind ``"residual"`` (:data:`odelab.solvers.registry.DRIVERS`);
@@ -388,9 +377,8 @@ def solve_residual(fun, tspan, y0, yp0, method: str = "ode15i", **options) -> So
     if not np.all(np.isfinite(f0)):
         return _failed_at_start(m, tspan_arr, y0_arr, opts, f"the residual at t = {t0:g} is not finite "
                                 f"({_fmt_vec(f0)}): check F at the initial state and slope")
-    from odelab.solvers.implicit.ode15i import run_ode15i
-    from odelab.solvers.implicit.residual import index_problem
-    from odelab.solvers.implicit.residual import ResidualWork
+    from odelab.solvers.implicit import step_class
+    from odelab.solvers.implicit.residual import ResidualWork, index_problem
 
     atol = np.broadcast_to(np.asarray(opts.atol, dtype=float), (n,))
     work = ResidualWork(fun, n, jacobian=opts.extra["jacobian"], atol=atol)
@@ -400,7 +388,7 @@ def solve_residual(fun, tspan, y0, yp0, method: str = "ode15i", **options) -> So
         raise InputError(f"{m.name} solves ODEs and DAEs of index 1, as MATLAB's; at t = {t0:g} {why}. Write the "
                          "hidden constraints out (differentiate the algebraic equations until the system is of "
                          "index 1).", key="fun")
-    (t, y, nsteps, nfailed, status, t_stop, h_stop, exc), stepper, found = run_ode15i(
+    (t, y, nsteps, nfailed, status, t_stop, h_stop, exc), stepper, found = step_class(m.name).run(
         work, tspan_arr, y0_arr, yp0_arr, f0, opts.rtol, atol, opts.max_step, opts.initial_step, opts.refine,
         opts.max_steps, opts.extra["max_order"], opts.events, args, dfdy, dfdyp)
     stats = Stats(nsteps=nsteps, nfailed=nfailed, nfevals=work.nfevals + 1, npds=work.npds,
@@ -488,7 +476,7 @@ def _checked_rhs(fun, raw, y0: np.ndarray):
     )
 
 
-def _solve_adaptive(fun, tspan, y0, f0, m: Method, opts: SolverOptions, setup: dict, multistep: bool) -> Solution:
+def _solve_adaptive(fun, tspan, y0, f0, m: Method, opts: SolverOptions, setup: dict, multistep) -> Solution:
     tab = m.tableau
     t0 = float(tspan[0])
     extra_fevals = 0
@@ -512,10 +500,8 @@ def _solve_adaptive(fun, tspan, y0, f0, m: Method, opts: SolverOptions, setup: d
     if opts.output_fcn is not None:
         output = _output_function(opts, tspan, y0)
     threshold = opts.atol / opts.rtol
-    if multistep:  # ode113: Adams PECE, its own driver and interpolant
-        from odelab.solvers.adams import integrate_ode113
-
-        (t, y, nsteps, nfailed, nfevals, status, t_stop, h_stop, exc, found, interpolant) = integrate_ode113(
+    if multistep is not None:  # a multistep method's own integrator and interpolant (Adams PECE)
+        (t, y, nsteps, nfailed, nfevals, status, t_stop, h_stop, exc, found, interpolant) = multistep(
             fun, tspan, y0, f0, opts.rtol, threshold, opts.max_step, opts.initial_step, opts.refine,
             opts.norm_control, opts.max_steps, events, v0, nonnegative, output)
         steps = None

@@ -55,6 +55,7 @@ from odelab.solvers.controller import clamp_step, first_step, given_step, grow, 
 from odelab.solvers.dense import query_times
 from odelab.solvers.events import CallbackError, as_event_function, locate_events
 from odelab.solvers.optionset import DEFAULT_ATOL, DEFAULT_RTOL
+from odelab.solvers.options import as_tspan, as_y0, normalize_options
 
 __all__ = ["dde23", "DDESolution", "HermiteMesh", "discontinuities"]
 
@@ -730,6 +731,12 @@ def _tolerance_failure(t: float, hmin: float) -> tuple[str, str]:
     return "failed", (f"Unable to meet integration tolerances without reducing the step size below the smallest "
                       f"value allowed ({hmin:e}) at time t = {t:e} (MATLAB's dde23 stops there too). Loosen "
                       "RelTol/AbsTol, or check the equations for a singularity near that time.")
+
+
+def drive_delay(fun, tspan, y0, m, options: dict) -> DDESolution:
+    """The driver of the methods of kind ``"delay"`` (:data:`odelab.solvers.registry.DRIVERS`): the arrays
+    checked and the options normalised once, then :func:`solve_delay`, which evaluates the delayed states."""
+    return solve_delay(fun, as_tspan(tspan), as_y0(y0), normalize_options(options, m))
 
 
 def solve_delay(fun, tspan, y0, options: dict) -> DDESolution:

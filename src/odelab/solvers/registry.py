@@ -20,7 +20,8 @@ from odelab.solvers import tableau as tb
 from odelab.solvers import verner
 
 __all__ = ["Method", "METHODS", "DRIVERS", "Driver", "get_method", "register_method", "methods_with", "listing",
-           "join_names", "dense_output_text"]
+           "join_names", "dense_output_text", "DEFAULT_METHOD", "DELAY_METHOD", "RESIDUAL_METHOD", "REFERENCE_METHOD",
+           "SENSITIVITY_METHOD"]
 
 @dataclass(frozen=True)
 class Driver:
@@ -44,7 +45,7 @@ DRIVERS = {
                        "odelab.solvers.engine.integrate_adaptive: an explicit Runge-Kutta pair, MATLAB's controller"),
     "fixed": Driver("odelab.solvers.api:drive_fixed",
                     "odelab.solvers.engine.integrate_fixed: an explicit Runge-Kutta method on a fixed step h"),
-    "multistep": Driver("odelab.solvers.api:drive_multistep",
+    "multistep": Driver("odelab.solvers.adams:drive_multistep",
                         "odelab.solvers.adams.integrate_ode113: Adams-Bashforth-Moulton PECE (Shampine & Gordon)"),
     "implicit": Driver("odelab.solvers.api:drive_implicit",
                        "odelab.solvers.implicit.solve_implicit: odelab's stiff solvers (one module each, its step "
@@ -52,7 +53,7 @@ DRIVERS = {
     "residual": Driver("odelab.solvers.api:drive_residual",
                        "odelab.solvers.api.solve_residual: fully implicit F(t, y, y') = 0 from consistent y0 and "
                        "y'0 (odelab.solvers.implicit.ode15i)"),
-    "delay": Driver("odelab.solvers.api:drive_delay", "odelab.solvers.dde23.solve_delay: delay equations with "
+    "delay": Driver("odelab.solvers.dde23:drive_delay", "odelab.solvers.dde23.solve_delay: delay equations with "
                     "constant lags"),
     "scipy": Driver("odelab.solvers.api:drive_scipy",
                     "odelab.solvers.scipy_adapter.solve_scipy: SciPy's solve_ivp solver classes, stepped"),
@@ -125,6 +126,9 @@ class Method:
         ``y'0`` (MATLAB's ode15i).
     source
         Whose implementation it is: ``"odelab"`` or ``"SciPy"``.
+    color, marker, dash
+        How the report draws its lines (:func:`odelab.report.plots.method_style`): a colour, a
+        matplotlib marker and line style; ``""``: a stable one chosen from its name.
     """
 
     name: str
@@ -151,6 +155,9 @@ class Method:
     delays: bool = False
     residual: bool = False
     source: str = "odelab"
+    color: str = ""
+    marker: str = ""
+    dash: str = ""
 
     def __post_init__(self):
         if self.kind not in DRIVERS:
@@ -226,12 +233,12 @@ class Method:
         return tuple(out)
 
 
-def _adaptive(name, tableau, shrink_min, refine, description, dense="", compiled=False):
+def _adaptive(name, tableau, shrink_min, refine, description, dense="", compiled=False, **look):
     return Method(
         name=name, kind="adaptive", order=tableau.order, description=description, tableau=tableau,
         power=1.0 / (tableau.error_order + 1), shrink_min=shrink_min, refine=refine, problem="non-stiff",
         options=EXPLICIT_OPTIONS, events=True, dense_output=True, dense=dense, complex_y0=True, mass="moving",
-        compiled=compiled, compiled_events=compiled, matlab_defaults=True,
+        compiled=compiled, compiled_events=compiled, matlab_defaults=True, **look,
     )
 
 
@@ -243,9 +250,9 @@ def _implicit(name, order, orders, problem, description, dae=False, dense_output
                   dense=dense, mass="constant", dae=dae, compiled=compiled, matlab_defaults=True)
 
 
-def _fixed(name, tableau, description):
+def _fixed(name, tableau, description, **look):
     return Method(name=name, kind="fixed", order=tableau.order, description=description, tableau=tableau,
-                  problem="non-stiff (fixed h)", options=FIXED_OPTIONS, compiled=True)
+                  problem="non-stiff (fixed h)", options=FIXED_OPTIONS, compiled=True, **look)
 
 
 def _scipy(name, order, description, **kw):
@@ -256,9 +263,10 @@ METHODS: dict[str, Method] = {
     m.name: m
     for m in (
         # ode23's interpolant is named with ode45's in messages (dense = "": said with the next)
-        _adaptive("ode23", tb.BS23, 0.5, 1, "MATLAB's ode23: Bogacki-Shampine 3(2), adaptive", compiled=True),
+        _adaptive("ode23", tb.BS23, 0.5, 1, "MATLAB's ode23: Bogacki-Shampine 3(2), adaptive", compiled=True,
+                  color="#0072B2", marker="o", dash="-"),
         _adaptive("ode45", tb.DP54, 0.1, 4, "MATLAB's ode45: Dormand-Prince 5(4), adaptive",
-                  dense="their ntrp23/ntrp45 interpolants", compiled=True),
+                  dense="their ntrp23/ntrp45 interpolants", compiled=True, color="#D55E00", marker="s", dash="--"),
         _implicit("ode15s", 5, "1-5", "stiff, DAE",
                   "MATLAB's ode15s: variable-order NDF/BDF (orders 1-5), for stiff problems and index-1 DAEs",
                   dae=True, extra=("max_order", "bdf"), compiled=True),
@@ -281,7 +289,7 @@ METHODS: dict[str, Method] = {
         Method("ode113", "multistep", 13, "MATLAB's ode113: variable-order Adams-Bashforth-Moulton PECE "
                "(Shampine & Gordon), for tight tolerances and expensive f", orders="1-13", refine=1,
                options=EXPLICIT_OPTIONS, events=True, dense_output=True, dense="Adams", complex_y0=True,
-               mass="moving", matlab_defaults=True),
+               mass="moving", matlab_defaults=True, color="#7570B3", marker="H"),
         _adaptive("ode78", verner.VERNER87, 0.1, 1,
                   "MATLAB's ode78: Verner's most efficient 8(7) pair, 8th-order interpolant, adaptive",
                   dense="Verner's"),
@@ -292,23 +300,40 @@ METHODS: dict[str, Method] = {
         Method("dde23", "delay", 3, "MATLAB's dde23: delay equations y'(t) = f(t, y, y(t - tau)) with constant "
                "lags; Bogacki-Shampine 3(2), discontinuity tracking", orders="3(2)", problem="delay (constant lags)",
                options=DELAY_OPTIONS, events=True, dense_output=True, delays=True),
-        _fixed("euler", tb.EULER, "Forward Euler, fixed step h"),
-        _fixed("heun", tb.HEUN, "Heun's method (improved Euler), fixed step h"),
-        _fixed("midpoint", tb.MIDPOINT, "Explicit midpoint, fixed step h"),
-        _fixed("ralston", tb.RALSTON, "Ralston's second-order method, fixed step h"),
-        _fixed("rk3", tb.KUTTA3, "Kutta's third-order method, fixed step h"),
-        _fixed("rk4", tb.RK4, "Classical fourth-order Runge-Kutta, fixed step h"),
-        _scipy("RK23", 3, "SciPy solve_ivp RK23 (Bogacki-Shampine, SciPy's controller)"),
-        _scipy("RK45", 5, "SciPy solve_ivp RK45 (Dormand-Prince, SciPy's controller)"),
-        _scipy("DOP853", 8, "SciPy solve_ivp DOP853 (Dormand-Prince 8(5,3))"),
-        _scipy("Radau", 5, "SciPy solve_ivp Radau IIA, implicit, for stiff problems", stiff=True, problem="stiff"),
+        _fixed("euler", tb.EULER, "Forward Euler, fixed step h", color="#CC79A7", marker="v", dash=":"),
+        _fixed("heun", tb.HEUN, "Heun's method (improved Euler), fixed step h", color="#E69F00", marker="D"),
+        _fixed("midpoint", tb.MIDPOINT, "Explicit midpoint, fixed step h", color="#56B4E9", marker="P"),
+        _fixed("ralston", tb.RALSTON, "Ralston's second-order method, fixed step h", color="#8C6D31", marker="X"),
+        _fixed("rk3", tb.KUTTA3, "Kutta's third-order method, fixed step h", color="#7F7F7F", marker="<"),
+        _fixed("rk4", tb.RK4, "Classical fourth-order Runge-Kutta, fixed step h", color="#009E73", marker="^",
+               dash="-."),
+        _scipy("RK23", 3, "SciPy solve_ivp RK23 (Bogacki-Shampine, SciPy's controller)", color="#2B4C7E", marker="h"),
+        _scipy("RK45", 5, "SciPy solve_ivp RK45 (Dormand-Prince, SciPy's controller)", color="#8E2C0E", marker="d"),
+        _scipy("DOP853", 8, "SciPy solve_ivp DOP853 (Dormand-Prince 8(5,3))", color="#3E7D5E", marker="*"),
+        _scipy("Radau", 5, "SciPy solve_ivp Radau IIA, implicit, for stiff problems", stiff=True, problem="stiff",
+               color="#6A3D9A", marker=">"),
         _scipy("BDF", 5, "SciPy solve_ivp BDF (orders 1-5), implicit, for stiff problems", stiff=True,
-               orders="1-5", problem="stiff"),
+               orders="1-5", problem="stiff", color="#B15928", marker="p"),
         # LSODA: Adams orders 1-12 while non-stiff, BDF orders 1-5 once stiff (Petzold 1983).
         _scipy("LSODA", 12, "SciPy solve_ivp LSODA (Adams/BDF switching)", stiff=True,
-               orders="Adams 1-12 / BDF 1-5", problem="both (switches)"),
+               orders="Adams 1-12 / BDF 1-5", problem="both (switches)", color="#1B9E77", marker="8"),
     )
 }
+
+
+# The methods odelab runs when none is named, each written here once and imported where it is the default.
+DEFAULT_METHOD = "ode45"  # MATLAB's first choice: experiment files, simulate, linearize, diagrams, the compiled path
+DELAY_METHOD = "dde23"  # delay equations: lag(...) in the equations, a diagram's transport delay
+RESIDUAL_METHOD = "ode15i"  # fully implicit systems F(t, y, y') = 0
+REFERENCE_METHOD = "DOP853"  # the high-accuracy reference (SciPy's 8th-order pair, at rtol 1e-12)
+SENSITIVITY_METHOD = "ode78"  # [fit]: the states and their sensitivities, at the fit's tight tolerances
+
+# each is a method of the kind it is the default for (analysis.reference steps SciPy's classes; a fit, explicit ones)
+for _name, _fits in ((DEFAULT_METHOD, lambda m: m.adaptive and not m.stiff), (DELAY_METHOD, lambda m: m.delays),
+                     (RESIDUAL_METHOD, lambda m: m.residual), (REFERENCE_METHOD, lambda m: m.source == "SciPy"),
+                     (SENSITIVITY_METHOD, lambda m: m.adaptive and not m.stiff and not m.delays)):
+    if not _fits(METHODS[_name]):
+        raise ValueError(f"{_name!r} is not a method of the kind it is the default for.")
 
 
 def register_method(method: Method) -> Method:

@@ -23,6 +23,7 @@ import numpy as np
 
 from odelab.exceptions import ExpressionError, InputError
 from odelab.expressions.parse import LAG, parse_expression
+from odelab.solvers.registry import DELAY_METHOD
 
 __all__ = ["DelayEquations", "uses_lag"]
 
@@ -62,7 +63,7 @@ class DelayEquations:
     """
 
     #: What :func:`odelab.solve` runs for this system (any other method is refused, naming it).
-    method = "dde23"
+    method = DELAY_METHOD
 
     def __init__(self, equations: Mapping[str, object], *, parameters: Mapping[str, float] | None = None,
                  history: Mapping[str, object] | None = None, source: str | None = None):

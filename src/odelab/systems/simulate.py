@@ -35,6 +35,7 @@ from odelab.exceptions import InputError
 from odelab.systems.common import as_initial_state
 from odelab.signals import Signal, as_signals
 from odelab.solution import Solution, Stats
+from odelab.solvers.registry import DEFAULT_METHOD
 
 __all__ = ["Response", "simulate"]
 
@@ -107,7 +108,7 @@ def simulate(
     x0: Any,
     u: Any = None,
     *,
-    method: str = "ode45",
+    method: str = DEFAULT_METHOD,
     piece_solver: Callable[..., Solution] | None = None,
     **options: Any,
 ) -> Response:

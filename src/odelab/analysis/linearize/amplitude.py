@@ -15,6 +15,7 @@ from odelab.analysis.linearize.comparison import (
     compare_linearization,
 )
 from odelab.exceptions import InputError
+from odelab.solvers.registry import DEFAULT_METHOD
 
 
 @dataclass(frozen=True)
@@ -93,7 +94,7 @@ def amplitude_study(
     *,
     threshold: float = 0.05,
     quantity: str | None = None,
-    method: str = "ode45",
+    method: str = DEFAULT_METHOD,
     **options,
 ) -> AmplitudeStudy:
     """For how large an input does the linear model stay good? Compare at several amplitudes.

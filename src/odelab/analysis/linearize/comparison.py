@@ -12,6 +12,7 @@ import numpy as np
 from odelab.analysis.linearize._system import _check_system, _names
 from odelab.analysis.linearize.operating_point import OperatingPoint
 from odelab.exceptions import InputError
+from odelab.solvers.registry import DEFAULT_METHOD
 from odelab.systems.nonlinear import as_vector
 
 # ---------------------------------------------------------------------------------------
@@ -158,7 +159,7 @@ def compare_linearization(
     x_init,
     tspan,
     *,
-    method: str = "ode45",
+    method: str = DEFAULT_METHOD,
     **options,
 ) -> LinearizationComparison:
     """Simulate the nonlinear system and its linearisation with the same input; compare.

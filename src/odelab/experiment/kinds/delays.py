@@ -10,7 +10,7 @@ from __future__ import annotations
 from odelab.exceptions import ExperimentError, InputError
 from odelab.experiment import schema
 from odelab.experiment.cases import Built
-from odelab.solvers.registry import methods_with
+from odelab.solvers.registry import DEFAULT_METHOD, DELAY_METHOD, methods_with
 
 __all__ = ["build_delay", "is_delay_system", "check_delay_case"]
 
@@ -69,13 +69,13 @@ def check_delay_case(model: schema.Experiment, method, reference_kind: str) -> N
 
 def method_name(model: schema.Experiment, built: Built) -> str:
     """[solver] method as the case runs it: ``"auto"`` (or no method at all, for a delay system) is
-    dde23 for delay equations and ode45 (the default) otherwise."""
+    the registry's DELAY_METHOD (dde23) for delay equations and its DEFAULT_METHOD (ode45) otherwise."""
     name = model.solver.method
     delayed = is_delay_system(built)
     if isinstance(name, str) and name.lower() == "auto":
-        return "dde23" if delayed else "ode45"
+        return DELAY_METHOD if delayed else DEFAULT_METHOD
     if delayed and "method" not in model.solver.model_fields_set:
-        return "dde23"
+        return DELAY_METHOD
     return name
 
 

@@ -29,6 +29,7 @@ from odelab.exceptions import InputError
 from odelab.solution import Solution, Stats
 from odelab.solvers.compiled.methods import method_refusal
 from odelab.solvers.compiled.rows import exact_rows
+from odelab.solvers.registry import DEFAULT_METHOD
 from odelab.solvers.status import Status
 
 __all__ = ["BACKENDS", "AUTO_STEPS", "COMPILE_SECONDS", "CompiledSystem", "expected_compile_seconds", "unavailable",
@@ -321,7 +322,7 @@ def unavailable() -> str | None:
     return None
 
 
-def solve_compiled(system: CompiledSystem, tspan, y0, method: str = "ode45", *,
+def solve_compiled(system: CompiledSystem, tspan, y0, method: str = DEFAULT_METHOD, *,
                    input_bounds: tuple[float, float] = (-np.inf, np.inf), **options) -> Solution:
     """Solve ``system`` with an odelab method (ode23, ode45, fixed-step, ode23s, ode15s) on the compiled path.
 

@@ -36,14 +36,18 @@ derivative, one LU per change of ``|h|`` or ``k``, one linear solve per iteratio
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 
+from odelab.exceptions import SolverWarning
+from odelab.solvers.api import solve_residual
 from odelab.solvers.controller import first_step, given_step
-from odelab.solvers.implicit.driver import Stepper, integrate
+from odelab.solvers.implicit.driver import Stepper, integrate, register_step
 from odelab.solvers.implicit.residual import ResidualWork
+from odelab.solvers.plausibility import PREFIX
 
-__all__ = ["run_ode15i", "ImplicitDenseOutput", "fornberg_weights", "LCF"]
+__all__ = ["ode15i", "BDFIStep", "ImplicitDenseOutput", "fornberg_weights", "LCF"]
 
 EPS = float(np.finfo(float).eps)
 MAX_NEWTON = 4
@@ -151,8 +155,10 @@ class ImplicitDenseOutput:
         return values[0] if scalar else values
 
 
+@register_step("ode15i")
 class BDFIStep(Stepper):
-    """ode15i's own part of the step (driven by :func:`odelab.solvers.implicit.driver.integrate`)."""
+    """ode15i's own part of the step (driven by :func:`odelab.solvers.implicit.driver.integrate`); :meth:`run`
+    integrates a whole span (:func:`odelab.solvers.api.solve_residual` finds it by the method's name)."""
 
     fields = (((), np.int64),)  # the order of each step, for deval
 
@@ -351,6 +357,29 @@ class BDFIStep(Stepper):
             return None
         return ImplicitDenseOutput(store.t.copy(), store.y.copy(), store.fields[0].copy())
 
+    @classmethod
+    def run(cls, work: ResidualWork, tspan, y0, yp0, f0, rtol, atol, hmax, htry, refine, max_steps, max_order=5,
+            events=None, args=(), dfdy=None, dfdyp=None):
+        """Integrate ``F(t, y, y') = 0`` with ode15i: ``(engine tuple, stepper, found)``.
+
+        ``events(t, y, yp, *args)``: MATLAB's events function, given ``y'`` on the step's polynomial
+        (:meth:`slope_at`). ``dfdy, dfdyp``: the partials at ``t0`` if already formed."""
+        stepper = cls(work, tspan, rtol, atol, yp0, max_order=max_order)
+        if dfdy is not None:
+            stepper.dfdy, stepper.dfdyp = dfdy, dfdyp
+        located = None
+        if events is not None:
+            from odelab.solvers.events import as_event_function
+
+            slope_at = stepper.slope_at
+
+            def with_slope(t, y, *more, _events=events):
+                return _events(t, y, slope_at(t), *more)
+
+            located = as_event_function(with_slope, args, float(tspan[0]), y0)
+        result = integrate(stepper, tspan, y0, f0, hmax, htry, refine, max_steps, located)
+        return result, stepper, work.found
+
 
 def _singular(lu) -> bool:
     """Whether an LU factorisation from :meth:`Work.factor` has a zero (or non-finite) pivot."""
@@ -364,25 +393,33 @@ def _singular(lu) -> bool:
     return False
 
 
-def run_ode15i(work: ResidualWork, tspan, y0, yp0, f0, rtol, atol, hmax, htry, refine, max_steps, max_order=5,
-               events=None, args=(), dfdy=None, dfdyp=None):
-    """Integrate ``F(t, y, y') = 0`` with ode15i: ``(engine tuple, stepper, found)``.
+def ode15i(fun, tspan, y0, yp0, **options):
+    """Solve a fully implicit system ``F(t, y, y') = 0`` with MATLAB's ``ode15i``.
 
-    ``events(t, y, yp, *args)``: MATLAB's events function, given ``y'`` on the step's polynomial
-    (:meth:`BDFIStep.slope_at`). ``dfdy, dfdyp``: the partials at ``t0`` if already formed."""
-    stepper = BDFIStep(work, tspan, rtol, atol, yp0, max_order=max_order)
-    if dfdy is not None:
-        stepper.dfdy, stepper.dfdyp = dfdy, dfdyp
-    located = None
-    if events is not None:
-        from odelab.solvers.events import as_event_function
+    Variable-order (1-5) BDFs in Lagrangian form (Shampine 2002), for ODEs and DAEs of index 1.
+    ``fun(t, y, yp)`` returns the residual (one per state); ``y0`` and ``yp0`` must be consistent,
+    ``F(t0, y0, yp0) = 0`` (:func:`odelab.decic` makes them so). Options (MATLAB's names too):
+    ``rtol``/``RelTol`` (1e-3), ``atol``/``AbsTol`` (1e-6), ``max_step`` (0.1 |tf - t0|),
+    ``initial_step``, ``refine`` (1), ``max_steps``, ``max_order``/``MaxOrder`` (5), ``jacobian``
+    (a function ``J(t, y, yp) -> (dF/dy, dF/dy')`` or a pair of constant matrices, None for finite
+    differences; default both by MATLAB's ``numjac``), ``events`` (``events(t, y, yp) -> (value,
+    isterminal, direction)``), ``args``. ``deval``/``sol(t)`` evaluate the BDF polynomials.
 
-        slope_at = stepper.slope_at
+    Examples
+    --------
+    Weissinger's equation, MATLAB's ode15i example (exact solution ``sqrt(t^2 + 1/2)``):
 
-        def with_slope(t, y, *more, _events=events):
-            return _events(t, y, slope_at(t), *more)
-
-        located = as_event_function(with_slope, args, float(tspan[0]), y0)
-    result = integrate(stepper, tspan, y0, f0, hmax, htry, refine, max_steps, located)
-    return result, stepper, work.found
-
+    >>> import numpy as np, odelab
+    >>> F = lambda t, y, yp: t*y**2*yp**3 - y**3*yp**2 + t*(t**2 + 1)*yp - t**2*y
+    >>> y0, yp0, _ = odelab.decic(F, 1, np.sqrt(1.5), [1], 0, [0])
+    >>> sol = odelab.ode15i(F, [1, 10], y0, yp0)
+    >>> bool(abs(sol.y[-1, 0] - np.sqrt(100.5)) < 1e-2)
+    True
+    """
+    sol = solve_residual(fun, tspan, y0, yp0, "ode15i", **options)
+    if sol.status == "failed":
+        warnings.warn(sol.message, SolverWarning, stacklevel=2)
+    for note in sol.warnings:
+        if note.startswith(PREFIX):  # a result that cannot be right, as ode15s's are checked
+            warnings.warn(note, SolverWarning, stacklevel=2)
+    return sol

@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from odelab.exceptions import InputError
+from odelab.solvers.registry import DEFAULT_METHOD
 from odelab.systems.diagram.blocks import Clock
 from odelab.systems.diagram.graph import DiagramError, Wiring
 
@@ -400,7 +401,7 @@ class CompiledDiagram:
                     return i, n
         return None
 
-    def simulate(self, tspan, *, method: str = "ode45", x0=None, **options):
+    def simulate(self, tspan, *, method: str = DEFAULT_METHOD, x0=None, **options):
         """Simulate the diagram from its blocks' initial states (or ``x0``) with its sources."""
         if self.hybrid:
             from odelab.systems.diagram.hybrid import simulate_hybrid

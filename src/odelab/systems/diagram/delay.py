@@ -34,6 +34,7 @@ import math
 import numpy as np
 
 from odelab.exceptions import InputError
+from odelab.solvers.registry import DELAY_METHOD
 from odelab.systems.diagram.blocks import Gain, TransferFcn
 from odelab.systems.diagram.compile import CompiledDiagram
 from odelab.systems.diagram.graph import wire
@@ -50,7 +51,7 @@ class DelayDiagram:
     (the delays' outputs come from the solution at ``t - T``).
     """
 
-    method = "dde23"
+    method = DELAY_METHOD
 
     def __init__(self, diagram, t0: float):
         self.diagram = diagram

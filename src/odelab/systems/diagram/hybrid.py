@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from odelab.solution import Stats
+from odelab.solvers.registry import DEFAULT_METHOD
 from odelab.systems.simulate import Response, piece_window, whole_span_max_step
 
 __all__ = ["HybridResponse", "simulate_hybrid", "needs_hybrid"]
@@ -59,7 +60,7 @@ def _locates(method: str) -> bool:
     return m.events and not m.delays  # it locates zero crossings (ODE methods with Events)
 
 
-def simulate_hybrid(diagram, tspan, x0=None, *, method: str = "ode45", zero_crossing: bool = True,
+def simulate_hybrid(diagram, tspan, x0=None, *, method: str = DEFAULT_METHOD, zero_crossing: bool = True,
                     events=None, **options) -> HybridResponse:
     """Integrate a compiled diagram with its switching and discrete blocks (see the module).
 
