@@ -89,8 +89,9 @@ def build_ode(model: schema.Experiment, params: dict[str, float]) -> Built:
     from odelab.solvers.compiled import CompiledSystem
 
     if not inputs:
-        def fun(t, x, _F=F):
-            return _F(t, *x)
+        from odelab.systems.fields import ExpressionField
+
+        fun = ExpressionField(F)
 
     # the compiled backend's description (nothing is compiled unless that backend runs);
     # the loader binds the inputs' signals to it
@@ -189,8 +190,9 @@ def build_state_space(model: schema.Experiment, params: dict[str, float]) -> Bui
     fun = None
     compiled = CompiledSystem.linear(A, ss.states, ss.B, ss.inputs)
     if ss.nu == 0:
-        def fun(t, x):
-            return A @ x
+        from odelab.systems.fields import LinearField
+
+        fun = LinearField(A)
 
     if system.jacobian is not None:
         raise ExperimentError("`system.jacobian` is for [system.equations]; a state-space system's Jacobian is "
@@ -253,13 +255,10 @@ def build_inputs(model: schema.Experiment, inputs: tuple[str, ...], path: Path, 
         out.append(signal)
         resolved[name] = {"type": spec.type, **values}
 
+    from odelab.systems.fields import SignalColumns
+
     signals = tuple(out)
-
-    def input_fn(t):
-        t = np.asarray(t, dtype=float)
-        return np.column_stack([np.broadcast_to(np.asarray(s(t), dtype=float), t.shape) for s in signals])
-
-    return signals, input_fn, resolved
+    return signals, SignalColumns(signals), resolved
 
 
 def build_signal(kind: str, given: dict, *, key: str, path: Path, params: dict[str, float], what: str = "input",

@@ -263,10 +263,9 @@ def _case_inputs(model: schema.Experiment, built, path: Path, tspan: np.ndarray,
     if built.signals:
         signals = built.signals
         resolved["blocks"] = _plain(model.blocks)
+        from odelab.systems.fields import SignalColumns
 
-        def input_fn(t, _signals=signals):
-            t = np.asarray(t, dtype=float)
-            return np.column_stack([np.broadcast_to(np.asarray(s(t), dtype=float), t.shape) for s in _signals])
+        input_fn = SignalColumns(signals)
     elif built.diagram is not None:
         resolved["blocks"] = _plain(model.blocks)
     elif inputs:
@@ -354,14 +353,10 @@ def _case_reference(model: schema.Experiment, built, method, signals, events, da
     exact_fn = None
     if model.exact is not None:
         check_keys(model.exact, states + outputs, "exact", "states and outputs", require_all=False)
-        compiled = {
-            name: expr().compile_expression(text, names=["t", *params], key=f"exact.{name}")
-            for name, text in model.exact.items()
-        }
+        from odelab.systems.fields import ExactSolution
 
-        def exact_fn(t, _compiled=compiled, _params=params):
-            return {name: np.broadcast_to(np.asarray(fn(t=t, **_params), dtype=float), np.shape(t)).astype(float)
-                    for name, fn in _compiled.items()}
+        exact_fn = ExactSolution({name: expr().compile_expression(text, names=["t", *params], key=f"exact.{name}")
+                                  for name, text in model.exact.items()}, params)
 
         resolved["exact"] = {k: v for k, v in model.exact.items()}
     ref = model.reference

@@ -30,6 +30,7 @@ import numpy as np
 from odelab.exceptions import ExperimentError
 from odelab.experiment.fields import check_keys, expr
 from odelab.solution import Stats
+from odelab.systems.fields import EventReset, EventValues, ExactTime
 
 __all__ = ["EventSet", "compile_events", "solve_with_events", "DEFAULT_MAX_EVENTS"]
 
@@ -142,33 +143,22 @@ def compile_events(section: dict[str, Any], states: tuple[str, ...], params: dic
     args = ["t", *states]
     values_fn = ex.compile_vector(whens, args=args, constants=params, keys=[f"events.{n}.when" for n in names])
 
-    def values(t, x, _F=values_fn):
-        return np.asarray(_F(t, *x), dtype=float)
+    values = EventValues(values_fn)
 
     resets: dict[int, Callable] = {}
     for i, reset in reset_texts.items():
         order = [s for s in states if s in reset]
         fn = ex.compile_vector([reset[s] for s in order], args=args, constants=params,
                                keys=[f"events.{names[i]}.reset.{s}" for s in order])
-        idx = np.array([states.index(s) for s in order])
-
-        def apply(t, x, _fn=fn, _idx=idx):
-            new = np.array(x, dtype=float)
-            new[_idx] = np.asarray(_fn(t, *x), dtype=float)
-            return new
-
-        resets[i] = apply
+        resets[i] = EventReset(fn, np.array([states.index(s) for s in order]))
     exact: dict[int, Callable] = {}
     for i, text in exact_texts.items():
         if "k" in params:
             raise ExperimentError(f"`events.{names[i]}.exact` is the time of occurrence `k` (k = 0, 1, 2, ...), and "
                                   "[parameters] also defines `k`: rename the parameter (e.g. `k_spring`) so that "
                                   "`k` in the expression is the occurrence.", key=f"events.{names[i]}.exact")
-        fn = ex.compile_expression(text, names=["k", *params], key=f"events.{names[i]}.exact")
-
-        def exact_time(k, _fn=fn):
-            return float(_fn(k=k, **params))
-
+        exact_time = ExactTime(ex.compile_expression(text, names=["k", *params], key=f"events.{names[i]}.exact"),
+                               params)
         exact_time(0)  # evaluate once now: a bad expression fails at load time
         exact[i] = exact_time
     events = EventSet(names=tuple(names), terminal=np.array(terminal), direction=np.array(direction, dtype=float),

@@ -208,14 +208,20 @@ class CompiledExpression:
         The generated Python source, for debugging.
     """
 
-    __slots__ = ("text", "names", "source", "_params", "_function")
+    __slots__ = ("text", "names", "source", "_params", "_function", "_complex")
 
-    def __init__(self, text: str, params: tuple[str, ...], source: str, function: Callable):
+    def __init__(self, text: str, params: tuple[str, ...], source: str, function: Callable,
+                 complex_step: bool = False):
         self.text = text
         self.names = frozenset(params)
         self.source = source
         self._params = params
         self._function = function
+        self._complex = complex_step
+
+    def __reduce__(self):
+        """Pickled as its text and names, compiled again where it is unpickled (a Dask worker)."""
+        return _compiled_again, (self.text, self._params, self._complex)
 
     def __call__(self, **values: Any):
         try:
@@ -307,7 +313,11 @@ def _compile_expression(text, names: tuple, key, source, complex_step: bool) -> 
             _too_deep_message(), expression=parsed.text, column=0, source=source, key=key
         ),
     )
-    return CompiledExpression(parsed.text, params, source_code, function)
+    return CompiledExpression(parsed.text, params, source_code, function, complex_step)
+
+
+def _compiled_again(text: str, params: tuple[str, ...], complex_step: bool) -> CompiledExpression:
+    return compile_expression(text, names=params, complex_step=complex_step)
 
 
 def _check_argument_name(name: Any, what: str) -> None:
@@ -441,4 +451,66 @@ def compile_vector(
 
     function = _define(source_code, "_odelab_vector", namespace, too_deep)
     function.source = source_code
+    if all(isinstance(t, (str, int, float)) for t in texts):  # what compiles it again (see Portable)
+        function.recipe = (tuple(texts), tuple(args), tuple(constants.items()), complex_step)
     return function
+
+
+def _vector_again(texts: tuple, args: tuple, constants: tuple, complex_step: bool) -> Callable[..., np.ndarray]:
+    return compile_vector(list(texts), args=args, constants=dict(constants), complex_step=complex_step)
+
+
+class _CompiledAgain:
+    """Stands in for a :func:`compile_vector` function in a pickle: unpickled, it is that function compiled
+    again from its texts (Python's compile() of the same source is cached, :data:`_CODE`)."""
+
+    __slots__ = ("recipe",)
+
+    def __init__(self, recipe: tuple):
+        self.recipe = recipe
+
+    def __reduce__(self):
+        return _vector_again, self.recipe
+
+
+def portable(value: Any) -> Any:
+    """``value`` as it can be pickled: a :func:`compile_vector` function becomes what compiles it again."""
+    recipe = getattr(value, "recipe", None)
+    if recipe is not None and callable(value):
+        return _CompiledAgain(recipe)
+    return value
+
+
+class PortableState:
+    """A base for objects that hold compiled functions among their attributes (a diagram block, a delay or
+    implicit system): pickled with each :func:`compile_vector` function as its texts. ``copy.copy`` and
+    ``copy.deepcopy`` keep the functions themselves (they would otherwise go through the pickled state)."""
+
+    def __getstate__(self):
+        return {name: portable(value) for name, value in self.__dict__.items()}
+
+    def __copy__(self):
+        other = object.__new__(type(self))
+        other.__dict__.update(self.__dict__)
+        return other
+
+    def __deepcopy__(self, memo):
+        import copy
+
+        other = object.__new__(type(self))
+        memo[id(self)] = other
+        other.__dict__.update(copy.deepcopy(self.__dict__, memo))  # functions are copied as themselves
+        return other
+
+
+class Portable:
+    """A base for the small frozen dataclasses that hold compiled functions (a right-hand side, outputs,
+    event functions): pickled field by field, each :func:`compile_vector` function as its texts, so that a
+    built case travels to another process (a Dask worker) and is compiled there, not loaded again."""
+
+    __slots__ = ()
+
+    def __reduce__(self):
+        import dataclasses
+
+        return type(self), tuple(portable(getattr(self, f.name)) for f in dataclasses.fields(self))

@@ -2,12 +2,14 @@
 
 Every executor runs :func:`odelab.run.runner.run_case` on the same cases and hands the
 results back **in case order**, whatever order they finish in, so what is stored does not
-depend on how it was run. A case's compiled functions (closures over expressions) are not
-sent between processes: a worker loads the experiment file itself (once per process) and runs
-the case by its index, checking the file's SHA-256 so that an edited file is never mixed with
-the cases already run. Pool workers are forked from the running process and inherit the
-experiments it has loaded; Dask workers need the experiment files at the same paths (a shared
-file system, as on any cluster).
+depend on how it was run. Pool workers are forked from the running process and inherit the
+experiments it has loaded. Dask workers receive the built cases themselves: a built case
+pickles (its compiled functions travel as their expressions' texts and are compiled again in
+the worker, :class:`odelab.expressions.compile.Portable`), so a worker neither reads nor
+parses the experiment file. A case that does not pickle (an FMU's, whose binary is loaded in
+this process) goes by reference: the worker loads its file itself (once per process, at the
+same path: a shared file system, as on any cluster) and runs the case by its index, checking
+the file's SHA-256 so that an edited file is never mixed with the cases already run.
 
 In a pool or on a cluster the cases are handed out **longest first** within each experiment
 (:func:`schedule`: a fixed-step case costs its number of steps times its stages; an adaptive
@@ -407,8 +409,65 @@ def dask_batches(order: list[int], threads: int) -> list[list[int]]:
 
 
 def _run_batch(items: list, opts: dict, limits=None, import_options=None) -> list:
-    """In a Dask worker: :func:`_run_remote` for each case of a batch, in order."""
-    return [_run_remote(*item, opts, limits, import_options) for item in items]
+    """In a Dask worker: each case of a batch, in order: a built case as it came (:func:`_run_sent`), or one
+    given by reference (file, hash, index, experiment) loaded here (:func:`_run_remote`)."""
+    return [_run_sent(item, opts) if not isinstance(item, tuple) else _run_remote(*item, opts, limits, import_options)
+            for item in items]
+
+
+def _run_sent(case, opts: dict):
+    """Run a built case sent to this worker; the result travels back without the case."""
+    from odelab.run.runner import run_case
+
+    try:
+        result = run_case(case, **opts)
+    except InputError as exc:
+        return "error", exc
+    return "ok", dataclasses.replace(result, case=None)
+
+
+def _travelling(cases) -> Callable[[int], object]:
+    """``item(i)``: what a Dask worker receives for case ``i``: the built case where the experiment's cases
+    travel (:func:`travels`, tried on its first case), else the reference a worker loads it by."""
+    sends: dict[tuple, bool] = {}
+
+    def item(i):
+        case = cases[i]
+        key = (_source(case), case.file_hash, case.experiment)
+        if key not in sends:
+            sends[key] = travels(case)
+        return case if sends[key] else _submit_args(case, {})[:4]
+
+    return item
+
+
+def travels(case) -> bool:
+    """Whether a built case can be sent to another process as it is: it pickles, and every module its pickle
+    names can be imported there by name (not a user's function file, loaded here from its path)."""
+    import importlib.machinery
+    import io
+    import pickle
+    import sys
+    import types
+
+    dispatch = dict(pickle._Pickler.dispatch)  # its table calls save_global unbound: route it to the override
+    dispatch[types.FunctionType] = dispatch[types.BuiltinFunctionType] = lambda self, obj: self.save_global(obj)
+
+    class Modules(pickle._Pickler):  # the pure-Python pickler, which says what it saves by reference
+        def save_global(self, obj, name=None):
+            self.found.add(getattr(obj, "__module__", None) or pickle.whichmodule(obj, name or obj.__qualname__))
+            super().save_global(obj, name)
+
+    pickler = Modules(io.BytesIO(), protocol=4)  # 5 trips the pure-Python pickler on numpy buffers
+    pickler.dispatch = dispatch
+    pickler.found = set()
+    try:
+        pickler.dump(case)
+    except Exception:  # noqa: BLE001 - whatever keeps it from pickling (a loaded FMU binary)
+        return False
+    tops = {m.partition(".")[0] for m in pickler.found}
+    return all(top in sys.builtin_module_names or importlib.machinery.PathFinder.find_spec(top) is not None
+               for top in tops)
 
 
 def _dask_results(cases, jobs, scheduler, opts, done, Client, LocalCluster, wait, limits=None, import_options=None,
@@ -428,8 +487,9 @@ def _dask_results(cases, jobs, scheduler, opts, done, Client, LocalCluster, wait
         threads = sum(client.nthreads().values()) or jobs
         groups = []
         batches = dask_batches(schedule(cases), threads)
+        item = _travelling(cases)
         for rank, batch in enumerate(batches):  # the scheduler runs higher priorities first
-            items = [_submit_args(cases[i], opts)[:4] for i in batch]
+            items = [item(i) for i in batch]
             future = client.submit(_run_batch, items, opts, limits, import_options, pure=False,
                                    priority=len(batches) - rank)
             futures.append(future)

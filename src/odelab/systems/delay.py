@@ -22,6 +22,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from odelab.exceptions import ExpressionError, InputError
+from odelab.expressions.compile import PortableState
 from odelab.expressions.parse import LAG, parse_expression
 from odelab.solvers.registry import DELAY_METHOD
 
@@ -38,7 +39,7 @@ def _lag_calls(tree: ast.AST) -> list[ast.Call]:
             if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == LAG]
 
 
-class DelayEquations:
+class DelayEquations(PortableState):
     """``x' = f(t, x, x(t - tau_1), ...)`` from expressions with ``lag(x, tau)``.
 
     Parameters

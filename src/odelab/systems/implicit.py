@@ -30,6 +30,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from odelab.exceptions import ExpressionError, InputError
+from odelab.expressions.compile import PortableState
 from odelab.expressions.parse import DER, parse_expression
 from odelab.solvers.optionset import DEFAULT_ATOL, DEFAULT_RTOL
 
@@ -61,7 +62,7 @@ def _replace(tree: ast.AST, old: ast.AST, new: ast.AST) -> None:
                         return
 
 
-class ImplicitSystem:
+class ImplicitSystem(PortableState):
     """``F(t, x, x') = 0``: residual expressions in ``t``, the states, ``der(state)`` and the parameters.
 
     Parameters
@@ -149,13 +150,16 @@ class ImplicitSystem:
         args = ["t", *self.states, *(derivative[s] for s in self.states)]
         self._F = compile_vector(texts, args=args, constants=params, keys=keys, source=source)
         self._complex = []  # the complex-step variant, compiled on first use
-        self._compile_complex = lambda: compile_vector(texts, args=args, constants=params, keys=keys, source=source,
-                                                       complex_step=True)
+        self._complex_recipe = (texts, args, params, keys, source)
         self._n = n
         self.t0 = self.y0 = self.yp0 = None
         self.fixed_y0 = self.fixed_yp0 = None
 
     # --- F and its partial derivatives ---------------------------------------------------------
+
+    def __getstate__(self):
+        """Pickled with its residuals as their texts (compiled again where it is unpickled: a Dask worker)."""
+        return {**super().__getstate__(), "_complex": []}
 
     def residual(self, t, y, yp) -> np.ndarray:
         """``F(t, y, y')`` (n,)."""
@@ -164,7 +168,11 @@ class ImplicitSystem:
     def partials(self, t, y, yp):
         """``(dF/dy, dF/dy')`` at ``(t, y, y')``, exact to rounding (complex step, one vectorised call)."""
         if not self._complex:
-            self._complex.append(self._compile_complex())
+            from odelab.expressions import compile_vector
+
+            texts, args, params, keys, source = self._complex_recipe
+            self._complex.append(compile_vector(texts, args=args, constants=params, keys=keys, source=source,
+                                                complex_step=True))
         n = self._n
         steps = 1j * _H * np.eye(n)
         zeros = np.zeros((n, n))

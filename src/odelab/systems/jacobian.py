@@ -19,49 +19,64 @@ the complex-step one also carries ``J.pattern()``, its structure from the equati
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-__all__ = ["complex_step_jacobian", "expression_jacobian"]
+from odelab.expressions.compile import Portable
+
+__all__ = ["ComplexStepJacobian", "MatrixJacobian", "complex_step_jacobian", "expression_jacobian"]
 
 _H = 1e-200  # complex step: any tiny h works, as there is no subtractive cancellation
 
 
 def complex_step_jacobian(equations: Sequence[str], states: Sequence[str], parameters: Mapping[str, float],
-                          *, keys: Sequence[str] | None = None, source: str | None = None):
+                          *, keys: Sequence[str] | None = None, source: str | None = None) -> ComplexStepJacobian:
     """``J(t, y)`` of the right-hand sides ``equations`` (one per state) by complex step."""
-    from odelab.expressions import compile_vector
+    return ComplexStepJacobian(tuple(equations), tuple(states), dict(parameters),
+                               None if keys is None else tuple(keys), source)
 
-    n = len(states)
-    steps = 1j * _H * np.eye(n)
-    compiled = []  # compiled on first use: only the stiff solvers call it
 
-    def jacobian(t, y):
-        if not compiled:
-            compiled.append(compile_vector(list(equations), args=["t", *states], constants=dict(parameters),
-                                           keys=keys, source=source, complex_step=True))
-        Y = np.asarray(y, dtype=float)[:, None] + steps  # column j perturbs state j
-        out = np.asarray(compiled[0](complex(t), *Y), dtype=complex)
+class ComplexStepJacobian:
+    """``J(t, y)`` by complex step on the equations' texts, compiled on first use (only the stiff solvers call
+    it); ``pattern()`` is where ``J`` can be nonzero. Pickles as its texts (a built case travels to Dask)."""
+
+    source = "complex step on the equations"
+
+    def __init__(self, equations: tuple, states: tuple, parameters: dict, keys: tuple | None, file: str | None):
+        self.equations, self.states, self.parameters, self.keys, self.file = equations, states, parameters, keys, file
+        self._steps = 1j * _H * np.eye(len(states))
+        self._compiled = None
+        self._pattern = None
+
+    def __getstate__(self):
+        return {**self.__dict__, "_compiled": None}
+
+    def __call__(self, t, y):
+        if self._compiled is None:
+            from odelab.expressions import compile_vector
+
+            self._compiled = compile_vector(list(self.equations), args=["t", *self.states],
+                                            constants=dict(self.parameters), keys=self.keys, source=self.file,
+                                            complex_step=True)
+        n = len(self.states)
+        Y = np.asarray(y, dtype=float)[:, None] + self._steps  # column j perturbs state j
+        out = np.asarray(self._compiled(complex(t), *Y), dtype=complex)
         return np.broadcast_to(out, (n, n)).imag / _H
 
-    structure = []
-
-    def pattern():
-        """Where ``J`` can be nonzero: entry (i, j) where equation i names state j (the stiff
-        solvers factor banded when it allows, :mod:`odelab.solvers.banded`)."""
-        if not structure:
+    def pattern(self):
+        """Where ``J`` can be nonzero: entry (i, j) where equation i names state j (the stiff solvers factor
+        banded when it allows, :mod:`odelab.solvers.banded`)."""
+        if self._pattern is None:
             from odelab.expressions import parse_expression
             from odelab.solvers.banded import structural_pattern
 
-            known = {"t", *states, *parameters}
-            parsed = [parse_expression(text, key=keys[i] if keys else None, source=source, names=known)
-                      for i, text in enumerate(equations)]
-            structure.append(structural_pattern([p.names for p in parsed], states))
-        return structure[0]
-
-    jacobian.source = "complex step on the equations"
-    jacobian.pattern = pattern
-    return jacobian
+            known = {"t", *self.states, *self.parameters}
+            parsed = [parse_expression(text, key=self.keys[i] if self.keys else None, source=self.file,
+                                       names=known) for i, text in enumerate(self.equations)]
+            self._pattern = structural_pattern([p.names for p in parsed], self.states)
+        return self._pattern
 
 
 def expression_jacobian(matrix: Sequence[Sequence[str | float]], states: Sequence[str],
@@ -72,10 +87,17 @@ def expression_jacobian(matrix: Sequence[Sequence[str | float]], states: Sequenc
     n = len(states)
     texts = [entry for row in matrix for entry in row]
     keys = [f"{key}[{i}][{j}]" for i in range(n) for j in range(n)]
-    F = compile_vector(texts, args=["t", *states], constants=dict(parameters), keys=keys, source=source)
+    return MatrixJacobian(compile_vector(texts, args=["t", *states], constants=dict(parameters), keys=keys,
+                                         source=source), n)
 
-    def jacobian(t, y):
-        return np.asarray(F(t, *np.asarray(y, dtype=float)), dtype=float).reshape(n, n)
 
-    jacobian.source = "the analytic jacobian in the file"
-    return jacobian
+@dataclass(frozen=True, eq=False)
+class MatrixJacobian(Portable):
+    """``J(t, y)`` from compiled expressions of its n*n entries, row by row."""
+
+    F: Any
+    n: int
+    source = "the analytic jacobian in the file"
+
+    def __call__(self, t, y):
+        return np.asarray(self.F(t, *np.asarray(y, dtype=float)), dtype=float).reshape(self.n, self.n)

@@ -329,10 +329,9 @@ class NonlinearSystem:
         nx = len(states)
 
         def make(F):
-            def vectorfield(t, x, u):
-                return F(t, *x[:nx], *u)
+            from odelab.systems.fields import InputField
 
-            return vectorfield
+            return InputField(F, nx)
 
         if outputs is None:
             h_real = h_cplx = None

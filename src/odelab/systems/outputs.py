@@ -4,8 +4,9 @@
 None, and returns the outputs (k, p). Two kinds cover every system odelab builds:
 :class:`LinearOutputs` (``y = x C^T + u D^T``: state-space models and linear networks) and
 :class:`ExpressionOutputs` (compiled expressions of t, the states and the inputs: equation
-systems, nonlinear networks, implicit systems). Both are plain frozen dataclasses; the linear
-one pickles with its matrices.
+systems, nonlinear networks, implicit systems). Both are plain frozen dataclasses that pickle:
+the linear one with its matrices, the other with its expressions' texts (compiled again where it
+is unpickled: :class:`odelab.expressions.compile.Portable`).
 """
 
 from __future__ import annotations
@@ -14,6 +15,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+
+from odelab.expressions.compile import Portable
 
 __all__ = ["LinearOutputs", "ExpressionOutputs"]
 
@@ -33,7 +36,7 @@ class LinearOutputs:
 
 
 @dataclass(frozen=True, eq=False)
-class ExpressionOutputs:
+class ExpressionOutputs(Portable):
     """y = g(t, x, u) from compiled expressions (``compile_vector``'s function of t, the states and the
     inputs, in that order), ``count`` of them."""
 

@@ -299,8 +299,7 @@ def build_diagram(model: schema.Experiment, params: dict[str, float], path: Path
     output_fn = compiled.output_many if compiled.outputs else None
     fun = None
     if not compiled.inputs:
-        def fun(t, x, _f=compiled.dynamics):
-            return _f(t, x)
+        fun = compiled.dynamics  # a bound method: pickles with the diagram
     # the compiled backend runs a diagram of linear blocks as its state-space model, any other
     # block by block from generated code (nothing is compiled unless that backend runs)
     from odelab.solvers.compiled import CompiledSystem

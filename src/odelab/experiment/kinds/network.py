@@ -17,6 +17,7 @@ import numpy as np
 from odelab.exceptions import ExperimentError, InputError
 from odelab.experiment import schema
 from odelab.experiment.cases import Built
+from odelab.systems.fields import ExpressionField, LinearField
 from odelab.systems.outputs import ExpressionOutputs, LinearOutputs
 
 __all__ = ["build_network", "network_of"]
@@ -85,10 +86,7 @@ def build_network(model: schema.Experiment, params: dict[str, float]) -> Built:
             resolved.update({"A": A.tolist(), "B": B.tolist(), "C": C.tolist(), "D": D.tolist()})
             output_fn = LinearOutputs(C, D)
 
-            fun = None
-            if not inputs:
-                def fun(t, x):
-                    return A @ x
+            fun = LinearField(A) if not inputs else None
             return Built(states=states, inputs=inputs, outputs=outputs, fun=fun,
                          output_fn=output_fn if outputs else None, resolved=resolved, linear=True, system=ss,
                          compiled=CompiledSystem.linear(A, states, B, inputs), jacobian=A, network=net,
@@ -107,10 +105,7 @@ def build_network(model: schema.Experiment, params: dict[str, float]) -> Built:
                                keys=[f"system.outputs.{y}" for y in outputs])
             output_fn = ExpressionOutputs(G, len(outputs))
         sys_obj = net.compile(params)
-        fun = None
-        if not inputs:
-            def fun(t, x, _F=F):
-                return _F(t, *x)
+        fun = ExpressionField(F) if not inputs else None
         compiled = CompiledSystem.from_system(states, eqs, params, inputs, keys=keys)
         jacobian = complex_step_jacobian(eqs, states, params, keys=keys)
     except InputError as exc:  # pragma: no cover - the derivation's own expressions compile

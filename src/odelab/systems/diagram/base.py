@@ -16,6 +16,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from odelab.exceptions import InputError
+from odelab.expressions.compile import PortableState
 
 __all__ = ["BLOCKS", "REQUIRED", "ZC_KEY", "Block", "BlockError", "Key", "controller_canonical", "polynomial_pair",
            "register"]
@@ -54,8 +55,9 @@ def _column(mode, v):
     return np.reshape(mode, (-1,) + (1,) * (np.ndim(v) - 1))
 
 
-class Block:
-    """Base class: a block with named inputs (references to other blocks' outputs)."""
+class Block(PortableState):
+    """Base class: a block with named inputs (references to other blocks' outputs). It pickles with its
+    compiled expressions as their texts (a built diagram travels to a Dask worker)."""
 
     TYPE: ClassVar[str] = ""
     KEYS: ClassVar[dict[str, Key]] = {}

@@ -320,15 +320,17 @@ class CompiledDiagram:
         return StateSpace(A, B, C, D, states=self.states, inputs=self.inputs, outputs=self.outputs)
 
     def _nonlinear(self):
+        from functools import partial
+
         from odelab.systems.nonlinear import NonlinearSystem
 
-        system = NonlinearSystem(lambda t, x, u: self._dynamics(t, x, u),
-                                 (lambda t, x, u: self._output(t, x, u)) if self.outputs else None,
+        # bound methods and partials of them, not lambdas: the system pickles with the diagram
+        system = NonlinearSystem(partial(self._dynamics), partial(self._output) if self.outputs else None,
                                  states=self.states, inputs=self.inputs, outputs=self.outputs or None,
                                  name="diagram", complex_step=True)
-        system.complex_step_dynamics = lambda t, x, u: self._dynamics(t, x, u, True)
+        system.complex_step_dynamics = partial(self._dynamics, cplx=True)
         if self.outputs:
-            system.complex_step_output = lambda t, x, u: self._output(t, x, u, True)
+            system.complex_step_output = partial(self._output, cplx=True)
         return system
 
     def open_loop(self, at: str):
