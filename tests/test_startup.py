@@ -59,7 +59,8 @@ print("MODULES", *sorted(sys.modules))
 # (matplotlib, jinja2), the compiled backend (numba), control and symbolic analysis, Dask, the progress bar.
 NOT_FOR_A_PLAIN_RUN = ("scipy", "matplotlib", "jinja2", "numba", "llvmlite", "control", "sympy", "dask",
                        "distributed", "rich.progress", "rich.table", "odelab.report", "odelab.analysis.reference",
-                       "odelab.solvers.compiled.cache")
+                       "odelab.solvers.compiled.cache", "odelab.fmi", "odelab.analysis.estimate", "odelab.cli.study_views",
+                       "odelab.formats.matlab", "odelab.formats.simulink")
 
 
 def _imported(tmp_path, *args) -> set[str]:

@@ -9,7 +9,6 @@ from rich.console import Console
 from rich.text import Text
 
 from odelab.cli.grid import fits, print_grid  # noqa: F401 (print_grid re-exported)
-from odelab.cli.study_views import terminal_view
 from odelab.experiment.studykinds import fmt_error
 from odelab.terminal import shown, visible
 
@@ -388,6 +387,8 @@ def print_sweep(console: Console, exp, results) -> None:
     study = run_study(exp.study, sweep_rows(results))
     over = exp.study.over.rsplit(".", 1)[-1]
     t = Table(show_edge=False, box=None, header_style="bold", pad_edge=False)
+    from odelab.cli.study_views import terminal_view  # only a [study] draws one: not at start-up
+
     heading, columns, rows = terminal_view(study, over)
     console.print(_shown(heading))
     for i, col in enumerate(columns):

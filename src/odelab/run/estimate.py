@@ -15,7 +15,6 @@ import time
 
 import numpy as np
 
-from odelab.analysis.estimate import ESTIMATE_FACTOR, compare_solves
 from odelab.solvers.optionset import DEFAULT_ATOL, DEFAULT_RTOL
 from odelab.solvers.registry import get_method
 
@@ -53,6 +52,8 @@ def estimate_case(result, integrate, max_steps: int | None = None, backend: str 
     """The estimate of ``result``'s errors (JSON-ready: :meth:`ErrorEstimate.as_dict` plus the second
     solve's cost), or ``{"skipped": why}``. ``integrate(problem, tspan, method, options, backend)`` is
     the runner's solve."""
+    from odelab.analysis.estimate import ESTIMATE_FACTOR  # only for a case that gets an estimate: not at start-up
+
     p = result.case.problem
     if p.diagram is not None and p.diagram.hybrid:
         return {"skipped": "a hybrid diagram's switching instants move with the tolerances; compare a case at a "
@@ -113,6 +114,8 @@ def estimate_case(result, integrate, max_steps: int | None = None, backend: str 
     if rtol is not None:
         atol = np.broadcast_to(np.asarray(p.options.get("atol", DEFAULT_ATOL), dtype=float), (len(p.states),))
         atol_map = {name: float(a) for name, a in zip(p.states, atol)}
+    from odelab.analysis.estimate import compare_solves
+
     est = compare_solves(t[rows], run_values, tight_values, factor=factor, proportion=proportion, rtol=rtol,
                          atol=atol_map, advice=ADVICE)
     out = est.as_dict()

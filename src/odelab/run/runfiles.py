@@ -179,18 +179,31 @@ def _fit_all(loaded, bad: list[str], validate_with):
     return out
 
 
+def _native(allowed: bool):
+    """``allow_native(allowed)`` (``--allow-native``: files may load FMUs, whose binaries run in this
+    process). Nothing to set where odelab.fmi was never imported: nothing can have allowed them, and a run
+    without FMUs does not import it."""
+    import contextlib
+    import sys
+
+    if not allowed and "odelab.fmi.native" not in sys.modules:
+        return contextlib.nullcontext()
+    from odelab.fmi.native import allow_native
+
+    return allow_native(allowed)
+
+
 def load_files(paths: list[Path], config: RunConfig) -> tuple[list, list[str]]:
     """The experiments of ``paths`` (fitted where they have a [fit]) and one error line per one that cannot run."""
     from odelab.experiment.loader import load_experiments
     from odelab.experiment.naming import check_experiment_names
-    from odelab.fmi.native import allow_native
 
     files, problems = expand_paths(paths)
     bad = [f"{p}: {why}" for p, why in problems]
     loaded = []
     for file in files:
         try:
-            with allow_native(config.allow_native):
+            with _native(config.allow_native):
                 loaded.extend(load_experiments(file, limits=config.budgets, options=config.import_options))
         except InputError as exc:
             bad.append(error_text(exc))
@@ -198,7 +211,7 @@ def load_files(paths: list[Path], config: RunConfig) -> tuple[list, list[str]]:
         loaded.remove(exp)
         bad.append(error_text(exc))
     if any(e.fit is not None for e in loaded) or config.validate_with is not None:
-        with allow_native(config.allow_native):  # a fit reloads its file with the estimates (an FMU too)
+        with _native(config.allow_native):  # a fit reloads its file with the estimates (an FMU too)
             loaded = _fit_all(loaded, bad, config.validate_with)
     return loaded, bad
 
