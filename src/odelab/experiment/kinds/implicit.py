@@ -112,8 +112,8 @@ def implicit_method_name(model: schema.Experiment, built: Built, name: str) -> s
 def check_implicit_case(model: schema.Experiment, built: Built, method, reference_kind: str) -> None:
     """ode15i for implicit systems only, and only them by ode15i; the references an implicit system has."""
     implicit = is_implicit_system(built)
-    names = join_names([f'"{n}"' for n in methods_with(lambda m: True, residual=True)], "or")
     if implicit and not method.residual:
+        names = join_names([f'"{n}"' for n in methods_with(lambda m: True, residual=True)], "or")
         raise ExperimentError(f"`solver.method` is {method.name!r}, which solves x' = f(t, x); an implicit system "
                               f"(kind = \"implicit\", der() in its residuals) is solved by {names} (MATLAB's solver "
                               "for F(t, x, x') = 0).", key="solver.method")
