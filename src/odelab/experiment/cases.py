@@ -8,9 +8,20 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
+
+if TYPE_CHECKING:  # the types only: none of these is imported at run time
+    from odelab.experiment.data import MeasuredData
+    from odelab.experiment.events import EventSet
+    from odelab.experiment.schema import Linearize
+    from odelab.fmi.simulate import FmuRun
+    from odelab.solvers.compiled import CompiledSystem
+    from odelab.systems.diagram.compile import CompiledDiagram
+    from odelab.systems.network import Network
+    from odelab.systems.nonlinear import NonlinearSystem
+    from odelab.systems.statespace import StateSpace
 
 __all__ = ["Built", "Case", "LoadedExperiment", "Problem"]
 
@@ -32,19 +43,19 @@ class Problem:
     exact_fn: Callable | None = None  # t (N,) -> {name: (N,)} for states and outputs
     reference: str = "none"  # "exact", "lti", "high-accuracy" or "none"
     reference_solver: tuple[str, float, float] = ("auto", 1e-12, 1e-14)
-    system: Any = None  # a StateSpace or NonlinearSystem where one was built
+    system: StateSpace | NonlinearSystem | None = None  # where one was built
     signals: tuple = ()  # one odelab.signals signal per input
-    linearize: Any = None  # the [linearize] section, if any
+    linearize: Linearize | None = None  # the [linearize] section, if any
     parameters: dict[str, float] = field(default_factory=dict)
-    diagram: Any = None  # the CompiledDiagram of a kind = "diagram" system
-    events: Any = None  # the compiled [events] (an experiment.events.EventSet), if any
+    diagram: CompiledDiagram | None = None  # a kind = "diagram" system's
+    events: EventSet | None = None  # the compiled [events], if any
     backend: str = "auto"  # [solver] backend: "auto", "python" or "compiled"
-    compiled: Any = None  # an odelab.solvers.compiled.CompiledSystem where the system allows one
-    analysis: Any = None  # the resolved [analysis] section: {"step_info", "bode", "poles", "input"}
-    data: Any = None  # [data]: an experiment.data.MeasuredData, the case's reference
-    fit: Any = None  # the summary of the experiment's [fit] (a plain dict), once it has been fitted
-    network: Any = None  # the derived odelab.systems.network.Network of a kind = "network" system
-    fmu: Any = None  # kind = "fmu": an odelab.fmi.simulate.FmuRun (the FMU, its interface, values, signals)
+    compiled: CompiledSystem | None = None  # the compiled backend's description, where the system allows one
+    analysis: dict | None = None  # the resolved [analysis] section: {"step_info", "bode", "poles", "input"}
+    data: MeasuredData | None = None  # [data]: the case's reference
+    fit: dict | None = None  # the summary of the experiment's [fit], once it has been fitted
+    network: Network | None = None  # the derived network of a kind = "network" system
+    fmu: FmuRun | None = None  # kind = "fmu": the FMU, its interface, values, signals
     initial_given: tuple[str, ...] = ()  # the states the file's [initial] gives (the rest took their defaults)
     notes: tuple[str, ...] = ()  # what loading did that the run's notes say (values converted from their units)
 
@@ -85,11 +96,11 @@ class Built:
     output_fn: Callable | None
     resolved: dict
     linear: bool = False
-    system: Any = None
-    x0: Any = None  # initial state set by the system itself (a diagram's blocks)
+    system: StateSpace | NonlinearSystem | None = None
+    x0: np.ndarray | None = None  # initial state set by the system itself (a diagram's blocks)
     signals: tuple = ()  # input signals set by the system itself (a diagram's sources)
-    diagram: Any = None  # the CompiledDiagram, for drawings and reports
-    compiled: Any = None  # CompiledSystem for the compiled backend (expression systems without inputs)
-    jacobian: Any = None  # exact df/dx for the stiff solvers: J(t, x) or a constant matrix
-    network: Any = None  # the derived Network of a kind = "network" system
-    fmu: Any = None  # kind = "fmu": an odelab.fmi.simulate.FmuRun
+    diagram: CompiledDiagram | None = None  # for drawings and reports
+    compiled: CompiledSystem | None = None  # for the compiled backend (expression systems without inputs)
+    jacobian: Callable | np.ndarray | None = None  # exact df/dx for the stiff solvers: J(t, x) or a constant matrix
+    network: Network | None = None  # the derived network of a kind = "network" system
+    fmu: FmuRun | None = None  # kind = "fmu"
