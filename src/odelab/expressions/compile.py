@@ -504,13 +504,15 @@ class PortableState:
 
 
 class Portable:
-    """A base for the small frozen dataclasses that hold compiled functions (a right-hand side, outputs,
-    event functions): pickled field by field, each :func:`compile_vector` function as its texts, so that a
-    built case travels to another process (a Dask worker) and is compiled there, not loaded again."""
+    """A base for the small objects that hold compiled functions (a right-hand side, outputs, event
+    functions), each a class with ``__slots__`` naming its constructor's arguments in order: pickled slot by
+    slot, each :func:`compile_vector` function as its texts, so that a built case travels to another process
+    (a Dask worker) and is compiled there, not loaded again."""
 
     __slots__ = ()
 
     def __reduce__(self):
-        import dataclasses
+        return type(self), tuple(portable(getattr(self, name)) for name in type(self).__slots__)
 
-        return type(self), tuple(portable(getattr(self, f.name)) for f in dataclasses.fields(self))
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({', '.join(f'{n}={getattr(self, n)!r}' for n in type(self).__slots__)})"

@@ -19,9 +19,6 @@ the complex-step one also carries ``J.pattern()``, its structure from the equati
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
-from typing import Any
-
 import numpy as np
 
 from odelab.expressions.compile import Portable
@@ -91,13 +88,14 @@ def expression_jacobian(matrix: Sequence[Sequence[str | float]], states: Sequenc
                                          source=source), n)
 
 
-@dataclass(frozen=True, eq=False)
 class MatrixJacobian(Portable):
     """``J(t, y)`` from compiled expressions of its n*n entries, row by row."""
 
-    F: Any
-    n: int
+    __slots__ = ("F", "n")
     source = "the analytic jacobian in the file"
+
+    def __init__(self, F, n: int):
+        self.F, self.n = F, n
 
     def __call__(self, t, y):
         return np.asarray(self.F(t, *np.asarray(y, dtype=float)), dtype=float).reshape(self.n, self.n)

@@ -4,15 +4,12 @@
 None, and returns the outputs (k, p). Two kinds cover every system odelab builds:
 :class:`LinearOutputs` (``y = x C^T + u D^T``: state-space models and linear networks) and
 :class:`ExpressionOutputs` (compiled expressions of t, the states and the inputs: equation
-systems, nonlinear networks, implicit systems). Both are plain frozen dataclasses that pickle:
+systems, nonlinear networks, implicit systems). Both are small classes that pickle:
 the linear one with its matrices, the other with its expressions' texts (compiled again where it
 is unpickled: :class:`odelab.expressions.compile.Portable`).
 """
 
 from __future__ import annotations
-
-from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -21,12 +18,13 @@ from odelab.expressions.compile import Portable
 __all__ = ["LinearOutputs", "ExpressionOutputs"]
 
 
-@dataclass(frozen=True, eq=False)
-class LinearOutputs:
+class LinearOutputs(Portable):
     """y = C x + D u, row by row: ``x @ C.T (+ u @ D.T)``."""
 
-    C: np.ndarray
-    D: np.ndarray
+    __slots__ = ("C", "D")
+
+    def __init__(self, C: np.ndarray, D: np.ndarray):
+        self.C, self.D = C, D
 
     def __call__(self, t, x, u=None):
         y = x @ self.C.T
@@ -35,13 +33,14 @@ class LinearOutputs:
         return y
 
 
-@dataclass(frozen=True, eq=False)
 class ExpressionOutputs(Portable):
     """y = g(t, x, u) from compiled expressions (``compile_vector``'s function of t, the states and the
     inputs, in that order), ``count`` of them."""
 
-    G: Any
-    count: int
+    __slots__ = ("G", "count")
+
+    def __init__(self, G, count: int):
+        self.G, self.count = G, count
 
     def __call__(self, t, x, u=None):
         cols = [t, *x.T] + ([] if u is None else [*u.T])
