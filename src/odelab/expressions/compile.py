@@ -92,6 +92,10 @@ class _Emitter:
         self.shadowed = shadowed  # constants that a bound name shadows: variables here
         self._pool: dict[str, str] = {}
 
+    def literals(self) -> dict:
+        """The numbers this emitter pooled into the namespace (``_k0``, ``_k1``...)."""
+        return {name: self.namespace[name] for name in self._pool.values()}
+
     def number(self, value: float) -> str:
         # np.float64 objects, not Python literals: `1/0` or `9.0**9.0**9.0` on Python floats
         # raise instead of giving inf, and Python would try to fold them at compile time
@@ -400,6 +404,19 @@ def compile_vector(
         raise InputError(f"got {len(keys)} keys for {len(texts)} expressions", key="keys")
 
     known = [*args, *constants]
+    plan_key = None
+    if all(isinstance(t, (str, int, float)) for t in texts):
+        plan_key = (tuple(map(str, texts)), tuple(map(type, texts)), tuple(args), tuple(constants), complex_step)
+        plan = _PLANS.get(plan_key)
+        if plan is not None:  # these texts over these names compiled before: only the constants' values differ
+            source_code, literals = plan
+            namespace = _namespace(complex_step)
+            namespace.update(literals)
+            _bind_constants(namespace, constants)
+            function = _define(source_code, "_odelab_vector", namespace, _too_deep_unreachable)
+            function.source = source_code
+            function.recipe = (tuple(texts), tuple(args), tuple(constants.items()), complex_step)
+            return function
     parsed = [parse_expression(text, key=k, source=source, names=known) for text, k in zip(texts, keys)]
     for p, k in zip(parsed, keys):
         error = (_lag_error(p, k if k is not None else p.key, source)
@@ -408,13 +425,7 @@ def compile_vector(
             raise error
 
     namespace = _namespace(complex_step)
-    for name, value in constants.items():
-        try:
-            namespace[name] = np.float64(float(value))
-        except (TypeError, ValueError):
-            raise InputError(
-                f"constant `{name}` must be a real number; got {value!r}", key=f"constants.{name}"
-            ) from None
+    _bind_constants(namespace, constants)
     emitter = _Emitter(namespace, complex_step, shadowed_constants(known))
     rows = [emitter.expression(p.tree) for p in parsed]
     used = set().union(*(p.names for p in parsed))
@@ -451,9 +462,33 @@ def compile_vector(
 
     function = _define(source_code, "_odelab_vector", namespace, too_deep)
     function.source = source_code
-    if all(isinstance(t, (str, int, float)) for t in texts):  # what compiles it again (see Portable)
+    if plan_key is not None:  # what compiles it again (see Portable)
         function.recipe = (tuple(texts), tuple(args), tuple(constants.items()), complex_step)
+        if len(_PLANS) < _PLANS_MAX:
+            _PLANS[plan_key] = (source_code, dict(emitter.literals()))
     return function
+
+
+# The generated source of texts over argument and constant names, and the numbers it pools: the cases of
+# a sweep (and a built case unpickled in a Dask worker) compile the same texts with other constant values,
+# which are bound in the namespace, never written into the source; parsing and checking them again was
+# most of the cost (0.5 ms a case of a two-state sweep).
+_PLANS: dict[tuple, tuple[str, dict]] = {}
+_PLANS_MAX = 4096
+
+
+def _bind_constants(namespace: dict, constants: Mapping[str, float]) -> None:
+    for name, value in constants.items():
+        try:
+            namespace[name] = np.float64(float(value))
+        except (TypeError, ValueError):
+            raise InputError(
+                f"constant `{name}` must be a real number; got {value!r}", key=f"constants.{name}"
+            ) from None
+
+
+def _too_deep_unreachable() -> ExpressionError:  # pragma: no cover - a planned source compiled before
+    return ExpressionError(_too_deep_message(), expression="", column=0)
 
 
 def _vector_again(texts: tuple, args: tuple, constants: tuple, complex_step: bool) -> Callable[..., np.ndarray]:
