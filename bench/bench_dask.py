@@ -7,9 +7,11 @@ one: ``dask scheduler`` and 1, then 2, ``dask worker`` processes (one thread eac
 ports (:func:`odelab.run.daskprocs.dask_processes`), through the same
 ``run_cases(executor="dask", scheduler=...)`` as ``odelab run --executor dask --scheduler``.
 
-For each cluster: the first run (each worker loads the experiment file itself, as a worker on
-another machine would) and a second one (the workers keep the loaded file), cases per second
-of wall time; every result is compared with the serial one (t, states, statistics,
+For each cluster: the first run and a second one (the workers warm: odelab imported, the
+expressions' code compiled once), cases per second of wall time. The workers receive the built
+cases (pickled: each case's expressions travel as their texts and are compiled again in the
+worker, run/executors.py); before issue 38 each worker loaded the experiment file itself on
+the first run (about 1.7 ms a case of the whole sweep, in every worker); every result is compared with the serial one (t, states, statistics,
 bit for bit). Target: 2 workers >= 1.8x the cases per second of 1. The machine check (two
 CPU-bound processes together against one after the other; 2.0x when both cores are free) and
 the load average say what the machine allowed.

@@ -130,11 +130,14 @@ def with_units_converted(model: schema.Experiment) -> tuple[schema.Experiment, l
     """[parameters], [initial] and [time] values written with a unit (``L = "100 cm"``) as plain numbers:
     in the unit [units] declares for the name (``t`` for [time]), else in SI (odelab.expressions.units).
     Returns the model with the numbers and one note per conversion."""
-    from odelab.expressions.units import split_unit_value
-
     sections = {"parameters": model.parameters or {}, "initial": model.initial or {}}
     time = {k: getattr(model.time, k) for k in ("start", "stop")} if model.time is not None else {}
-    if not any(split_unit_value(v) for table in (*sections.values(), time) for v in table.values()):
+    texts = [v for table in (*sections.values(), time) for v in table.values() if isinstance(v, str)]
+    if not texts:  # numbers only: the units module is not even imported
+        return model, []
+    from odelab.expressions.units import split_unit_value
+
+    if not any(split_unit_value(v) for v in texts):
         return model, []  # pint is imported only when a unit appears
     from odelab.exceptions import InputError
     from odelab.expressions.units import convert
