@@ -58,6 +58,9 @@ class Problem:
     fmu: FmuRun | None = None  # kind = "fmu": the FMU, its interface, values, signals
     initial_given: tuple[str, ...] = ()  # the states the file's [initial] gives (the rest took their defaults)
     notes: tuple[str, ...] = ()  # what loading did that the run's notes say (values converted from their units)
+    # ``options`` resolved once at load (odelab.solvers.options.SolverOptions: checked, MATLAB's defaults filled
+    # in, for tspan and the states), carried to the driver; odelab.run.backend.case_options reads it
+    solver_options: Any = None
 
 
 @dataclass(frozen=True, eq=False)

@@ -69,7 +69,7 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
     resolved["initial"] = {s: float(v) for s, v in zip(states, x0)}
     tspan, resolved["time"] = _case_tspan(model, params, params_key, limits, shared)
     signals, input_fn = _case_inputs(model, built, path, tspan, limits, resolved)
-    method, options, backend = _case_solver(model, built, params, tspan, limits, resolved)
+    method, options, backend, solver_options = _case_solver(model, built, params, tspan, limits, resolved)
     if implicit:  # decic: consistent x0 and x'0 at load time, or the file's keys to change
         from dataclasses import replace
 
@@ -121,7 +121,7 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
         reference_solver=(ref.solver, float(ref.rtol), float(ref.atol)), system=built.system, signals=signals,
         linearize=linearize, parameters=params, diagram=built.diagram, events=events, backend=backend,
         compiled=fast, analysis=analysis, data=data, network=built.network, fmu=_bound_fmu(built.fmu, signals),
-        initial_given=given, notes=tuple(notes),
+        initial_given=given, notes=tuple(notes), solver_options=solver_options,
     )
     return problem, resolved
 
@@ -285,7 +285,8 @@ def _case_inputs(model: schema.Experiment, built, path: Path, tspan: np.ndarray,
 
 def _case_solver(model: schema.Experiment, built, params: dict, tspan: np.ndarray, limits: Limits,
                  resolved: dict):
-    """The method, the options it runs with (state names made indices, a mass matrix evaluated) and the backend."""
+    """The method, the options it runs with (state names made indices, a mass matrix evaluated), the backend and
+    the options resolved once (with the exact Jacobian the stiff solvers are given below), for the run."""
     from odelab.experiment.kinds.delays import check_delay_method, method_name
     from odelab.solvers.options import as_tspan, normalize_options, resolve_options
 
@@ -299,18 +300,21 @@ def _case_solver(model: schema.Experiment, built, params: dict, tspan: np.ndarra
     backend = model.solver.backend
     runtime_options = _state_options(options, states, params, dae=method.dae,
                                      takes_dependence="mstate_dependence" in method.options)
+    given = dict(runtime_options)
+    if "jacobian" in method.options and built.jacobian is not None:
+        given["jacobian"] = built.jacobian  # as the options the case runs with get it (build_case)
     try:
         as_tspan(tspan)
-        resolve_options(method, normalize_options(runtime_options, method), tspan, len(states))
+        solver_options = resolve_options(method, normalize_options(given, method), tspan, len(states))
     except InputError as exc:
         raise ExperimentError(exc.message.replace(f"`{exc.key}`", f"`solver.{exc.key}`"),
                               key=f"solver.{exc.key}" if exc.key else "solver") from None
-    check_solve(fixed_step=not method.adaptive, tspan=tspan, options=normalize_options(options, method),
+    check_solve(fixed_step=not method.adaptive, tspan=tspan, options=solver_options.given,
                 refine_default=getattr(method, "refine", 1) or 1, limits=limits)
     resolved["solver"] = {"method": method.name, **_plain(options)}
     if model.solver.estimate_error is not None:  # read by odelab.run.estimate
         resolved["solver"]["estimate_error"] = model.solver.estimate_error
-    return method, runtime_options, backend
+    return method, runtime_options, backend, solver_options
 
 
 def _case_events(model: schema.Experiment, method, inputs, states, params: dict, limits: Limits, resolved: dict):

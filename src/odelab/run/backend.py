@@ -19,23 +19,45 @@ from __future__ import annotations
 import numpy as np
 
 from odelab.exceptions import InputError
+from odelab.solvers.options import given_options
 
-__all__ = ["solve_problem", "simulate_problem", "solve_events_problem", "run_hybrid"]
+__all__ = ["solve_problem", "simulate_problem", "solve_events_problem", "run_hybrid", "case_options"]
 
 
-def solve_problem(problem, tspan, method_name: str, options: dict, backend: str):
-    """Solve a problem without inputs; returns ``(Solution, backend that ran)``."""
+def case_options(problem):  # -> odelab.solvers.options.SolverOptions
+    """A case's solver options as resolved once at load (``Problem.solver_options``), carried to the driver;
+    resolved here from ``problem.options`` only for a problem built otherwise, or whose options were replaced
+    since (``dataclasses.replace``)."""
+    from odelab.solvers.options import resolved_for
+    from odelab.solvers.registry import get_method
+
+    resolved = problem.solver_options
+    if resolved is not None and resolved.given_as(problem.options):
+        return resolved
+    return resolved_for(get_method(problem.method), problem.options, problem.tspan, np.size(problem.x0))
+
+
+def _with(options, **changes):
+    """``options`` (a dict, or resolved SolverOptions) with ``changes``."""
+    return {**options, **changes} if isinstance(options, dict) else options.updated(**changes)
+
+
+def solve_problem(problem, tspan, method_name: str, options, backend: str):
+    """Solve a problem without inputs; returns ``(Solution, backend that ran)``. ``options``: a dict, or
+    resolved SolverOptions, which the Python path carries to the driver as they are."""
     from odelab.solvers.api import solve
     from odelab.solvers.compiled import AUTO_STEPS, solve_compiled
 
     def python(opts):
-        return solve(problem.fun, tspan, problem.x0, method=method_name, **opts)
+        if isinstance(opts, dict):
+            return solve(problem.fun, tspan, problem.x0, method=method_name, **opts)
+        return solve(problem.fun, tspan, problem.x0, method=method_name, resolved=opts)
 
     def compiled(opts):
-        return solve_compiled(problem.compiled, tspan, problem.x0, method_name, **opts)
+        return solve_compiled(problem.compiled, tspan, problem.x0, method_name, **given_options(opts))
 
     def pilot(opts):
-        sol = python({**opts, "max_steps": AUTO_STEPS})
+        sol = python(_with(opts, max_steps=AUTO_STEPS))
         if sol.status == "failed" and sol.stats.nsteps == AUTO_STEPS:
             return None, float(sol.t[-1])
         return sol, None
@@ -70,7 +92,7 @@ def _budgeted(solve_piece):
     return piece
 
 
-def simulate_problem(problem, tspan, method_name: str, options: dict, backend: str):
+def simulate_problem(problem, tspan, method_name: str, options, backend: str):
     """Simulate a problem with inputs (restarting at their breakpoints, as
     :func:`odelab.systems.simulate.simulate`); returns ``(Response, backend that ran)``. The
     compiled path takes the same pieces, each solved by the compiled loop; the pilot of
@@ -80,9 +102,9 @@ def simulate_problem(problem, tspan, method_name: str, options: dict, backend: s
 
     signals = list(problem.signals)
 
-    def python(opts, piece_solver=None):
+    def python(opts, piece_solver=None):  # each piece resolves the options for its span
         return simulate(problem.system, tspan, problem.x0, u=signals, method=method_name, piece_solver=piece_solver,
-                        **opts)
+                        **given_options(opts))
 
     def compiled_piece(grid, x, lo, hi, opts):
         return solve_compiled(problem.compiled, grid, x, method_name, input_bounds=(lo, hi), **opts)
@@ -97,7 +119,7 @@ def simulate_problem(problem, tspan, method_name: str, options: dict, backend: s
                    lambda opts: python(opts, compiled_piece), pilot)
 
 
-def solve_events_problem(problem, tspan, method_name: str, options: dict, backend: str):
+def solve_events_problem(problem, tspan, method_name: str, options, backend: str):
     """Integrate a problem with [events] (:func:`odelab.experiment.events.solve_with_events`,
     restarting after each reset); returns ``(its tuple, backend that ran)``. The compiled path
     locates the same events in the compiled loop; the pilot of ``"auto"`` spends one budget of
@@ -108,9 +130,9 @@ def solve_events_problem(problem, tspan, method_name: str, options: dict, backen
 
     events = problem.events
 
-    def run(opts, solve_piece=None):
-        return solve_with_events(problem.fun, tspan, problem.x0, method_name, opts, events, problem.states,
-                                 solve_piece=solve_piece)
+    def run(opts, solve_piece=None):  # each piece (between events) resolves the options for its span
+        return solve_with_events(problem.fun, tspan, problem.x0, method_name, given_options(opts), events,
+                                 problem.states, solve_piece=solve_piece)
 
     def python_piece(ts, x, o):
         return solve(problem.fun, ts, x, method=method_name, events=events.function, **o)
@@ -138,7 +160,7 @@ def _choose(problem, tspan, method_name, options, backend, python, compiled, pil
     from odelab.solvers.registry import get_method
 
     method = get_method(method_name)
-    reason = why_not_compiled(method, problem.compiled, options)
+    reason = why_not_compiled(method, problem.compiled, given_options(options))
     if reason is None and problem.events is not None and not problem.compiled.events:
         reason = "the compiled loop locates [events] of expression systems only"
     if backend == "compiled" and reason:
@@ -148,14 +170,14 @@ def _choose(problem, tspan, method_name, options, backend, python, compiled, pil
     if backend == "auto":
         if not method.adaptive:
             from odelab.solvers.api import fixed_grid
-            from odelab.solvers.options import as_tspan, normalize_options, resolve_options
+            from odelab.solvers.options import as_tspan, resolved_for
 
             tspan_arr = as_tspan(tspan)
-            opts = resolve_options(method, normalize_options(options, method), tspan_arr, problem.x0.size)
+            opts = resolved_for(method, options, tspan_arr, problem.x0.size)  # the case's, as resolved at load
             if fixed_grid(tspan_arr, opts.h)[0].size - 1 <= AUTO_STEPS:
                 return python(options), "python"
         else:
-            limit = options.get("max_steps") or 0
+            limit = given_options(options).get("max_steps") or 0
             if limit and limit <= AUTO_STEPS:
                 return python(options), "python"
             start = time.perf_counter()
@@ -178,7 +200,7 @@ def _choose(problem, tspan, method_name, options, backend, python, compiled, pil
     return compiled(options), "compiled"
 
 
-def run_stateless(problem, tspan, options: dict):  # -> Integration
+def run_stateless(problem, tspan, options):  # -> Integration
     """A diagram without state (sources through gains to outputs): evaluated at its output times as Simulink
     evaluates such a model (every MaxStep, the span over 50 by default, and at the sources' jumps), its
     algebraic loops solved at each point; nothing is integrated."""
@@ -186,7 +208,7 @@ def run_stateless(problem, tspan, options: dict):  # -> Integration
     from odelab.store.result import Integration
 
     d = problem.diagram
-    t, u = d.output_times(tspan, options.get("max_step"))
+    t, u = d.output_times(tspan, given_options(options).get("max_step"))
     message = (f"the diagram has no state: its outputs evaluated at {t.size} times (every max_step and at the "
                "sources' jumps), as Simulink evaluates a model without states")
     notes = [message]
@@ -198,7 +220,7 @@ def run_stateless(problem, tspan, options: dict):  # -> Integration
                        tuple(notes))
 
 
-def run_hybrid(problem, tspan, method: str, options: dict, backend: str):  # -> Integration
+def run_hybrid(problem, tspan, method: str, options, backend: str):  # -> Integration
     """Run a diagram with switching or discrete blocks on the hybrid driver
     (:func:`odelab.systems.diagram.hybrid.simulate_hybrid`, the Python engine); returns its
     :class:`~odelab.store.result.Integration`. With ``backend = "auto"`` the message says
@@ -207,6 +229,7 @@ def run_hybrid(problem, tspan, method: str, options: dict, backend: str):  # -> 
     from odelab.systems.diagram.hybrid import simulate_hybrid
 
     d = problem.diagram
+    options = given_options(options)  # each piece resolves them for its span
     if problem.events is not None:  # [events]: their resets and records, each piece on the hybrid driver
         from odelab.experiment.events import solve_with_events
         from odelab.solution import Solution

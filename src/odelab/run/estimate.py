@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from odelab.solvers.optionset import DEFAULT_ATOL, DEFAULT_RTOL
+from odelab.run.backend import case_options
 from odelab.solvers.registry import get_method
 
 __all__ = ["estimate_case", "estimate_warning", "wants_estimate", "UNRELIABLE"]
@@ -59,29 +59,30 @@ def estimate_case(result, integrate, max_steps: int | None = None, backend: str 
         return {"skipped": "a hybrid diagram's switching instants move with the tolerances; compare a case at a "
                            "tighter rtol"}
     method = get_method(p.method)
-    options = dict(p.options)
+    case = case_options(p)  # the options the run had, resolved once at load
+    changes: dict = {}
     if max_steps and method.adaptive:  # the tighter solve takes more steps (10^(1/2)x at order 1): its own budget
-        options["max_steps"] = 10 * max_steps
+        changes["max_steps"] = 10 * max_steps
     if not method.adaptive:
-        options["h"] = float(options["h"]) / 2
+        changes["h"] = case.h / 2
         factor, proportion, rtol = 2.0, 2.0 ** method.order, None
         from odelab.experiment.limits import fixed_step_count
 
-        steps = fixed_step_count(np.asarray(p.tspan, dtype=float), options["h"])
+        steps = fixed_step_count(np.asarray(p.tspan, dtype=float), changes["h"])
         if max_steps and steps > max_steps:
             return {"skipped": f"h/2 takes {steps:,} steps, over the run's budget of {max_steps:,} steps per solve "
                                "(--max-steps)"}
     else:
-        rtol = float(options.get("rtol", DEFAULT_RTOL))
-        atol = np.asarray(options.get("atol", DEFAULT_ATOL), dtype=float)
-        options["rtol"] = rtol / ESTIMATE_FACTOR
-        options["atol"] = (atol / ESTIMATE_FACTOR).tolist() if atol.ndim else float(atol) / ESTIMATE_FACTOR
+        rtol = float(case.given.get("rtol", case.rtol))  # as asked (the solve raises one below 100 eps)
+        atol = np.asarray(case.atol, dtype=float)
+        changes["rtol"] = rtol / ESTIMATE_FACTOR
+        changes["atol"] = (atol / ESTIMATE_FACTOR).tolist() if atol.ndim else float(atol) / ESTIMATE_FACTOR
         factor = proportion = ESTIMATE_FACTOR
     t = np.asarray(result.t, dtype=float)
     times = np.unique(t)
     if t.size > 1 and t[-1] < t[0]:
         times = times[::-1]
-    refine = int(options.get("refine") or method.refine or 1)
+    refine = case.refine
     if p.tspan.size == 2 and refine > 1 and not result.events and times.size == t.size:
         # Refine output: compared at the steps' ends, where the method's own solution is (the points between
         # are its interpolant's; a vector tspan of them all would cost the second solve one interpolation each)
@@ -94,6 +95,7 @@ def estimate_case(result, integrate, max_steps: int | None = None, backend: str 
 
     start = time.perf_counter()
     try:
+        options = case.updated(**changes)  # resolved again: the tighter solve's options
         ran = _dense_solve(p, times, method, options) or integrate(p, times, p.method, options, backend or p.backend)
     except InputError as exc:  # e.g. h/2 over the run's step budget: no estimate, and why
         return {"skipped": f"the solve at {'h/2' if not method.adaptive else 'tighter tolerances'} could not run: "
@@ -112,7 +114,7 @@ def estimate_case(result, integrate, max_steps: int | None = None, backend: str 
     tight_values = {n: np.asarray(v)[tight_rows] for n, v in tight_series.items()}
     atol_map = None
     if rtol is not None:
-        atol = np.broadcast_to(np.asarray(p.options.get("atol", DEFAULT_ATOL), dtype=float), (len(p.states),))
+        atol = np.broadcast_to(np.asarray(case.atol, dtype=float), (len(p.states),))
         atol_map = {name: float(a) for name, a in zip(p.states, atol)}
     from odelab.analysis.estimate import compare_solves
 
@@ -129,7 +131,7 @@ def estimate_case(result, integrate, max_steps: int | None = None, backend: str 
     return out
 
 
-def _dense_solve(p, times: np.ndarray, method, options: dict):
+def _dense_solve(p, times: np.ndarray, method, options):
     """The tighter solve of a plain problem (no inputs, events or diagram) by a method with dense output:
     solved over the span and evaluated at ``times`` by its interpolant (``deval``, one vectorised call),
     cheaper than output at every time step by step. None where that does not apply."""
@@ -143,11 +145,11 @@ def _dense_solve(p, times: np.ndarray, method, options: dict):
     from odelab.solvers.api import solve
     from odelab.store.result import Integration
 
-    opts = {k: v for k, v in options.items() if k != "refine"}
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", SolverWarning)
-            sol = solve(p.fun, [float(times[0]), float(times[-1])], p.x0, method=p.method, refine=1, **opts)
+            sol = solve(p.fun, [float(times[0]), float(times[-1])], p.x0, method=p.method,
+                        resolved=options.updated(refine=1))
     except InputError:
         return None
     if sol.status != "success" or sol.interpolant is None:

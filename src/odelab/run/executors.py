@@ -65,7 +65,7 @@ def case_cost(case) -> float:
     rtol^(-1/order) per unit of span (the step size an error-per-step controller settles at),
     which orders a tolerance sweep correctly. Anything else counts 1.
     """
-    from odelab.solvers.optionset import DEFAULT_RTOL
+    from odelab.run.backend import case_options
     from odelab.solvers.registry import get_method
 
     p = case.problem
@@ -74,10 +74,10 @@ def case_cost(case) -> float:
         span = float(abs(p.tspan[-1] - p.tspan[0]))
         tableau = getattr(method, "tableau", None)
         stages = tableau.c.size if tableau is not None else 1
-        h = p.options.get("h")
-        if not method.adaptive and h:
-            return stages * span / float(h)
-        rtol = float(p.options.get("rtol", DEFAULT_RTOL))
+        options = case_options(p)  # resolved at load
+        if not method.adaptive:
+            return stages * span / options.h
+        rtol = options.rtol
         order = float(method.order or 4)
         return stages * max(span, 1e-300) * rtol ** (-1.0 / order)
     except (TypeError, ValueError, KeyError, AttributeError, ZeroDivisionError, OverflowError):

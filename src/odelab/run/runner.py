@@ -10,8 +10,10 @@ import numpy as np
 from odelab.analysis.errors import summarize
 from odelab.experiment.cases import Case, LoadedExperiment
 from odelab.experiment.loader import load_experiment
+from odelab.run.backend import case_options
 from odelab.store.result import CaseResult, Integration
 from odelab.solution import Stats
+from odelab.solvers.options import given_options
 from odelab.solvers.registry import REFERENCE_METHOD
 
 __all__ = ["CaseResult", "run_case", "run_experiment"]
@@ -20,8 +22,9 @@ __all__ = ["CaseResult", "run_case", "run_experiment"]
 def _integrate(problem, tspan, method, options, backend="python") -> Integration:
     """Solve (no inputs) or simulate (inputs, restarting at their discontinuities), a hybrid diagram or a run
     with [events]: one :class:`~odelab.store.result.Integration` whichever ran (its ``backend``: the engine,
-    "python" or "compiled", see :mod:`odelab.run.backend`). A failed integration is reported in the
-    case's result, so the solvers' SolverWarning is not repeated here.
+    "python" or "compiled", see :mod:`odelab.run.backend`). ``options``: the case's resolved SolverOptions
+    (:func:`~odelab.run.backend.case_options`), or a dict (a reference's). A failed integration is reported in
+    the case's result, so the solvers' SolverWarning is not repeated here.
     """
     import warnings
 
@@ -32,7 +35,7 @@ def _integrate(problem, tspan, method, options, backend="python") -> Integration
         if getattr(problem, "fmu", None) is not None:  # kind = "fmu": odelab's solvers step the FMU
             from odelab.fmi.simulate import run_fmu
 
-            return Integration(*run_fmu(problem, tspan, method, options))
+            return Integration(*run_fmu(problem, tspan, method, given_options(options)))
         if problem.diagram is not None and not problem.diagram.states:
             from odelab.run.backend import run_stateless
 
@@ -83,12 +86,13 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
         from odelab.run.linearization import run_linearization_case
 
         return _drawings(run_linearization_case(case, max_steps=max_steps), p)
-    options = dict(p.options)
+    options = case_options(p)  # resolved once, at load
     capped = False
-    if max_steps and "h" not in options:
+    if max_steps and "h" not in p.options:
         from odelab.experiment.limits import capped_max_steps
 
-        options["max_steps"], capped = capped_max_steps(options.get("max_steps"), max_steps)
+        budget, capped = capped_max_steps(p.options.get("max_steps"), max_steps)
+        options = options.updated(max_steps=budget)
     start = time.perf_counter()
     run = _integrate(p, p.tspan, p.method, options, backend or p.backend)
     t, x, u, stats, status, message, warnings = run.t, run.x, run.u, run.stats, run.status, run.message, run.warnings

@@ -13,7 +13,8 @@ from odelab.solution import Solution, Stats
 from odelab.solvers import engine
 from odelab.solvers.controller import min_step
 from odelab.solvers.optionset import DEFAULT_ATOL, DEFAULT_RTOL
-from odelab.solvers.options import SolverOptions, as_tspan, as_y0, normalize_options, resolve_options
+from odelab.solvers.options import (SolverOptions, as_tspan, as_y0, normalize_options, resolve_options,
+                                   resolved_for)
 from odelab.solvers.registry import DRIVERS, RESIDUAL_METHOD, Method, get_method, join_names, methods_with
 from odelab.solvers.status import Status
 
@@ -128,7 +129,7 @@ def _matlab_solver(name, fun, tspan, y0, rtol, atol, max_step, initial_step, ref
     return sol
 
 
-def solve(fun, tspan, y0, method: str = "ode45", **options) -> Solution:
+def solve(fun, tspan, y0, method: str = "ode45", *, resolved: SolverOptions | None = None, **options) -> Solution:
     """Solve an initial value problem with any method odelab knows, by name.
 
     Parameters
@@ -147,6 +148,10 @@ def solve(fun, tspan, y0, method: str = "ode45", **options) -> Solution:
         ``output_sel`` (ode23/ode45/ode78/ode89/ode113; ``events`` also ode15s/ode23s/ode23t/ode23tb,
         ``nonnegative`` also ode15s/ode23t/ode23tb without a mass matrix, as MATLAB's);
         MATLAB's names too. See :func:`ode45`.
+    resolved : SolverOptions, optional
+        Options already normalised and resolved (a loaded case's, ``Problem.solver_options``), instead of
+        ``**options``: used as they are when resolved for this method, span and number of states, else
+        resolved again from the options they were given for this span.
 
     Returns
     -------
@@ -154,7 +159,14 @@ def solve(fun, tspan, y0, method: str = "ode45", **options) -> Solution:
         A failed integration returns the partial solution and issues a
         :class:`~odelab.exceptions.SolverWarning` with its message.
     """
-    sol = _solve(fun, tspan, y0, method, options)
+    if resolved is not None:
+        if options:
+            raise InputError(f"give the options either resolved or as keywords, not both; got `resolved` and "
+                             f"{', '.join(f'`{k}`' for k in options)}.", key="resolved")
+        if not isinstance(resolved, SolverOptions):
+            raise InputError(f"`resolved` must be a SolverOptions (odelab.solvers.options.resolve_options); got "
+                             f"{resolved!r}.", key="resolved")
+    sol = _solve(fun, tspan, y0, method, options if resolved is None else resolved)
     _warn_if_failed(sol, 3)
     _warn_if_implausible(sol, 3)
     return sol
@@ -206,7 +218,7 @@ def _warn_if_failed(sol: Solution, stacklevel: int) -> None:
         warnings.warn(sol.message, SolverWarning, stacklevel=stacklevel)
 
 
-def _solve(fun, tspan, y0, method: str, options: dict) -> Solution:
+def _solve(fun, tspan, y0, method: str, options: dict | SolverOptions) -> Solution:
     sol = _solve_method(fun, tspan, y0, method, options)
     if get_method(method).stiff and sol.status == "success":  # a stiff run's result checked (plausibility.py)
         from dataclasses import replace
@@ -219,9 +231,18 @@ def _solve(fun, tspan, y0, method: str, options: dict) -> Solution:
     return sol
 
 
-def _atol_of(sol: Solution, options: dict):
+def _atol_of(sol: Solution, options: dict | SolverOptions):
+    if isinstance(options, SolverOptions):
+        return np.asarray(options.atol, dtype=float).ravel()
     atol = normalize_options(options, get_method(sol.method)).get("atol", DEFAULT_ATOL)
     return np.asarray(atol, dtype=float).ravel()
+
+
+def _given(options: dict | SolverOptions, m: Method) -> dict:
+    """The options as given, in odelab's names, checked against ``m``: normalised once (resolved ones were)."""
+    if isinstance(options, SolverOptions):
+        return dict(options.given) if get_method(options.method) is m else normalize_options(options.given, m)
+    return normalize_options(options, m)
 
 
 def _warn_if_implausible(sol: Solution, stacklevel: int) -> None:
@@ -263,8 +284,9 @@ def _prepared(fun, tspan, y0, m: Method, options: dict):
     if np.iscomplexobj(y0_arr) and not m.complex_y0:
         raise InputError(f"a complex `y0` is integrated by {'/'.join(methods_with(lambda x: x.complex_y0))} "
                          f"(as MATLAB's); {m.name} takes real y0: split it into real and imaginary parts.", key="y0")
-    given = normalize_options(options, m)
-    opts = resolve_options(m, given, tspan_arr, y0_arr.size)
+    given = _given(options, m)  # the keyword API's options normalised once; a loaded case's carried as resolved
+    opts = resolved_for(m, options, tspan_arr, y0_arr.size) if isinstance(options, SolverOptions) else \
+        resolve_options(m, given, tspan_arr, y0_arr.size)
     user_fun = fun
     if opts.args:
         args = opts.args
@@ -426,7 +448,7 @@ def _solve_implicit_system(system, tspan, y0, m: Method, options: dict) -> Solut
                          f"together; {m.name} solves y' = f(t, y).", key="method")
     from odelab.solvers.implicit.decic import DecicError
 
-    given = normalize_options(options, m)
+    given = _given(options, m)
     tspan_arr = as_tspan(tspan)
     y0_arr = as_y0(y0)
     try:

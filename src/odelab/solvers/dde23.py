@@ -54,8 +54,8 @@ from odelab.solution import Solution, Stats
 from odelab.solvers.controller import clamp_step, first_step, given_step, grow, shrink
 from odelab.solvers.dense import query_times
 from odelab.solvers.events import CallbackError, as_event_function, locate_events
-from odelab.solvers.optionset import DEFAULT_ATOL, DEFAULT_RTOL
-from odelab.solvers.options import as_tspan, as_y0, normalize_options
+from odelab.solvers.optionset import DEFAULT_ATOL, DEFAULT_RTOL, canonical
+from odelab.solvers.options import SolverOptions, as_tspan, as_y0, given_options, normalize_options
 
 __all__ = ["dde23", "DDESolution", "HermiteMesh", "discontinuities"]
 
@@ -214,23 +214,20 @@ def discontinuities(t0: float, tf: float, lags, levels: int = 3, seeds=()) -> np
     return points
 
 
-_OPTION_NAMES = {
-    "reltol": "rtol", "rtol": "rtol",
-    "abstol": "atol", "atol": "atol",
-    "maxstep": "max_step", "max_step": "max_step",
-    "initialstep": "initial_step", "initial_step": "initial_step",
-    "events": "events",
-    "normcontrol": "norm_control", "norm_control": "norm_control",
-    "initialy": "initial_y", "initial_y": "initial_y",
-    "jumps": "jumps",
-    "max_steps": "max_steps", "maxsteps": "max_steps",
-}
+# dde23's options: odeset's (spelled as the option registry accepts them, optionset.canonical) and ddeset's own
+# two, InitialY (the solution's jump at t0) and Jumps (known discontinuities).
+_ODESET_OPTIONS = ("rtol", "atol", "max_step", "initial_step", "events", "norm_control", "max_steps")
+_DDESET_OPTIONS = {"initialy": "initial_y", "jumps": "jumps"}
 
 
 def _normalize(options: dict) -> dict:
     out = {}
     for key, value in options.items():
-        name = _OPTION_NAMES.get(str(key).lower().replace("-", "_"))
+        spelled = str(key).lower().replace("-", "_")
+        name = _DDESET_OPTIONS.get(spelled.replace("_", ""))
+        if name is None:
+            name = canonical(spelled)
+            name = name if name in _ODESET_OPTIONS else None
         if name is None:
             import difflib
 
@@ -733,10 +730,14 @@ def _tolerance_failure(t: float, hmin: float) -> tuple[str, str]:
                       "RelTol/AbsTol, or check the equations for a singularity near that time.")
 
 
-def drive_delay(fun, tspan, y0, m, options: dict) -> DDESolution:
+def drive_delay(fun, tspan, y0, m, options) -> DDESolution:
     """The driver of the methods of kind ``"delay"`` (:data:`odelab.solvers.registry.DRIVERS`): the arrays
-    checked and the options normalised once, then :func:`solve_delay`, which evaluates the delayed states."""
-    return solve_delay(fun, as_tspan(tspan), as_y0(y0), normalize_options(options, m))
+    checked and the options normalised once (a resolved :class:`~odelab.solvers.options.SolverOptions`' as they
+    were given), then :func:`solve_delay`, which evaluates the delayed states."""
+    tspan_arr, y0_arr = as_tspan(tspan), as_y0(y0)
+    if isinstance(options, SolverOptions) and options.method == m.name:  # normalised for it at load
+        return solve_delay(fun, tspan_arr, y0_arr, given_options(options))
+    return solve_delay(fun, tspan_arr, y0_arr, normalize_options(given_options(options), m))
 
 
 def solve_delay(fun, tspan, y0, options: dict) -> DDESolution:

@@ -9,15 +9,16 @@ from __future__ import annotations
 import difflib
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
 from odelab.exceptions import InputError
 from odelab.solvers.optionset import DEFAULT_ATOL, DEFAULT_RTOL, OPTIONS, OptionContext, canonical, fmt, index_list
-from odelab.solvers.registry import Method, join_names, methods_with
+from odelab.solvers.registry import Method, get_method, join_names, methods_with
 
-__all__ = ["SolverOptions", "normalize_options", "as_tspan", "as_y0", "resolve_options", "method_options", "takers"]
+__all__ = ["SolverOptions", "normalize_options", "as_tspan", "as_y0", "resolve_options", "resolved_for",
+           "given_options", "method_options", "takers"]
 
 EPS = float(np.finfo(float).eps)
 
@@ -156,7 +157,12 @@ def as_y0(y0, *, allow_complex: bool = False) -> np.ndarray:
 
 @dataclass(frozen=True)
 class SolverOptions:
-    """Options resolved for one solve (defaults filled in, MATLAB's adjustments applied)."""
+    """Options resolved for one solve (defaults filled in, MATLAB's adjustments applied), by
+    :func:`resolve_options`: once per call of the keyword API, once per case when an experiment file is loaded
+    (``Problem.solver_options``), and carried to the driver unchanged (:func:`odelab.solvers.api.solve`'s
+    ``resolved``). ``method``, ``span`` and ``n`` say what they were resolved for, ``given`` the options as
+    given (odelab's names) that a solve of another span starts from; :meth:`updated` changes some of them
+    (a step budget checked alone, tighter tolerances resolved again)."""
 
     rtol: float = DEFAULT_RTOL
     atol: np.ndarray | float = DEFAULT_ATOL
@@ -176,6 +182,47 @@ class SolverOptions:
     args: tuple = ()
     extra: Mapping[str, object] | None = None  # the stiff solvers' options (odelab.solvers.implicit)
     more: Mapping[str, object] = field(default_factory=dict)  # registered options without a field, checked
+    method: str = ""
+    span: float = math.nan
+    n: int = 0
+    given: Mapping[str, object] = field(default_factory=dict)  # normalised (odelab's names), as given
+
+    def fits(self, method: Method, tspan: np.ndarray, n: int) -> bool:
+        """Whether these options were resolved for ``method`` over ``tspan``'s span and ``n`` states."""
+        return self.method == method.name and self.n == n and self.span == abs(float(tspan[-1] - tspan[0]))
+
+    def given_as(self, options: Mapping[str, object]) -> bool:
+        """Whether these were resolved from ``options`` (odelab's names): the same names, the same values."""
+        return options.keys() == self.given.keys() and all(options[k] is v for k, v in self.given.items())
+
+    def updated(self, **changes) -> SolverOptions:
+        """These options with ``changes`` (odelab's names, as given; None removes one): a step budget
+        (``max_steps``) or ``refine`` is checked alone, any other change resolves them again from ``given``."""
+        method = get_method(self.method)
+        given = {k: v for k, v in {**self.given, **changes}.items() if v is not None}
+        if changes and set(changes) <= {"max_steps", "refine"} and math.isnan(self.h):
+            ctx = OptionContext(method, self.n, self.span)
+            defaults = {"max_steps": 0, "refine": method.refine}  # as resolve_options fills them in
+            return replace(self, **{name: _check(name, given.get(name, defaults[name]), ctx) for name in changes},
+                           given=given)
+        return resolve_options(method, given, np.array([0.0, self.span]), self.n)
+
+
+def resolved_for(method: Method, options: Mapping[str, object] | SolverOptions, tspan: np.ndarray,
+                 n: int) -> SolverOptions:
+    """``options`` resolved for ``method`` over ``tspan`` with ``n`` states: options resolved for them already
+    (a loaded case's) as they are, others (any accepted spelling) normalised and resolved once."""
+    if isinstance(options, SolverOptions):
+        if options.fits(method, tspan, n):
+            return options
+        options = options.given if options.method == method.name else normalize_options(options.given, method)
+        return resolve_options(method, options, tspan, n)
+    return resolve_options(method, normalize_options(options, method), tspan, n)
+
+
+def given_options(options: Mapping[str, object] | SolverOptions) -> dict[str, object]:
+    """The options as given: a resolved :class:`SolverOptions`' ``given`` (odelab's names), a dict as it is."""
+    return dict(options.given) if isinstance(options, SolverOptions) else dict(options)
 
 
 # The options with a field of their own, checked in this order (norm_control before atol, which reads it).
@@ -209,7 +256,7 @@ def resolve_options(method: Method, opts: Mapping[str, object], tspan: np.ndarra
                 key="h",
             )
         return SolverOptions(h=_check("h", opts["h"], ctx), args=_check("args", opts.get("args", ()), ctx),
-                             more=_more(method, opts, ctx))
+                             more=_more(method, opts, ctx), method=method.name, span=span, n=n, given=dict(opts))
     defaults = {"rtol": DEFAULT_RTOL, "norm_control": False, "atol": DEFAULT_ATOL, "refine": method.refine, "max_steps": 0,
                 "args": ()}
     for name in _CHECK_ORDER:
@@ -230,5 +277,6 @@ def resolve_options(method: Method, opts: Mapping[str, object], tspan: np.ndarra
         mstate_dependence=got.get("mstate_dependence"), output_fcn=got.get("output_fcn"),
         output_sel=got.get("output_sel"), args=got["args"], rtol=got["rtol"], atol=got["atol"],
         max_step=got["max_step"], initial_step=got.get("initial_step", math.nan), refine=got["refine"],
-        norm_control=got["norm_control"], max_steps=got["max_steps"], warnings=tuple(ctx.notes),
+        norm_control=got["norm_control"], max_steps=got["max_steps"], warnings=tuple(ctx.notes), method=method.name,
+        span=span, n=n, given=dict(opts),
     )

@@ -241,11 +241,13 @@ def _args(value, ctx: OptionContext) -> tuple:
     return tuple(value)
 
 
+_RTOL, _ATOL = "1e-3", "1e-6"  # MATLAB's RelTol and AbsTol defaults: the one place they are written
+
 for _option in (
-    SolverOption("rtol", "Relative tolerance (MATLAB's RelTol; default 1e-3 for MATLAB's methods).",
-                 ("RelTol",), default="1e-3", toml="number", check=_rtol),
-    SolverOption("atol", "Absolute tolerance, a number or one per state (MATLAB's AbsTol; default 1e-6).",
-                 ("AbsTol",), default="1e-6", toml="numbers", check=_atol),
+    SolverOption("rtol", f"Relative tolerance (MATLAB's RelTol; default {_RTOL} for MATLAB's methods).",
+                 ("RelTol",), default=_RTOL, toml="number", check=_rtol),
+    SolverOption("atol", f"Absolute tolerance, a number or one per state (MATLAB's AbsTol; default {_ATOL}).",
+                 ("AbsTol",), default=_ATOL, toml="numbers", check=_atol),
     SolverOption("max_step", "The largest step (MATLAB's MaxStep; default a tenth of the span).", ("MaxStep",),
                  default="a tenth of the span", toml="number",
                  check=lambda v, ctx: min(ctx.span, positive("max_step", v))),
@@ -288,6 +290,6 @@ for _option in (
     register_option(_option)
 
 
-#: MATLAB's default tolerances as numbers, read from their entries above (the one place they are written).
+#: MATLAB's default tolerances as numbers, read from their entries above.
 DEFAULT_RTOL = float(OPTIONS["rtol"].default)
 DEFAULT_ATOL = float(OPTIONS["atol"].default)

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 from odelab.exceptions import InputError
 from odelab.solvers import tableau as tb
+from odelab.solvers.optionset import OPTIONS
 from odelab.solvers import verner
 
 __all__ = ["Method", "METHODS", "DRIVERS", "Driver", "get_method", "register_method", "methods_with", "listing",
@@ -187,16 +188,16 @@ class Method:
 
     @property
     def defaults(self) -> str:
-        """MATLAB's defaults for the method, one line."""
+        """MATLAB's defaults for the method, one line (the defaults of :data:`odelab.solvers.optionset.OPTIONS`)."""
         if not self.adaptive:
             return "h required"
+        text = f"rtol {OPTIONS['rtol'].default}, atol {OPTIONS['atol'].default}"  # the option registry's
         if self.delays:
-            return "rtol 1e-3, atol 1e-6, max_step 0.1*span"
-        text = "rtol 1e-3, atol 1e-6"
+            return text + ", max_step 0.1*span"
         if self.matlab_defaults:
             text += f", refine {self.refine}, max_step 0.1*span"
         if "max_order" in self.options:
-            text += ", max_order 5" + (", NDF (bdf off)" if "bdf" in self.options else "")
+            text += f", max_order {OPTIONS['max_order'].default}" + (", NDF (bdf off)" if "bdf" in self.options else "")
         if "jacobian" in self.options:
             text += ", Jacobian by finite differences"
         return text
