@@ -140,11 +140,48 @@ def test_matlab_rigid_body_stats():
     assert sol.t.size == 85
 
 
-def test_long_run_grows_its_output_arrays():
+def test_long_run_fills_block_after_block():
+    from odelab.solvers.compiled import rows
+
     a = solve_compiled(RIGID, [0, 1200], [0, 1, 1], "ode45", rtol=1e-6, atol=1e-9)
     b = odelab.solve(rigid, [0, 1200], [0, 1, 1], "ode45", rtol=1e-6, atol=1e-9)
-    assert a.stats == b.stats and a.t.size == 4 * a.stats.nsteps + 1  # far beyond the first buffer
+    assert a.stats == b.stats and a.t.size == 4 * a.stats.nsteps + 1
     np.testing.assert_allclose(a.t, b.t, rtol=1e-9)
+    assert rows.block_rows(3, 4) == 65536 and rows.block_rows(3000, 4) == 87 and rows.block_rows(10**6, 8) == 9
+    # the loop stopped and resumed at every block: blocks of 7 rows (a step's 4 rows fit once each), same bits
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(rows, "BLOCK_BYTES", 8 * 4 * 7)
+        c = solve_compiled(RIGID, [0, 1200], [0, 1, 1], "ode45", rtol=1e-6, atol=1e-9)
+        d = solve_compiled(OSCILLATOR, [0, 150], [1.0, 0.0], "ode45", rtol=1e-6, atol=1e-9)  # events across blocks
+    assert c.stats == a.stats and c.status == a.status and c.message == a.message
+    np.testing.assert_array_equal(c.t, a.t)
+    np.testing.assert_array_equal(c.y, a.y)
+    e = solve_compiled(OSCILLATOR, [0, 150], [1.0, 0.0], "ode45", rtol=1e-6, atol=1e-9)
+    assert d.te.size == 72 and d.stats == e.stats
+    for got, want in ((d.ie, e.ie), (d.te, e.te), (d.ye, e.ye), (d.t, e.t), (d.y, e.y)):
+        np.testing.assert_array_equal(got, want)
+
+
+def test_joined_blocks_are_the_rows_in_order():
+    from odelab.solvers.compiled.rows import joined, new_block
+
+    blocks = []
+    for k, count in enumerate((5, 3, 0, 5)):
+        t, y = new_block(5, 2)
+        t[:count] = 10 * k + np.arange(count)
+        y[:count] = (10 * k + np.arange(count))[:, None] * [1, -1]
+        blocks.append((t, y, count))
+    t, y = joined(blocks, 2)
+    want = np.array([0, 1, 2, 3, 4, 10, 11, 12, 30, 31, 32, 33, 34], dtype=float)
+    assert not blocks and t.flags.owndata and y.shape == (13, 2)
+    np.testing.assert_array_equal(t, want)
+    np.testing.assert_array_equal(y, want[:, None] * [1, -1])
+    t, y = new_block(4, 3)
+    t[:] = 1.0
+    one = [(t, y, 2)]
+    del t, y
+    t, y = joined(one, 3)
+    assert t.size == 2 and y.shape == (2, 3) and t.base is None  # a row count of its own, not the block's
 
 
 @pytest.mark.parametrize("method", ["euler", "rk4"])

@@ -28,7 +28,7 @@ import numpy as np
 from odelab.exceptions import InputError
 from odelab.solution import Solution, Stats
 from odelab.solvers.compiled.methods import method_refusal
-from odelab.solvers.compiled.rows import exact_rows
+from odelab.solvers.compiled.rows import adaptive_rows, block_rows
 from odelab.solvers.registry import DEFAULT_METHOD
 from odelab.solvers.status import Status
 
@@ -411,24 +411,24 @@ def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dic
         weights = np.zeros((0, tab.c.size))
     threshold = np.broadcast_to(np.atleast_1d(np.asarray(opts.atol / opts.rtol, dtype=float)), (n,)).copy()
     htry = float(opts.initial_step)
-    capacity = tspan_arr.size if tspan_arr.size > 2 else 1 + refine * 64
+    refine_output = tspan_arr.size == 2
+    rows = block_rows(n, refine) if refine_output else tspan_arr.size
     args = (rhs, _c(tspan_arr), y0_arr, f0, p, _c(tab.A), _c(tab.c), _c(tab.error_weights), _c(tab.dense), _c(weights),
             float(m.power), float(m.shrink_min), float(opts.rtol), threshold, float(opts.max_step), htry, int(refine),
-            bool(opts.norm_control), int(opts.max_steps), int(capacity))
+            bool(opts.norm_control), int(opts.max_steps))
     found = {}
     if system.events:
         events = system.module().events
         v0 = np.empty(len(system.events))
         events(t0, y0_arr.copy(), p, v0)
-        (t_out, y_out, count, nsteps, nfailed, nfevals, status, t_stop, h_stop, te, ye, ie) = kernels.loop("events")(
-            *args, events, v0, _c(system.terminal), _c(system.direction))
+        (t, y, nsteps, nfailed, nfevals, status, t_stop, h_stop, te, ye, ie) = adaptive_rows(
+            kernels.loop("events"), args, (events, v0, _c(system.terminal), _c(system.direction)), n, v0.size, rows,
+            refine_output)
         found = {"te": te, "ye": ye, "ie": ie}
     else:
         no_events = np.empty(0)
-        (t_out, y_out, count, nsteps, nfailed, nfevals, status, t_stop, h_stop, *_) = kernels.loop("adaptive")(
-            *args, None, no_events, no_events, no_events)
-    t, y = exact_rows(t_out, y_out, count)
-    del t_out, y_out
+        (t, y, nsteps, nfailed, nfevals, status, t_stop, h_stop, *_) = adaptive_rows(
+            kernels.loop("adaptive"), args, (None, no_events, no_events, no_events), n, 0, rows, refine_output)
     message = api._status_message(status, m, t_stop, h_stop, y, y0_arr, opts, None, tspan_arr,
                                   list(found.get("te", ())), list(found.get("ie", ())),
                                   fun=_python_rhs(rhs, p, n))  # a step-limit message's stiffness check
