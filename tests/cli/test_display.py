@@ -2,6 +2,8 @@
 
 import io
 
+import numpy as np
+
 import pytest
 from rich.console import Console
 from rich.table import Table
@@ -98,3 +100,14 @@ def test_the_lab_tables_fit_80_columns_with_every_case_and_method_whole():
     assert any(line.split()[:3] == ["case", "method", "pts"] for line in table)  # numeric titles give way
     assert [r[:2] for r in rows] == [[c.name, c.problem.method] for c in exp.cases]
     assert "marked * (of peak)" in " ".join(lines)
+
+
+def test_a_quantitys_extent_is_taken_a_block_at_a_time(monkeypatch):
+    from odelab.cli import display
+
+    column = np.array([np.nan, 3.0, -np.inf, 7.5, np.nan, -2.25, np.inf, 1.0])
+    whole = display._extent(column)
+    assert whole == ["1", "-2.25", "7.5"]  # the final value, and min and max of the finite values
+    monkeypatch.setattr(display, "_EXTENT_BLOCK", 3)  # blocks of 3: [nan 3 -inf] [7.5 nan -2.25] [inf 1]
+    assert display._extent(column) == whole
+    assert display._extent(np.array([np.nan, np.inf, np.nan, np.nan])) == ["nan", "nan", "nan"]

@@ -223,9 +223,19 @@ def _extent(column) -> list[str]:
     if column is None or not len(column):
         return ["-", "-", "-"]
     values = np.asarray(column, dtype=float)
-    finite = values[np.isfinite(values)]
-    low, high = (float(finite.min()), float(finite.max())) if finite.size else (math.nan, math.nan)
+    low, high = math.inf, -math.inf
+    for lo in range(0, values.size, _EXTENT_BLOCK):  # a block at a time: no copy of a long run's column
+        piece = values[lo:lo + _EXTENT_BLOCK]
+        finite = piece[np.isfinite(piece)]
+        if finite.size:
+            low, high = min(low, float(finite.min())), max(high, float(finite.max()))
+    if low > high:  # no finite value
+        low = high = math.nan
     return [f"{float(values[-1]):.6g}", f"{low:.6g}", f"{high:.6g}"]
+
+
+#: Values of a column looked at a time for its extent (512 kB).
+_EXTENT_BLOCK = 65536
 
 
 def _never_settles(s: dict) -> bool:
