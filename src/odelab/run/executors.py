@@ -6,8 +6,9 @@ depend on how it was run. Pool workers are forked from the running process and i
 experiments it has loaded. Dask workers receive the built cases themselves: a built case
 pickles (its compiled functions travel as their expressions' texts and are compiled again in
 the worker, :class:`odelab.expressions.compile.Portable`), so a worker neither reads nor
-parses the experiment file. A case that does not pickle (an FMU's, whose binary is loaded in
-this process) goes by reference: the worker loads its file itself (once per process, at the
+parses the experiment file. A case that cannot travel (:func:`travels`: an FMU's, whose binary
+is loaded in this process, or one whose system is a user's Python function, whose module a worker
+cannot import by name) goes by reference: the worker loads its file itself (once per process, at the
 same path: a shared file system, as on any cluster) and runs the case by its index, checking
 the file's SHA-256 so that an edited file is never mixed with the cases already run.
 
