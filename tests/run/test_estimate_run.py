@@ -178,3 +178,29 @@ def test_sweep_csv_and_the_report_show_the_estimate(tmp_path):
     assert ",ok," in first
     text = build_report(runs, tmp_path / "report", formats="md", jobs=1).markdown.read_text()
     assert "| Est. error |" in text and "**ok?**" in text and "(0.0 digits)" in text
+
+
+def test_a_compiled_run_is_estimated_on_the_compiled_engine_at_its_steps_ends(tmp_path, monkeypatch):
+    import odelab.run.estimate as estimate
+
+    path = write(tmp_path, OSCILLATOR.replace("stop = 10", "stop = 100"))
+    (py,) = run_experiment(path, backend="python")
+    kept = estimate._dense_solve
+    monkeypatch.setattr(estimate, "_dense_solve", lambda *a: pytest.fail("the Python engine's dense solve ran"))
+    import odelab.analysis.estimate as analysis
+
+    compare = analysis.compare_solves
+
+    def contiguous(t, run, tight, **kw):  # its phase check takes windows point by point: a strided array copied each
+        assert all(a.flags.c_contiguous for a in (t, *run.values(), *tight.values()))
+        return compare(t, run, tight, **kw)
+
+    monkeypatch.setattr(analysis, "compare_solves", contiguous)  # imported by estimate_case when it runs
+    (r,) = run_experiment(path, backend="compiled")
+    assert r.backend == "compiled" and r.estimate["verdict"] == "ok"
+    # the same steps on both engines; compared at the same points, the steps' ends (a quarter of Refine 4's rows)
+    assert r.estimate["tight"]["nsteps"] == py.estimate["tight"]["nsteps"] > r.stats.nsteps
+    assert r.estimate["points"] == py.estimate["points"] == r.stats.nsteps + 1 == (r.t.size - 1) // 4 + 1
+    # the tighter solve's values at the run's step ends from its interpolant, as deval gives them: the same bits
+    assert r.estimate["quantities"] == py.estimate["quantities"] and r.estimate["quantities"]["x"]["max_abs"] > 0
+    monkeypatch.setattr(estimate, "_dense_solve", kept)

@@ -79,14 +79,19 @@ def estimate_case(result, integrate, max_steps: int | None = None, backend: str 
         changes["atol"] = (atol / ESTIMATE_FACTOR).tolist() if atol.ndim else float(atol) / ESTIMATE_FACTOR
         factor = proportion = ESTIMATE_FACTOR
     t = np.asarray(result.t, dtype=float)
-    times = np.unique(t)
-    if t.size > 1 and t[-1] < t[0]:
-        times = times[::-1]
     refine = case.refine
-    if p.tspan.size == 2 and refine > 1 and not result.events and times.size == t.size:
+    candidates = None  # the run's rows that can be compared (None: all)
+    if p.tspan.size == 2 and refine > 1 and not result.events and _strictly_monotonic(t):
         # Refine output: compared at the steps' ends, where the method's own solution is (the points between
         # are its interpolant's; a vector tspan of them all would cost the second solve one interpolation each)
-        times = np.concatenate([times[::refine], times[-1:]]) if (times.size - 1) % refine else times[::refine]
+        candidates = np.arange(0, t.size, refine)
+        if (t.size - 1) % refine:
+            candidates = np.append(candidates, t.size - 1)
+        times = t[candidates]
+    else:
+        times = np.unique(t)
+        if t.size > 1 and t[-1] < t[0]:
+            times = times[::-1]
     if times.size < 2:
         return {"skipped": "the run has a single output time"}
     if times.size == 2:  # a two-element tspan would mean Refine output: ask for a midpoint too
@@ -96,7 +101,12 @@ def estimate_case(result, integrate, max_steps: int | None = None, backend: str 
     start = time.perf_counter()
     try:
         options = case.updated(**changes)  # resolved again: the tighter solve's options
-        ran = _dense_solve(p, times, method, options) or integrate(p, times, p.method, options, backend or p.backend)
+        if result.backend == "compiled" and _plain(p, method):
+            # the run's own engine, with output at the compared times: no step's stages kept for an interpolant
+            ran = integrate(p, times, p.method, options, "compiled")
+        else:
+            ran = (_dense_solve(p, times, method, options)
+                   or integrate(p, times, p.method, options, backend or p.backend))
     except InputError as exc:  # e.g. h/2 over the run's step budget: no estimate, and why
         return {"skipped": f"the solve at {'h/2' if not method.adaptive else 'tighter tolerances'} could not run: "
                            f"{exc.message}"}
@@ -105,13 +115,16 @@ def estimate_case(result, integrate, max_steps: int | None = None, backend: str 
     if ran.status != "success":
         return {"skipped": f"the solve at tolerances {factor:g} times tighter did not finish: {ran.message}",
                 "tight": stats}
-    rows, tight_rows = _aligned(result, ran)
+    rows, tight_rows = _aligned(result, ran, candidates)
+    del times, candidates
     if rows.size == 0:
         return {"skipped": "no output time of the run could be compared with the tighter solve", "tight": stats}
-    run_series = result.series()
     tight_series = _series(p, ran)
-    run_values = {n: np.asarray(v)[rows] for n, v in run_series.items() if n in tight_series}
-    tight_values = {n: np.asarray(v)[tight_rows] for n, v in tight_series.items()}
+    # contiguous (a column of the solve's rows is strided): compare_solves' phase check takes windows of them
+    # point by point (np.interp, searchsorted), which would copy a strided array at each point
+    tight_values = {n: np.ascontiguousarray(np.asarray(v)[tight_rows]) for n, v in tight_series.items()}
+    del ran, tight_series  # what is left of the tighter solve is what is compared (a long run's arrays)
+    run_values = {n: np.asarray(v)[rows] for n, v in result.series().items() if n in tight_values}
     atol_map = None
     if rtol is not None:
         atol = np.broadcast_to(np.asarray(case.atol, dtype=float), (len(p.states),))
@@ -135,9 +148,7 @@ def _dense_solve(p, times: np.ndarray, method, options):
     """The tighter solve of a plain problem (no inputs, events or diagram) by a method with dense output:
     solved over the span and evaluated at ``times`` by its interpolant (``deval``, one vectorised call),
     cheaper than output at every time step by step. None where that does not apply."""
-    if (p.signals or p.events is not None or p.diagram is not None or not method.dense_output
-            or getattr(p, "fmu", None) is not None
-            or not method.adaptive or getattr(p.fun, "residual", None) is not None or not callable(p.fun)):
+    if not method.dense_output or not _plain(p, method):
         return None
     import warnings
 
@@ -159,6 +170,26 @@ def _dense_solve(p, times: np.ndarray, method, options):
                        sol.message)
 
 
+def _plain(p, method) -> bool:
+    """A plain problem (no inputs, events, diagram, FMU or residual form) solved by an adaptive method."""
+    return not (p.signals or p.events is not None or p.diagram is not None or getattr(p, "fmu", None) is not None
+                or not method.adaptive or getattr(p.fun, "residual", None) is not None or not callable(p.fun))
+
+
+def _strictly_monotonic(t: np.ndarray) -> bool:
+    """Whether ``t`` has no repeated time (increasing or decreasing), checked a block at a time: no
+    temporary the size of a long run's output."""
+    if t.size < 2:
+        return True
+    sign = 1.0 if t[-1] >= t[0] else -1.0
+    block = 1 << 16
+    for lo in range(0, t.size - 1, block):
+        piece = t[lo:lo + block + 1]
+        if not np.all(sign * np.diff(piece) > 0):
+            return False
+    return True
+
+
 def _series(p, ran) -> dict[str, np.ndarray]:
     out = {name: ran.x[:, i] for i, name in enumerate(p.states)}
     if p.output_fn is not None:
@@ -168,10 +199,19 @@ def _series(p, ran) -> dict[str, np.ndarray]:
     return out
 
 
-def _aligned(result, ran) -> tuple[np.ndarray, np.ndarray]:
+def _aligned(result, ran, candidates: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | slice]:
     """Row indices of the run and of the tighter solve at the same times, leaving out what cannot be
-    compared around events (the rows between an event of one and the same event of the other)."""
+    compared around events (the rows between an event of one and the same event of the other).
+    ``candidates``: the only rows of the run that can match (the steps' ends of Refine output), or None.
+    Where the tighter solve's times are the run's (compared) times, in order, its rows are all of them
+    (``slice(None)``)."""
     t, tt = np.asarray(result.t, dtype=float), np.asarray(ran.t, dtype=float)
+    if candidates is not None:
+        t = t[candidates]
+    run_events = [e["t"] for e in (result.events or [])]
+    tight_events = [e["t"] for e in (ran.events or [])]
+    if not run_events and not tight_events and np.array_equal(t, tt):  # output at the run's compared times
+        return (np.arange(t.size) if candidates is None else candidates), slice(None)
     tdir = 1.0 if t[-1] >= t[0] else -1.0
     order = np.argsort(tdir * tt, kind="stable")
     sorted_t = tdir * tt[order]
@@ -181,8 +221,6 @@ def _aligned(result, ran) -> tuple[np.ndarray, np.ndarray]:
     keep = match.copy()
     # a duplicated time (an event's jump) in the run: the first row is before the jump, as is the tighter
     # solve's value there only if its event is not earlier; the windows below leave those rows out
-    run_events = [e["t"] for e in (result.events or [])]
-    tight_events = [e["t"] for e in (ran.events or [])]
     shared = min(len(run_events), len(tight_events))
     for a, b in zip(run_events[:shared], tight_events[:shared]):
         lo, hi = min(a, b), max(a, b)
@@ -191,4 +229,4 @@ def _aligned(result, ran) -> tuple[np.ndarray, np.ndarray]:
         cut = run_events[shared] if len(run_events) > shared else tight_events[shared]
         keep &= tdir * (t - cut) < 0
     rows = np.flatnonzero(keep)
-    return rows, order[pos[rows]]
+    return (rows if candidates is None else candidates[rows]), order[pos[rows]]
