@@ -162,6 +162,43 @@ def test_long_run_fills_block_after_block():
         np.testing.assert_array_equal(got, want)
 
 
+class _ListSink:
+    """A spool in memory (odelab.store.spool.Spool's protocol): the blocks handed to it, copied."""
+
+    def __init__(self):
+        self.blocks, self.rows = [], 0
+
+    def append(self, t, y):
+        self.blocks.append((t.copy(), y.copy()))
+        self.rows += t.size
+
+    def arrays(self):
+        return np.concatenate([t for t, _ in self.blocks]), np.concatenate([y for _, y in self.blocks])
+
+
+def test_full_blocks_go_to_the_sink_and_the_rows_are_its():
+    from odelab.solvers.compiled import rows
+
+    a = solve_compiled(RIGID, [0, 1200], [0, 1, 1], "ode45", rtol=1e-6, atol=1e-9)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(rows, "BLOCK_BYTES", 8 * 4 * 7)  # blocks of 7 rows: whole steps of 4 rows, 5 with the first
+        sink, events = _ListSink(), _ListSink()
+        c = solve_compiled(RIGID, [0, 1200], [0, 1, 1], "ode45", rtol=1e-6, atol=1e-9, rows_to=sink)
+        d = solve_compiled(OSCILLATOR, [0, 150], [1.0, 0.0], "ode45", rtol=1e-6, atol=1e-9, rows_to=events)
+    assert [t.size for t, _ in sink.blocks[:3]] == [5, 4, 4] and sink.rows == a.t.size
+    assert c.stats == a.stats and c.status == a.status and c.message == a.message
+    np.testing.assert_array_equal(c.t, a.t)
+    np.testing.assert_array_equal(c.y, a.y)
+    e = solve_compiled(OSCILLATOR, [0, 150], [1.0, 0.0], "ode45", rtol=1e-6, atol=1e-9)
+    assert d.te.size == 72 and d.stats == e.stats and events.rows == e.t.size
+    for got, want in ((d.ie, e.ie), (d.te, e.te), (d.ye, e.ye), (d.t, e.t), (d.y, e.y)):
+        np.testing.assert_array_equal(got, want)
+    untouched = _ListSink()  # one block holds the whole run: nothing goes to the sink
+    f = solve_compiled(RIGID, [0, 1200], [0, 1, 1], "ode45", rtol=1e-6, atol=1e-9, rows_to=untouched)
+    assert untouched.rows == 0 and not untouched.blocks and f.t.flags.owndata
+    np.testing.assert_array_equal(f.y, a.y)
+
+
 def test_joined_blocks_are_the_rows_in_order():
     from odelab.solvers.compiled.rows import joined, new_block
 

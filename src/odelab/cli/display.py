@@ -10,6 +10,7 @@ from rich.text import Text
 
 from odelab.cli.grid import fits, print_grid  # noqa: F401 (print_grid re-exported)
 from odelab.experiment.studykinds import fmt_error
+from odelab.store.spool import blocks
 from odelab.terminal import shown, visible
 
 __all__ = ["HEADLINE_NOTE", "fmt", "headline_text", "pointwise_text", "print_experiment", "print_grid"]
@@ -224,8 +225,8 @@ def _extent(column) -> list[str]:
         return ["-", "-", "-"]
     values = np.asarray(column, dtype=float)
     low, high = math.inf, -math.inf
-    for lo in range(0, values.size, _EXTENT_BLOCK):  # a block at a time: no copy of a long run's column
-        piece = values[lo:lo + _EXTENT_BLOCK]
+    for piece in blocks(values, _EXTENT_BLOCK):  # a block at a time: no copy of a long run's column (a spooled
+        # run's map hands its pages back after each: odelab.store.spool)
         finite = piece[np.isfinite(piece)]
         if finite.size:
             low, high = min(low, float(finite.min())), max(high, float(finite.max()))

@@ -42,9 +42,10 @@ def _with(options, **changes):
     return {**options, **changes} if isinstance(options, dict) else options.updated(**changes)
 
 
-def solve_problem(problem, tspan, method_name: str, options, backend: str):
+def solve_problem(problem, tspan, method_name: str, options, backend: str, rows_to=None):
     """Solve a problem without inputs; returns ``(Solution, backend that ran)``. ``options``: a dict, or
-    resolved SolverOptions, which the Python path carries to the driver as they are."""
+    resolved SolverOptions, which the Python path carries to the driver as they are. ``rows_to``: the run's
+    spool (:mod:`odelab.store.spool`), where the compiled loop writes a long run's rows as its blocks fill."""
     from odelab.solvers.api import solve
     from odelab.solvers.compiled import AUTO_STEPS, solve_compiled
 
@@ -54,7 +55,7 @@ def solve_problem(problem, tspan, method_name: str, options, backend: str):
         return solve(problem.fun, tspan, problem.x0, method=method_name, resolved=opts)
 
     def compiled(opts):
-        return solve_compiled(problem.compiled, tspan, problem.x0, method_name, **given_options(opts))
+        return solve_compiled(problem.compiled, tspan, problem.x0, method_name, rows_to=rows_to, **given_options(opts))
 
     def pilot(opts):
         sol = python(_with(opts, max_steps=AUTO_STEPS))

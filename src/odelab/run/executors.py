@@ -180,7 +180,7 @@ def run_cases(cases: Iterable, *, executor: str = "serial", jobs: int | None = N
               max_steps: int | None = None, on_done: Callable[[int, int], None] | None = None,
               backend: str | None = None, on_result: Callable[[object], None] | None = None,
               limits=None, import_options=None, on_note: Callable[[str], None] | None = None,
-              estimate: bool | None = None) -> Iterator:
+              estimate: bool | None = None, spool_in=None) -> Iterator:
     """Run ``cases``; returns an iterator of each one's :class:`CaseResult` (or :class:`CaseError`), in case order.
 
     A process pool is started (its workers forked) before this returns; the cases run as the
@@ -207,6 +207,10 @@ def run_cases(cases: Iterable, *, executor: str = "serial", jobs: int | None = N
     on_note
         Called with a sentence when something happened to the run that the user should know and
         that did not change its results (a Dask worker lost mid-run: its cases ran again).
+    spool_in
+        The results folder the cases are stored in: run in this process (serially), a long compiled run
+        writes its rows beside its case's folder as it goes (``run_case``'s ``spool_in``,
+        :mod:`odelab.store.spool`). A pool's or a cluster's cases send their rows back in memory.
 
     Raises
     ------
@@ -234,7 +238,7 @@ def run_cases(cases: Iterable, *, executor: str = "serial", jobs: int | None = N
     opts = {"max_steps": max_steps, **({"backend": backend} if backend is not None else {}),  # run_case's options
             **({"estimate": estimate} if estimate is not None else {})}
     if executor == "serial":
-        return _run_serial(cases, opts, done)
+        return _run_serial(cases, {**opts, **({"spool_in": spool_in} if spool_in is not None else {})}, done)
     if executor == "process":
         return _run_pool(cases, jobs, opts, done)
     return _run_dask(cases, jobs, scheduler, opts, done, limits, import_options, on_note)

@@ -326,6 +326,7 @@ class FileRun:
     def _run(self, loaded, bad: list[str]) -> Iterator[Event]:
         from odelab.run.executors import CaseError, run_cases
         from odelab.store.results import Pace
+        from odelab.store.spool import SpoolFailed
 
         config = self.config
         cases = [case for exp in loaded for case in exp.cases]
@@ -345,7 +346,7 @@ class FileRun:
         try:  # a process pool forks its workers here, before the caller starts drawing
             stream = run_cases(cases, executor=config.executor, jobs=config.jobs, scheduler=config.scheduler,
                                max_steps=config.max_steps or None, on_done=on_done, backend=config.backend,
-                               estimate=config.estimate,
+                               estimate=config.estimate, spool_in=config.runs if config.store else None,
                                on_result=on_result, limits=config.budgets,
                                import_options=config.import_options, on_note=notes.append)
             iterator = iter(stream)
@@ -362,6 +363,8 @@ class FileRun:
                 for case in exp.cases:
                     try:
                         result = next(iterator)
+                    except SpoolFailed as exc:  # a long run's rows could not go to the results folder
+                        raise _StoreFailed(f"cannot write results to {config.runs}: {exc}") from None
                     except InputError as exc:  # a Dask scheduler that cannot be reached, or lost mid-run
                         yield from (Notice(n) for n in notes)
                         if config.store:

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import copy
+import os
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -19,12 +21,13 @@ from odelab.solvers.registry import REFERENCE_METHOD
 __all__ = ["CaseResult", "run_case", "run_experiment"]
 
 
-def _integrate(problem, tspan, method, options, backend="python") -> Integration:
+def _integrate(problem, tspan, method, options, backend="python", rows_to=None) -> Integration:
     """Solve (no inputs) or simulate (inputs, restarting at their discontinuities), a hybrid diagram or a run
     with [events]: one :class:`~odelab.store.result.Integration` whichever ran (its ``backend``: the engine,
     "python" or "compiled", see :mod:`odelab.run.backend`). ``options``: the case's resolved SolverOptions
     (:func:`~odelab.run.backend.case_options`), or a dict (a reference's). A failed integration is reported in
-    the case's result, so the solvers' SolverWarning is not repeated here.
+    the case's result, so the solvers' SolverWarning is not repeated here. ``rows_to``: the run's spool
+    (:mod:`odelab.store.spool`), used by a plain problem's compiled solve (no inputs, events or diagram).
     """
     import warnings
 
@@ -50,10 +53,10 @@ def _integrate(problem, tspan, method, options, backend="python") -> Integration
             (t, x, stats, status, message, warns, events, marks), ran = solve_events_problem(
                 problem, tspan, method, options, backend)
             return Integration(t, x, None, stats, status, message, warns, events, marks, ran)
-        return _integrate_quietly(problem, tspan, method, options, backend)
+        return _integrate_quietly(problem, tspan, method, options, backend, rows_to)
 
 
-def _integrate_quietly(problem, tspan, method, options, backend="python"):
+def _integrate_quietly(problem, tspan, method, options, backend="python", rows_to=None):
     if problem.signals:
         from odelab.run.backend import simulate_problem
 
@@ -63,7 +66,7 @@ def _integrate_quietly(problem, tspan, method, options, backend="python"):
     from odelab.run.backend import solve_problem
 
     try:
-        sol, ran = solve_problem(problem, tspan, method, options, backend)
+        sol, ran = solve_problem(problem, tspan, method, options, backend, rows_to)
     except InputError as exc:
         if exc.key != "fun":
             raise
@@ -75,12 +78,43 @@ def _integrate_quietly(problem, tspan, method, options, backend="python"):
 
 
 def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = None,
-             estimate: bool | None = None) -> CaseResult:
+             estimate: bool | None = None, spool_in: Path | None = None) -> CaseResult:
     """Run one case and compute its error table (never raises for a failed integration).
 
     ``backend`` ("auto", "python", "compiled") overrides the case's ``[solver] backend``;
     ``estimate`` (True/False) the file's ``[solver] estimate_error`` (odelab.run.estimate).
+    ``spool_in``: the results folder the case is going to be stored in (``odelab run --runs``): a long
+    compiled run writes its rows beside the case's folder as its blocks fill (:mod:`odelab.store.spool`),
+    its ``t`` and ``x`` are maps of them, and the store writes the case from them (``result.spool``).
+    A run that raises (or is interrupted) removes its spool.
     """
+    spool = _spool_for(case, spool_in)
+    if spool is None:
+        return _run_case(case, max_steps, backend, estimate, None)
+    try:
+        result = _run_case(case, max_steps, backend, estimate, spool)
+    except BaseException:
+        spool.discard()
+        raise
+    if spool.folder is not None:  # the run's rows are the spool's
+        result.spool = spool
+    return result
+
+
+def _spool_for(case: Case, runs: Path | None):
+    """The spool of a case that is going to be stored in its own folder under ``runs`` (None: in memory). A
+    [sweep]'s cases stay in memory (a sweep may store only its table), as everywhere but POSIX (a file that
+    is mapped cannot be removed on Windows)."""
+    if runs is None or case.swept or os.name != "posix" or case.problem.linearize is not None:
+        return None
+    from odelab.store.results import case_dir
+    from odelab.store.spool import Spool
+
+    return Spool(case_dir(runs, case.experiment, case.name))
+
+
+def _run_case(case: Case, max_steps: int | None, backend: str | None, estimate: bool | None,
+              spool) -> CaseResult:
     p = case.problem
     if p.linearize is not None:
         from odelab.run.linearization import run_linearization_case
@@ -94,7 +128,7 @@ def run_case(case: Case, *, max_steps: int | None = None, backend: str | None = 
         budget, capped = capped_max_steps(p.options.get("max_steps"), max_steps)
         options = options.updated(max_steps=budget)
     start = time.perf_counter()
-    run = _integrate(p, p.tspan, p.method, options, backend or p.backend)
+    run = _integrate(p, p.tspan, p.method, options, backend or p.backend, spool)
     t, x, u, stats, status, message, warnings = run.t, run.x, run.u, run.stats, run.status, run.message, run.warnings
     elapsed = time.perf_counter() - start
     if (status != "success" and max_steps and ("max_steps" not in p.options or capped) and "h" not in p.options

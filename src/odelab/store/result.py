@@ -53,6 +53,7 @@ class CaseResult:
     event_marks: np.ndarray | None = None  # per output row: 1-based number of its event, 0 for none
     backend: str = "python"  # the engine that ran: "python" or "compiled"
     estimate: dict[str, Any] | None = None  # the global error estimate (odelab.run.estimate), if one was made
+    spool: Any = None  # a long run's rows on disk (odelab.store.spool.Spool): t and x are maps of its files
 
     @property
     def unreliable(self) -> bool:

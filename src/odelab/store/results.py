@@ -47,6 +47,7 @@ from odelab.analysis.errors import HEADLINE_RULE, error_columns
 from odelab.fileio import atomic_write
 from odelab.experiment.naming import slug
 from odelab.store.result import CaseResult
+from odelab.store.spool import new_hidden_folder, release
 
 __all__ = ["RESULT_FORMAT", "Pace", "atomic_write", "case_dir", "json_safe", "summary", "sync_folders", "write_case",
            "read_run", "list_runs"]
@@ -233,7 +234,8 @@ def _trajectory_npz(columns: dict[str, np.ndarray], rows: int):
     """A writer of the ``.npz`` file, called with the open file: ``np.savez(f, names=..., data=...)``
     byte for byte (the same zip archive, member names, .npy headers and data), but the ``data``
     block is never built: its rows go to the archive a block at a time from the run's own arrays,
-    so storing a long run adds a few megabytes to its memory, not a copy of its trajectory."""
+    so storing a long run adds a few megabytes to its memory, not a copy of its trajectory (nor, for a
+    spooled run, the pages of its maps: :mod:`odelab.store.spool`)."""
     import zipfile
 
     from numpy.lib import format as npy
@@ -250,6 +252,8 @@ def _trajectory_npz(columns: dict[str, np.ndarray], rows: int):
                                                     "fortran_order": False, "shape": (rows, len(columns))})
                 for lo in range(0, rows, NPZ_BLOCK_ROWS):
                     member.write(_trajectory_block(columns, rows, lo, min(rows, lo + NPZ_BLOCK_ROWS)).tobytes())
+                    for values in columns.values():  # a spooled run's maps: their pages handed back
+                        release(values)
 
     return write
 
@@ -292,7 +296,10 @@ def write_case(result: CaseResult, runs: Path, *, mat: bool = False, durable: bo
     if mat:
         files["result.mat"] = _mat_bytes(result)
     files["result.json"] = result_json(record)
-    commit_folder(folder, files, durable=durable, unsynced=unsynced)
+    spool = result.spool
+    staged = spool.handover() if spool is not None and spool.target == folder else None
+    commit_folder(folder, files, durable=durable, unsynced=unsynced, staged=staged,
+                  drop=(spool.T_FILE, spool.X_FILE) if staged is not None else ())
     return folder
 
 
@@ -340,7 +347,8 @@ def _json(value, indent: str) -> str:
     raise _NotPlain
 
 
-def commit_folder(folder: Path, files: dict, *, durable: bool = True, unsynced: set[Path] | None = None) -> None:
+def commit_folder(folder: Path, files: dict, *, durable: bool = True, unsynced: set[Path] | None = None,
+                  staged: Path | None = None, drop: tuple[str, ...] = ()) -> None:
     """Replace ``folder`` by a folder holding exactly ``files``, atomically for readers.
 
     ``files`` maps each file's name to its text, its bytes, or a function that writes it to
@@ -352,15 +360,21 @@ def commit_folder(folder: Path, files: dict, *, durable: bool = True, unsynced: 
     before the swap removes the temporary folder and leaves the old folder untouched. If
     ``durable``, the parent folder is then flushed too, or, given ``unsynced`` and no old folder
     to remove, added to it for the caller to flush later (:func:`sync_folders`).
+
+    ``staged``: a temporary sibling folder already made (a run's spool, :mod:`odelab.store.spool`) to write
+    the files into instead of a new one; its files named in ``drop`` (the spool's raw rows, which ``files``
+    may read as they are written) are removed before the swap.
     """
     folder = Path(folder)
     parent = folder.parent
     parent.mkdir(parents=True, exist_ok=True)
-    tmp = _new_folder(parent, folder.name)
+    tmp = staged if staged is not None else new_hidden_folder(parent, folder.name)
     old: Path | None = None
     try:
         for name, data in files.items():
             _write_file(tmp / name, data.encode("utf-8") if isinstance(data, str) else data, durable)
+        for name in drop:
+            os.unlink(tmp / name)
         with _locked(parent) as parent_fd:
             if _exists(folder):
                 # a fresh hidden name (random; we hold the lock): the previous case, or whatever was there
@@ -382,17 +396,6 @@ def commit_folder(folder: Path, files: dict, *, durable: bool = True, unsynced: 
         for leftover in (tmp, old):  # the replaced case (a hidden name: no reader looks for it) or a failed write
             if leftover is not None:
                 _remove(leftover)
-
-
-def _new_folder(parent: Path, name: str) -> Path:
-    """A new hidden temporary folder ``parent/.name.XXXX.tmp`` with the usual permissions (the umask's)."""
-    while True:
-        path = parent / f".{name}.{secrets.token_hex(6)}{_TMP_SUFFIX}"
-        try:
-            os.mkdir(path, 0o777)  # the umask applies, as for any folder the user makes
-            return path
-        except FileExistsError:  # pragma: no cover - 48 random bits
-            continue
 
 
 def _write_file(path: Path, data, durable: bool) -> None:

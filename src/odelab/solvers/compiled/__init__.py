@@ -323,24 +323,26 @@ def unavailable() -> str | None:
 
 
 def solve_compiled(system: CompiledSystem, tspan, y0, method: str = DEFAULT_METHOD, *,
-                   input_bounds: tuple[float, float] = (-np.inf, np.inf), **options) -> Solution:
+                   input_bounds: tuple[float, float] = (-np.inf, np.inf), rows_to=None, **options) -> Solution:
     """Solve ``system`` with an odelab method (ode23, ode45, fixed-step, ode23s, ode15s) on the compiled path.
 
     Same arguments, options and result as :func:`odelab.solvers.api.solve` with the
     system's right-hand side; SciPy's methods are not available here. A failed integration
     returns the partial solution and issues a SolverWarning, as :func:`~odelab.solve` does.
     A system with inputs reads them at t clipped to ``input_bounds`` (one piece of
-    :func:`odelab.systems.simulate.simulate`, which restarts at the inputs' breakpoints).
+    :func:`odelab.systems.simulate.simulate`, which restarts at the inputs' breakpoints). ``rows_to``: where an
+    adaptive run's Refine output goes block by block once a block has filled (:func:`.rows.adaptive_rows`'s
+    ``sink``, a run's :class:`odelab.store.spool.Spool`); its ``t`` and ``y`` are then the sink's.
     """
     from odelab.solvers import api
 
-    sol = _solve_compiled(system, tspan, y0, method, options, input_bounds)
+    sol = _solve_compiled(system, tspan, y0, method, options, input_bounds, rows_to)
     api._warn_if_failed(sol, 3)
     return sol
 
 
 def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dict,
-                    input_bounds: tuple[float, float] = (-np.inf, np.inf)) -> Solution:
+                    input_bounds: tuple[float, float] = (-np.inf, np.inf), rows_to=None) -> Solution:
     from odelab.solvers import api
     from odelab.solvers.options import as_tspan, as_y0, normalize_options, resolve_options
     from odelab.solvers.registry import get_method
@@ -423,12 +425,13 @@ def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dic
         events(t0, y0_arr.copy(), p, v0)
         (t, y, nsteps, nfailed, nfevals, status, t_stop, h_stop, te, ye, ie) = adaptive_rows(
             kernels.loop("events"), args, (events, v0, _c(system.terminal), _c(system.direction)), n, v0.size, rows,
-            refine_output)
+            refine_output, rows_to)
         found = {"te": te, "ye": ye, "ie": ie}
     else:
         no_events = np.empty(0)
         (t, y, nsteps, nfailed, nfevals, status, t_stop, h_stop, *_) = adaptive_rows(
-            kernels.loop("adaptive"), args, (None, no_events, no_events, no_events), n, 0, rows, refine_output)
+            kernels.loop("adaptive"), args, (None, no_events, no_events, no_events), n, 0, rows, refine_output,
+            rows_to)
     message = api._status_message(status, m, t_stop, h_stop, y, y0_arr, opts, None, tspan_arr,
                                   list(found.get("te", ())), list(found.get("ie", ())),
                                   fun=_python_rhs(rhs, p, n))  # a step-limit message's stiffness check

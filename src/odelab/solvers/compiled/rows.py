@@ -4,7 +4,9 @@ Refine output (a two-element tspan) is written by the adaptive loop into blocks 
 :data:`BLOCK_BYTES` (t and the states) that :func:`adaptive_rows` gives it one after another: the
 loop returns when the next step's rows would not fit and is called again with a new block, so no
 buffer is ever copied to grow, and the joined result (:func:`joined`) is built while the blocks
-are given back, one at a time: the trajectory is never in memory twice.
+are given back, one at a time: the trajectory is never in memory twice. Given a ``sink`` (the run's
+spool, :class:`odelab.store.spool.Spool`: ``append(t, y)`` and ``arrays()``), each full block goes to it
+and the same block is filled again: the rows are on disk as the loop goes, and the run holds one block.
 """
 
 from __future__ import annotations
@@ -59,11 +61,14 @@ def joined(blocks: list, n: int) -> tuple[np.ndarray, np.ndarray]:
     return t, y
 
 
-def adaptive_rows(loop, args: tuple, tail: tuple, n: int, nevents: int, rows: int, refine_output: bool):
+def adaptive_rows(loop, args: tuple, tail: tuple, n: int, nevents: int, rows: int, refine_output: bool,
+                  sink=None):
     """Run the adaptive ``loop`` (kernels.py.txt's ``_adaptive``) with ``args`` before its output arguments
     and ``tail`` after them (the events function and its data), block after block with Refine output
     (``rows`` rows a block), else in one block of ``rows``. Returns ``(t, y, nsteps, nfailed, nfevals,
-    status, t_stop, h_stop, te, ye, ie)``, the rows joined."""
+    status, t_stop, h_stop, te, ye, ie)``, the rows joined; with a ``sink``, once a block has filled, every
+    block is appended to it and the rows are the sink's ``arrays()`` (a run that never fills a block
+    leaves the sink untouched)."""
     state = np.empty(3 + 3 * n + nevents)
     counts = np.zeros(6, dtype=np.int64)
     te = np.empty(4 * nevents + 4)
@@ -74,10 +79,20 @@ def adaptive_rows(loop, args: tuple, tail: tuple, n: int, nevents: int, rows: in
     while True:
         (t_out, y_out, count, nsteps, nfailed, nfevals, status, t_stop, h_stop, te, ye, ie, nev,
          full) = loop(*args, t_out, y_out, state, counts, te, ye, ie, *tail)
+        if full and sink is not None:  # to disk, and the same block filled again
+            sink.append(t_out[:count], y_out[:count])
+            continue
         blocks.append((t_out, y_out, count))
         if not full:
             break
         t_out, y_out = new_block(rows, n)
     del t_out, y_out
-    t, y = joined(blocks, n)
+    if sink is not None and sink.rows:
+        (bt, by, count), = blocks
+        sink.append(bt[:count], by[:count])
+        del bt, by
+        blocks.clear()
+        t, y = sink.arrays()
+    else:
+        t, y = joined(blocks, n)
     return t, y, nsteps, nfailed, nfevals, status, t_stop, h_stop, te[:nev].copy(), ye[:nev].copy(), ie[:nev].copy()
