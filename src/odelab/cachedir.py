@@ -25,8 +25,10 @@ case warnings, the report's warnings) takes them with :func:`take_notes`.
 
 from __future__ import annotations
 
+import atexit
 import hashlib
 import os
+import shutil
 import stat
 import tempfile
 from pathlib import Path
@@ -127,7 +129,6 @@ def _private_root() -> Path | None:
     except OSError:
         return None
     _PRIVATE.append((pid, folder))
-    import atexit
     import multiprocessing
     from multiprocessing import util
 
@@ -140,7 +141,6 @@ def _private_root() -> Path | None:
 
 def _remove_private(pid: int, folder: Path) -> None:
     if os.getpid() == pid:  # not in a forked worker, which shares it with its parent
-        import shutil
 
         shutil.rmtree(folder, ignore_errors=True)
 

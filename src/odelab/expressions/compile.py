@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import ast
+import copy
 import keyword
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -530,8 +531,6 @@ class PortableState:
         return other
 
     def __deepcopy__(self, memo):
-        import copy
-
         other = object.__new__(type(self))
         memo[id(self)] = other
         other.__dict__.update(copy.deepcopy(self.__dict__, memo))  # functions are copied as themselves

@@ -15,6 +15,7 @@ loader decides where matrices and ranges are allowed.
 
 from __future__ import annotations
 
+import ast
 import math
 import re
 
@@ -125,8 +126,6 @@ def colon_range(start: float, step: float, stop: float) -> np.ndarray:
 
 def indexing_hint(name: str, arguments: list) -> str | None:
     """``y(1)``: MATLAB indexing of the state vector; odelab names each state instead."""
-    import ast
-
     if len(arguments) == 1 and isinstance(arguments[0], ast.Constant) and isinstance(arguments[0].value, int):
         k = arguments[0].value
         return (f"`{name}({k})` looks like MATLAB indexing of the state vector; odelab names each state: list "

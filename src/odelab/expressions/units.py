@@ -18,6 +18,7 @@ import functools
 import math
 import re
 from dataclasses import dataclass
+from decimal import Decimal
 
 from odelab.exceptions import InputError
 
@@ -57,8 +58,6 @@ def split_unit_value(text: object) -> tuple[float, str] | None:
 
 @functools.lru_cache(maxsize=1)
 def _registry():
-    from decimal import Decimal
-
     import pint
 
     # Decimal arithmetic: 10 µF is 1e-05 F, not 9.999999999999999e-06 (10 * 1e-6 in floats)
@@ -101,8 +100,6 @@ def convert(name: str, text: str, declared: str | None, where: str) -> UnitValue
         The unit is not one pint knows, does not fit the declared unit, or the number is not finite.
     """
     from pint.errors import PintError
-
-    from decimal import Decimal
 
     number, unit = split_unit_value(text) or (None, None)
     if number is None:

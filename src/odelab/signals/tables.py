@@ -4,6 +4,7 @@ and the diagrams' lookup-table blocks) and the Table signal, read from samples o
 from __future__ import annotations
 
 import csv
+import difflib
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -155,8 +156,6 @@ class Table(Signal):
     def from_toml(cls, values: Mapping[str, Any], ctx: SignalContext) -> Table:
         """From a CSV file (``file``) or from the samples themselves (``t`` and ``values``, as MATLAB's
         ``interp1(tdata, udata, t)`` gives them)."""
-        import difflib
-
         key = ctx.key
         for k, allowed_values in (("interpolation", INTERPOLATIONS), ("extrapolation", EXTRAPOLATIONS)):
             if values[k] not in allowed_values:

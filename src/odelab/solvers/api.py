@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import math
+import os
+import traceback
 
 import numpy as np
 
 import warnings
+from dataclasses import replace
 
 from odelab.exceptions import InputError, SolverWarning
 from odelab.solution import Solution, Stats
@@ -221,7 +224,6 @@ def _warn_if_failed(sol: Solution, stacklevel: int) -> None:
 def _solve(fun, tspan, y0, method: str, options: dict | SolverOptions) -> Solution:
     sol = _solve_method(fun, tspan, y0, method, options)
     if get_method(method).stiff and sol.status == "success":  # a stiff run's result checked (plausibility.py)
-        from dataclasses import replace
 
         from odelab.solvers.plausibility import implausible
 
@@ -690,9 +692,6 @@ def _describe(exc: BaseException) -> str:
 
 def _user_line(exc: BaseException) -> str:
     """Where in the user's own code the exception was raised: 'eq1.py, line 3' (a NameError needs it)."""
-    import os
-    import traceback
-
     package = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     for frame in reversed(traceback.extract_tb(exc.__traceback__)):
         name = frame.filename

@@ -42,6 +42,8 @@ equations (``y'`` delayed; MATLAB's ``ddensd``).
 
 from __future__ import annotations
 
+import dataclasses
+import difflib
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -229,8 +231,6 @@ def _normalize(options: dict) -> dict:
             name = canonical(spelled)
             name = name if name in _ODESET_OPTIONS else None
         if name is None:
-            import difflib
-
             valid = sorted({"RelTol", "AbsTol", "MaxStep", "InitialStep", "Events", "NormControl", "InitialY",
                             "Jumps", "max_steps"})
             close = difflib.get_close_matches(str(key), valid, n=1, cutoff=0.5)
@@ -750,8 +750,6 @@ def solve_delay(fun, tspan, y0, options: dict) -> DDESolution:
     With a ``tspan`` of more than two times the result holds the solution at those times
     (interpolated on the Hermite cubics) and the statistics of the whole mesh.
     """
-    import dataclasses
-
     tspan = np.asarray(tspan, dtype=float)
     y0 = np.atleast_1d(np.asarray(y0, dtype=float)).ravel()
     opts = {k: v for k, v in options.items() if v is not None}

@@ -15,6 +15,7 @@ import re
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
+from odelab import solution
 from odelab.exceptions import InputError
 from odelab.solvers import tableau as tb
 from odelab.solvers.optionset import OPTIONS
@@ -426,8 +427,6 @@ def get_method(name: str, *, key: str = "method") -> Method:
 
 def _install_dense_methods() -> None:
     """deval's message lists the methods with dense output (odelab.solution.DENSE_METHODS)."""
-    from odelab import solution
-
     solution.DENSE_METHODS = dense_output_text
 
 

@@ -29,6 +29,9 @@ by power up to its order.
 
 from __future__ import annotations
 
+from fractions import Fraction
+from math import comb
+
 import numpy as np
 
 from odelab.solvers.tableau import ButcherTableau
@@ -414,9 +417,6 @@ def _chebyshev(coefficients) -> list:
     below 60 on [0, 1]: evaluated in double precision, the powers' cancellation would cost
     ten digits. The same polynomials in Chebyshev form have coefficients below 32.
     """
-    from fractions import Fraction
-    from math import comb
-
     q = len(coefficients)
     a = [Fraction(0)] + [Fraction(x) for x in coefficients]
     # s = (x + 1) / 2, so s^m = 2^-m sum_n binom(m, n) x^n; then x^n = 2^(1-n) sum' binom(n, j) T_(n-2j).

@@ -19,6 +19,7 @@ runs on the Python path, which has no compile cost, and moves long ones here.
 from __future__ import annotations
 
 import functools
+import importlib.util
 import weakref
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -27,9 +28,9 @@ import numpy as np
 
 from odelab.exceptions import InputError
 from odelab.solution import Solution, Stats
-from odelab.solvers.compiled.methods import method_refusal
+from odelab.solvers.compiled.methods import STIFF_METHODS, method_refusal
 from odelab.solvers.compiled.rows import adaptive_rows, block_rows
-from odelab.solvers.registry import DEFAULT_METHOD
+from odelab.solvers.registry import DEFAULT_METHOD, get_method, join_names, methods_with
 from odelab.solvers.status import Status
 
 __all__ = ["BACKENDS", "AUTO_STEPS", "COMPILE_SECONDS", "CompiledSystem", "expected_compile_seconds", "unavailable",
@@ -273,8 +274,6 @@ def expected_compile_seconds(system: CompiledSystem, loop: str = "adaptive") -> 
     (:data:`COMPILE_SECONDS`). ``backend = "auto"`` weighs it against the Python run."""
     from odelab.solvers.compiled import cache
 
-    from odelab.solvers.compiled.methods import STIFF_METHODS
-
     stiff = loop in STIFF_METHODS
     try:
         seconds = COMPILE_SECONDS["load"]
@@ -313,8 +312,6 @@ def unavailable() -> str | None:
     Looked up once per process: the search of sys.path for numba was a fifth of running a
     small case, paid by every case of a batch."""
     try:
-        import importlib.util
-
         if importlib.util.find_spec("numba") is None:
             return "numba is not installed (pip install numba)"
     except (ImportError, ValueError):  # pragma: no cover
@@ -345,7 +342,6 @@ def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dic
                     input_bounds: tuple[float, float] = (-np.inf, np.inf), rows_to=None) -> Solution:
     from odelab.solvers import api
     from odelab.solvers.options import as_tspan, as_y0, normalize_options, resolve_options
-    from odelab.solvers.registry import get_method
 
     m = get_method(method)
     refusal = method_refusal(m)
@@ -384,8 +380,6 @@ def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dic
         return api._failed_at_start(m, tspan_arr, y0_arr, opts, f"the derivative at t = {t0:g} is not finite "
                                     f"({api._fmt_vec(f0)}): check the right-hand side at the initial state")
     if system.events and not m.compiled_events:
-        from odelab.solvers.registry import join_names, methods_with
-
         raise InputError(f"the compiled backend locates [events] with "
                          f"{join_names(methods_with(lambda k: k.compiled_events))} only; the method is {m.name} "
                          f"(backend \"python\" locates them with "

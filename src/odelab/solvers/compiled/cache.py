@@ -30,7 +30,10 @@ import tempfile
 from pathlib import Path
 from types import ModuleType
 
+import numpy
+
 from odelab import cachedir
+from odelab.exceptions import InputError
 from odelab.solvers.compiled.numba_seal import guard_numba_cache
 
 __all__ = ["cache_dir", "compiled_folder", "guard_numba_cache", "is_built", "kernels_text", "load_kernels", "load_module", "module_digest"]
@@ -55,8 +58,6 @@ def compiled_folder() -> Path:
     """The checked folder of the compiled modules (numba's files in its ``__pycache__``)."""
     pycache = cachedir.cache_folder("compiled/__pycache__")
     if pycache is None:
-        from odelab.exceptions import InputError
-
         raise InputError("the compiled backend has no folder for its modules (the cache folder and a temporary "
                          "one could not be used; see the note); use backend \"python\".", key="backend")
     return pycache.parent
@@ -74,7 +75,6 @@ def load_kernels() -> ModuleType:
 
 def module_digest(text: str) -> str:
     import numba
-    import numpy
 
     stamp = f"{numba.__version__}|{numpy.__version__}|{sys.version}|{platform.machine()}\n"
     return hashlib.sha256((stamp + text).encode("utf-8")).hexdigest()

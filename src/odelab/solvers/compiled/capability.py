@@ -9,14 +9,13 @@ options'.
 from __future__ import annotations
 
 from odelab.exceptions import ExperimentError
+from odelab.solvers.compiled import PYTHON_ONLY_OPTIONS, method_refusal, unavailable
 
 __all__ = ["check_backend", "why_not_compiled"]
 
 
 def why_not_compiled(method, compiled, options=None) -> str | None:
     """Why the compiled backend cannot run this method, system and options (None if it can)."""
-    from odelab.solvers.compiled import PYTHON_ONLY_OPTIONS, method_refusal, unavailable
-
     reason = method_refusal(method)
     if reason:
         return reason

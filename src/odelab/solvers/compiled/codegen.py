@@ -17,6 +17,8 @@ import ast
 import math
 from collections.abc import Sequence
 
+import numpy as np
+
 from odelab.expressions.compile import _check_argument_name, _operands
 from odelab.expressions.functions import _BINARY, _COMPARATORS, _UNARY, CONSTANTS, FUNCTIONS
 from odelab.expressions.parse import ParsedExpression, python_name
@@ -483,8 +485,6 @@ def jacobian_source(states: Sequence[str], parameters: Sequence[str], equations:
     with the same inputs as the column's own evaluation, so each entry is the full complex
     step's to the bit, at the cost of one evaluation per structural nonzero (a chain of 100
     masses: 696 of 40,000 entries, 6 groups)."""
-    import numpy as np
-
     from odelab.solvers.banded import structural_pattern
     from odelab.solvers.numjac import column_groups
 

@@ -14,6 +14,7 @@ import importlib
 import numpy as np
 
 from odelab.exceptions import InputError
+from odelab.solvers.implicit.common import Work
 from odelab.solvers.implicit.driver import STEPS, Stepper, integrate
 from odelab.solvers.optionset import as_bool
 
@@ -95,8 +96,6 @@ def solve_implicit(fun, tspan, y0, f0, m, opts, events=None):
 
     ``events``: ``(ev, v0)`` from :func:`odelab.solvers.events.as_event_function`, or None; the
     events found are in ``work.found`` afterwards."""
-    from odelab.solvers.implicit.common import Work
-
     extra = opts.extra
     n = y0.size
     mass = extra["mass"]

@@ -31,6 +31,7 @@ import numpy as np
 
 from odelab.solvers import lu as _small
 from odelab.solvers.controller import first_step, given_step
+from odelab.solvers.dense import DenseOutput
 from odelab.solvers.ordered import matvec, norm
 
 __all__ = ["Work", "rms_or_max", "initial_step", "jacobian_times", "newton", "rate_test", "Newton",
@@ -328,7 +329,6 @@ class QuadraticSteps:
         """The steps' dense output from the collector's store (its steps' starts, sizes and ``K``)."""
         if not store.count:
             return None
-        from odelab.solvers.dense import DenseOutput
 
         return DenseOutput(t=store.t[:-1].copy(), h=np.diff(store.t), y=store.y[:-1].copy(), K=store.fields[0].copy(),
                            coefficients=np.eye(2), y_final=y_final.copy(),

@@ -20,8 +20,8 @@ from __future__ import annotations
 import numpy as np
 
 from odelab.exceptions import InputError
-from odelab.solvers.implicit.residual import ResidualWork, check_jacobian_option
-from odelab.solvers.optionset import DEFAULT_ATOL, DEFAULT_RTOL
+from odelab.solvers.implicit.residual import ResidualWork, check_jacobian_option, index_problem
+from odelab.solvers.optionset import DEFAULT_ATOL, DEFAULT_RTOL, canonical
 
 __all__ = ["decic", "DecicError"]
 
@@ -92,7 +92,6 @@ class _Plan:
     def _check(self, rankdef: int, fixed: int) -> None:
         if rankdef <= 0:
             return
-        from odelab.solvers.implicit.residual import index_problem
 
         why = index_problem(*self.partials)  # no choice of fixed components helps a DAE of index > 1
         if rankdef <= fixed and why is None:
@@ -226,8 +225,6 @@ def _residual(work: ResidualWork, t0: float, y0: np.ndarray, yp0: np.ndarray) ->
 
 
 def _options(options, n: int):
-    from odelab.solvers.optionset import canonical
-
     rtol, atol, jacobian = DEFAULT_RTOL, DEFAULT_ATOL, None
     if not isinstance(options, dict):
         raise InputError(f"`options` must be a dict such as {{'RelTol': 1e-6}}; got {options!r}.", key="options")

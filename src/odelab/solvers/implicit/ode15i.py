@@ -43,6 +43,7 @@ import numpy as np
 from odelab.exceptions import SolverWarning
 from odelab.solvers.api import solve_residual
 from odelab.solvers.controller import first_step, given_step
+from odelab.solvers.dense import query_times
 from odelab.solvers.implicit.driver import Stepper, integrate, register_step
 from odelab.solvers.implicit.residual import ResidualWork
 from odelab.solvers.plausibility import PREFIX
@@ -132,8 +133,6 @@ class ImplicitDenseOutput:
         return float(self.t[-1])
 
     def __call__(self, tq, derivative: bool = False):
-        from odelab.solvers.dense import query_times
-
         times, scalar = query_times(tq, self.t_start, self.t_end)
         t = self.t
         tdir = 1.0 if t[-1] >= t[0] else -1.0
