@@ -16,13 +16,15 @@ derivative) and lags that depend on the state or on time are refused, with the r
 from __future__ import annotations
 
 import ast
+import difflib
 import math
 from collections.abc import Mapping
 
 import numpy as np
 
 from odelab.exceptions import ExpressionError, InputError
-from odelab.expressions.compile import PortableState
+from odelab.expressions import compile_expression, compile_vector
+from odelab.expressions.compile import PortableState, _unknown_name_error
 from odelab.expressions.parse import LAG, parse_expression
 from odelab.solvers.registry import DELAY_METHOD
 
@@ -68,9 +70,6 @@ class DelayEquations(PortableState):
 
     def __init__(self, equations: Mapping[str, object], *, parameters: Mapping[str, float] | None = None,
                  history: Mapping[str, object] | None = None, source: str | None = None):
-        from odelab.expressions import compile_expression, compile_vector
-        from odelab.expressions.compile import _unknown_name_error
-
         params = {k: float(v) for k, v in (parameters or {}).items()}
         self.states = tuple(equations)
         states = self.states
@@ -152,8 +151,6 @@ class DelayEquations(PortableState):
         history = dict(history or {})
         for name in history:
             if name not in index:
-                import difflib
-
                 close = difflib.get_close_matches(name, states, n=1)
                 hint = f" Did you mean {close[0]!r}?" if close else ""
                 raise InputError(f"`history.{name}`: {name!r} is not a state ({', '.join(states)}).{hint}",

@@ -24,13 +24,15 @@ consistent slope (:meth:`ImplicitSystem.with_start`).
 from __future__ import annotations
 
 import ast
+import copy
 import difflib
 from collections.abc import Mapping, Sequence
 
 import numpy as np
 
 from odelab.exceptions import ExpressionError, InputError
-from odelab.expressions.compile import PortableState
+from odelab.expressions import compile_vector
+from odelab.expressions.compile import PortableState, _unknown_name_error
 from odelab.expressions.parse import DER, parse_expression
 from odelab.solvers.optionset import DEFAULT_ATOL, DEFAULT_RTOL
 
@@ -84,9 +86,6 @@ class ImplicitSystem(PortableState):
 
     def __init__(self, residuals: Mapping[str, object], states: Sequence[str], *,
                  parameters: Mapping[str, float] | None = None, source: str | None = None):
-        from odelab.expressions import compile_vector
-        from odelab.expressions.compile import _unknown_name_error
-
         params = {k: float(v) for k, v in (parameters or {}).items()}
         self.states = tuple(states)
         self.names = tuple(residuals)
@@ -168,8 +167,6 @@ class ImplicitSystem(PortableState):
     def partials(self, t, y, yp):
         """``(dF/dy, dF/dy')`` at ``(t, y, y')``, exact to rounding (complex step, one vectorised call)."""
         if not self._complex:
-            from odelab.expressions import compile_vector
-
             texts, args, params, keys, source = self._complex_recipe
             self._complex.append(compile_vector(texts, args=args, constants=params, keys=keys, source=source,
                                                 complex_step=True))
@@ -188,8 +185,6 @@ class ImplicitSystem(PortableState):
     def with_start(self, t0: float, y0, yp0, fixed_y0=None, fixed_yp0=None) -> "ImplicitSystem":
         """This system carrying consistent initial values (``F(t0, y0, yp0) = 0``) and which
         components decic may change at a restart (an event's reset): a shallow copy."""
-        import copy
-
         other = copy.copy(self)
         other.t0, other.y0, other.yp0 = float(t0), np.array(y0, dtype=float), np.array(yp0, dtype=float)
         other.fixed_y0 = None if fixed_y0 is None else np.array(fixed_y0, dtype=int)

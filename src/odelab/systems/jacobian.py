@@ -21,6 +21,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 import numpy as np
 
+from odelab.expressions import compile_vector, parse_expression
 from odelab.expressions.compile import Portable
 
 __all__ = ["ComplexStepJacobian", "MatrixJacobian", "complex_step_jacobian", "expression_jacobian"]
@@ -52,8 +53,6 @@ class ComplexStepJacobian:
 
     def __call__(self, t, y):
         if self._compiled is None:
-            from odelab.expressions import compile_vector
-
             self._compiled = compile_vector(list(self.equations), args=["t", *self.states],
                                             constants=dict(self.parameters), keys=self.keys, source=self.file,
                                             complex_step=True)
@@ -66,7 +65,6 @@ class ComplexStepJacobian:
         """Where ``J`` can be nonzero: entry (i, j) where equation i names state j (the stiff solvers factor
         banded when it allows, :mod:`odelab.solvers.banded`)."""
         if self._pattern is None:
-            from odelab.expressions import parse_expression
             from odelab.solvers.banded import structural_pattern
 
             known = {"t", *self.states, *self.parameters}
@@ -79,8 +77,6 @@ class ComplexStepJacobian:
 def expression_jacobian(matrix: Sequence[Sequence[str | float]], states: Sequence[str],
                         parameters: Mapping[str, float], *, key: str = "system.jacobian", source: str | None = None):
     """``J(t, y)`` from an n-by-n matrix of expressions in ``t``, the states and parameters."""
-    from odelab.expressions import compile_vector
-
     n = len(states)
     texts = [entry for row in matrix for entry in row]
     keys = [f"{key}[{i}][{j}]" for i in range(n) for j in range(n)]

@@ -35,7 +35,7 @@ from odelab.exceptions import InputError
 from odelab.systems.common import as_initial_state
 from odelab.signals import Signal, as_signals
 from odelab.solution import Solution, Stats
-from odelab.solvers.registry import DEFAULT_METHOD
+from odelab.solvers.registry import DEFAULT_METHOD, get_method
 
 __all__ = ["Response", "simulate"]
 
@@ -226,8 +226,6 @@ def whole_span_max_step(options: dict, method: str, t0: float, tf: float, *, cut
     """``options`` with MATLAB's default MaxStep for the *whole* span, 0.1 |tf - t0|, when the
     span is cut into pieces and the user set none (each piece would otherwise get a tenth of
     itself); only for the methods that choose their own steps."""
-    from odelab.solvers.registry import get_method
-
     if not cut or any(_is_max_step(key) and value is not None for key, value in options.items()):
         return options
     if not get_method(method).matlab_defaults:  # MATLAB's MaxStep default: a tenth of the span

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+from odelab.signals import Signal
 from odelab.systems.diagram.blocks import (
     BLOCKS, Block, BlockError, Clock, DeadZone, Demux, Fcn, Gain, Integrator, Mux, Product, Saturation, Source,
     StateSpaceBlock, Sum, TransferFcn,
@@ -54,8 +55,6 @@ class Diagram:
 
     def add(self, name: str, block) -> "Diagram":
         """Add a block (or a signal, as a source block); returns the diagram."""
-        from odelab.signals import Signal
-
         if isinstance(block, Signal):
             block = Source(block, kind=type(block).__name__.lower())
         if not isinstance(block, Block):

@@ -20,6 +20,7 @@ from typing import ClassVar
 import numpy as np
 
 from odelab.exceptions import InputError
+from odelab.expressions import compile_vector
 from odelab.systems.diagram.base import (BLOCKS, REQUIRED, ZC_KEY, Block, BlockError, Key, _broadcast_width, _column,
                                          _real, _scalar, controller_canonical, polynomial_pair, register)
 
@@ -311,8 +312,6 @@ class Fcn(Block):
         super().__init__(**kw)
 
     def setup(self, widths):
-        from odelab.expressions import compile_vector
-
         total = sum(widths)
         names = ["u"] if total == 1 else []
         names += [f"u{i + 1}" for i in range(total)]

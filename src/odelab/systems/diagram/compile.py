@@ -17,12 +17,17 @@ so its Jacobians (its linear model about an operating point) are exact too.
 
 from __future__ import annotations
 
+import difflib
+from functools import partial
+
 import numpy as np
 
+from odelab import signals as sg
 from odelab.exceptions import InputError
 from odelab.solvers.registry import DEFAULT_METHOD
 from odelab.systems.diagram.blocks import Clock
 from odelab.systems.diagram.graph import DiagramError, Wiring
+from odelab.systems.diagram.ratelimit import signal_slope
 
 __all__ = ["AlgebraicLoopError", "CompiledDiagram"]
 
@@ -36,16 +41,12 @@ class CompiledDiagram:
 
     def __init__(self, wiring: Wiring, *, states: list[str] | None = None, t0: float = 0.0,
                  zero_crossing: bool = True, loop_note: bool = True):
-        from odelab import signals as sg
-
         self.wiring = wiring
         blocks = wiring.blocks
         holders = [n for n, b in blocks.items() if b.nstates]
         if states is not None:
             for i, name in enumerate(states):
                 if name not in blocks or not blocks[name].nstates:
-                    import difflib
-
                     close = difflib.get_close_matches(str(name), holders, n=1)
                     hint = f" Did you mean `{close[0]}`?" if close else ""
                     raise DiagramError(f"`system.states[{i}]`: {name!r} is not a block with state ({', '.join(holders)})."
@@ -207,8 +208,6 @@ class CompiledDiagram:
         """d/dt of the signal into block ``name`` along the trajectory at (t, x) with the sources'
         values ``u``: a complex step of the evaluation in the direction (1, x', the sources'
         slopes), exact to round-off (the sources' slopes are taken inside ``slope_window``)."""
-        from odelab.systems.diagram.ratelimit import signal_slope
-
         lo, hi = self.slope_window
         t = float(t)
         x = np.asarray(x, dtype=float)
@@ -320,8 +319,6 @@ class CompiledDiagram:
         return StateSpace(A, B, C, D, states=self.states, inputs=self.inputs, outputs=self.outputs)
 
     def _nonlinear(self):
-        from functools import partial
-
         from odelab.systems.nonlinear import NonlinearSystem
 
         # bound methods and partials of them, not lambdas: the system pickles with the diagram
@@ -342,8 +339,6 @@ class CompiledDiagram:
 
         w = self.wiring
         if at not in w.blocks or w.blocks[at].SOURCE:
-            import difflib
-
             names = [n for n, b in w.blocks.items() if not b.SOURCE]
             close = difflib.get_close_matches(str(at), names, n=1)
             hint = f" Did you mean `{close[0]}`?" if close else ""

@@ -16,6 +16,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from odelab.exceptions import InputError
 from odelab.systems.diagram.base import REQUIRED, Block, BlockError, Key, _scalar, controller_canonical, polynomial_pair, register
 
 __all__ = ["ZeroOrderHold", "UnitDelay", "DiscreteTransferFcn", "DiscreteStateSpace", "DiscretePID"]
@@ -208,7 +209,6 @@ class DiscreteStateSpace(_Discrete):
     DOC = "x[k+1] = Ax + Bu, y = Cx + Du"
 
     def check_discrete(self):
-        from odelab.exceptions import InputError
         from odelab.systems.statespace import StateSpace
 
         p = self.params

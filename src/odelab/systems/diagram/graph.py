@@ -11,6 +11,7 @@ evaluated in any order, and it is refused with the loop printed in signal-flow o
 from __future__ import annotations
 
 import difflib
+from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -103,8 +104,6 @@ LOOP_POLICIES = ("warning", "none", "error", "solve")
 
 
 def _topological(declared, edges):
-    from collections import deque
-
     indegree = {n: 0 for n in declared}
     for src in declared:
         for dst in edges[src]:
@@ -124,8 +123,6 @@ def _topological(declared, edges):
 def _on_cycles(declared, edges, order):
     """The blocks on cycles (in declaration order): drop those whose feedthrough successors are
     all ordered, by a worklist over the reversed edges (linear in the diagram's size)."""
-    from collections import deque
-
     done = set(order)
     left = {n for n in declared if n not in done}
     succ_left = {n: sum(1 for m in edges[n] if m in left) for n in left}

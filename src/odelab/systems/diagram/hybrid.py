@@ -24,8 +24,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from odelab.exceptions import InputError
 from odelab.solution import Stats
-from odelab.solvers.registry import DEFAULT_METHOD
+from odelab.solvers.registry import DEFAULT_METHOD, get_method
 from odelab.systems.simulate import Response, piece_window, whole_span_max_step
 
 __all__ = ["HybridResponse", "simulate_hybrid", "needs_hybrid"]
@@ -54,8 +55,6 @@ def needs_hybrid(diagram, zero_crossing: bool = True) -> bool:
 
 
 def _locates(method: str) -> bool:
-    from odelab.solvers.registry import get_method
-
     m = get_method(method)
     return m.events and not m.delays  # it locates zero crossings (ODE methods with Events)
 
@@ -133,8 +132,6 @@ class _HybridRun:
             self.notes.append(f"{method} locates no events: zero crossings are stepped over (use ode45, ode23, "
                               "ode15s...)")
         if sw.stepped and not _locates(method):
-            from odelab.exceptions import InputError
-
             raise InputError(f"the relay `{sw.stepped[0]}` switches at the end of a step, which {method} does not "
                              "report; use ode45, ode23, ode113 or a stiff solver.", key="solver.method")
 

@@ -14,6 +14,8 @@ import math
 
 import numpy as np
 
+from odelab.systems.diagram.base import BlockError
+
 __all__ = ["SampleTime", "sample_time", "hits"]
 
 
@@ -46,8 +48,6 @@ class SampleTime(tuple):
 
 def sample_time(value, key: str = "sample_time") -> SampleTime:
     """Check a ``sample_time`` value: a positive number, or ``[Ts, offset]`` with 0 <= offset < Ts."""
-    from odelab.systems.diagram.base import BlockError
-
     vals = list(value) if isinstance(value, (list, tuple, np.ndarray)) else [value]
     try:
         nums = [float(v) for v in vals]

@@ -9,6 +9,8 @@ output after the run, a linearisation) a block reads its mode off its inputs.
 
 from __future__ import annotations
 
+import difflib
+
 import numpy as np
 
 from odelab.systems.diagram.base import ZC_KEY, Block, BlockError, Key, _broadcast_width, _column, _real, _scalar, register
@@ -104,8 +106,6 @@ class Switch(Block):
     def check(self):
         crit = self.params["criteria"]
         if crit not in _CRITERIA:
-            import difflib
-
             close = difflib.get_close_matches(str(crit), _CRITERIA, n=1)
             hint = f" Did you mean {close[0]!r}?" if close else ""
             raise BlockError(f"`criteria` is {crit!r}; use one of {', '.join(repr(c) for c in _CRITERIA)} "

@@ -19,6 +19,8 @@ located, as for a saturation's corners, so a table is not smeared by the step si
 
 from __future__ import annotations
 
+import difflib
+
 import numpy as np
 
 from odelab.signals.tables import (
@@ -43,8 +45,6 @@ __all__ = ["LookupTable"]
 
 
 def _choice(block, key, allowed):
-    import difflib
-
     value = block.params[key]
     if value not in allowed:
         close = difflib.get_close_matches(str(value), allowed, n=1)

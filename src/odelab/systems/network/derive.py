@@ -20,6 +20,7 @@ Everything is symbolic in the parameters: ``d(mass.v)/dt = (f - b*mass.v - k*mas
 
 from __future__ import annotations
 
+import difflib
 import random
 from dataclasses import dataclass, field
 from fractions import Fraction
@@ -92,8 +93,6 @@ class _Parser:
         parsed = parse_expression(value, key=path, names=names)  # a parameter `e` shadows the constant e
         extra = [n for n in parsed.names if n not in names]
         if extra and law_of is not None:
-            import difflib
-
             listed = ", ".join(f"`{n}`" for n in extra)
             close = difflib.get_close_matches(extra[0], list(allowed), n=1)
             hint = f" Did you mean `{close[0]}`?" if close else ""

@@ -19,6 +19,7 @@ source drives its current into a; a voltage source's ``i`` leaves it at a).
 
 from __future__ import annotations
 
+import difflib
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -206,8 +207,6 @@ _MEANINGS = {"mass": "m", "stiffness": "k", "spring_constant": "k", "damping": "
 
 
 def _unknown_key(cls_or_self, name, key) -> str:
-    import difflib
-
     known = cls_or_self.keys()
     close = difflib.get_close_matches(key, known, n=1)
     meant = _MEANINGS.get(key.lower()) or _MEANINGS.get(key)
@@ -435,8 +434,6 @@ ELEMENTS: dict[str, type[Element]] = {cls.TYPE: cls for cls in (
 def suggest_element(word: str) -> str | None:
     """The element type a student most likely means: one whose ``ALSO`` words hold ``word`` (a resistance
     is a resistor before it is a fluid or thermal resistance), else the closest type name."""
-    import difflib
-
     key = word.strip().lower().replace("_", "-").replace(" ", "-")
     for cls in ELEMENTS.values():
         if key in cls.ALSO:
@@ -448,8 +445,6 @@ def suggest_element(word: str) -> str | None:
 
 def element_class(kind: Any, name: str = "") -> type[Element]:
     """The class of an element type name, or a NetworkError with the valid types (did-you-mean)."""
-    import difflib
-
     if isinstance(kind, str) and kind in ELEMENTS:
         return ELEMENTS[kind]
     close = suggest_element(str(kind))
