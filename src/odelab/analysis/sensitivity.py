@@ -30,6 +30,7 @@ from typing import Callable
 
 import numpy as np
 
+from odelab.exceptions import SolverWarning
 from odelab.solvers.registry import SENSITIVITY_METHOD
 
 __all__ = ["ParametricModel", "SensitivitySolution", "solve_sensitivities", "observe", "STEP"]
@@ -112,7 +113,6 @@ def solve_sensitivities(model: ParametricModel, p, times, *, t0: float, tf: floa
     come from the solver's own output at a vector tspan (its interpolant, as MATLAB's
     ``deval``). The span is cut at the model's breakpoints and the solver restarted there.
     """
-    from odelab.exceptions import SolverWarning
     from odelab.solvers.api import solve
 
     p = np.asarray(p, dtype=float)
