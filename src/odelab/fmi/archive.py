@@ -11,7 +11,9 @@ absurd counts of variables or event indicators, and a binary missing for this pl
 from __future__ import annotations
 
 import os
+import platform
 import stat
+import sys
 import tempfile
 import xml.etree.ElementTree as ET
 import zipfile
@@ -106,9 +108,6 @@ def _read_description(path: Path, data: bytes) -> ET.Element:
 
 def _platform() -> tuple[str, str]:
     """This machine's binaries/ folder in FMI 2 and in FMI 3, and the library suffix."""
-    import platform
-    import sys
-
     machine = platform.machine().lower()
     arch3 = {"x86_64": "x86_64", "amd64": "x86_64", "aarch64": "aarch64", "arm64": "aarch64"}.get(machine, machine)
     system = {"Linux": ("linux", "linux"), "Darwin": ("darwin", "darwin"), "Windows": ("win", "windows")}.get(
