@@ -20,7 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from odelab.formats.base import Document, ImportOptions, Note
+from odelab.exceptions import ExperimentError
+from odelab.formats.base import IGNORED, Document, ImportOptions, Note
 
 __all__ = ["read", "workspace", "plain_value", "is_experiment", "EXPLAIN"]
 
@@ -77,8 +78,6 @@ def read(path: Path, options: ImportOptions | None = None) -> Document:
     """
     from odelab.formats.matlab.source import read_source
     from odelab.formats.matlab.translate import translate
-
-    from odelab.exceptions import ExperimentError
 
     raw = read_source(Path(path))
     try:
@@ -139,7 +138,6 @@ def workspace(paths: list[Path], sets=()) -> tuple[dict[str, Any], list[Note]]:
     ExperimentError
         A script odelab refuses (it calls ``system``, ``eval``...), or cannot read at all.
     """
-    from odelab.formats.base import IGNORED
     from odelab.formats.matlab.machine import make_interpreter
     from odelab.formats.matlab.parser import parse_text
     from odelab.formats.matlab.scope import Notes, Scope

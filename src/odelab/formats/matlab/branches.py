@@ -19,8 +19,21 @@ from odelab.formats.base import IGNORED
 from odelab.formats.matlab import nodes as n
 from odelab.formats.matlab import ops
 from odelab.formats.matlab.flow import (BreakLoop, ContinueLoop, ErrorCalled, Failure, ReturnNow, assigned_names)
-from odelab.formats.matlab.values import (Arr, Call, Cell, Const, Param, ParamDef, ResultRef, Str, Struct, Sym, Unknown,
-                                          Unsupported)
+from odelab.formats.matlab.values import (
+    Arr,
+    Call,
+    Cell,
+    Const,
+    Op,
+    Param,
+    ParamDef,
+    ResultRef,
+    Str,
+    Struct,
+    Sym,
+    Unknown,
+    Unsupported,
+)
 
 __all__ = ["run_if", "run_switch", "run_for", "run_while", "condition"]
 
@@ -44,8 +57,6 @@ def condition(interp, expr: n.Expr, scope):
     items = [ops.truth(i) for i in value.all_items()]
     combined = items[0]
     for item in items[1:]:
-        from odelab.formats.matlab.values import Op
-
         combined = Op("*", combined, item)
     return combined
 

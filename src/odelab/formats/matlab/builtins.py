@@ -23,8 +23,22 @@ from odelab.exceptions import ExperimentError
 from odelab.formats.base import IGNORED
 from odelab.formats.matlab import nodes as n
 from odelab.formats.matlab import ops
-from odelab.formats.matlab.values import (Arr, Call, Cell, Const, FuncValue, Named, Op, SolverOutput, Str,
-                                          Struct, Sym, Unknown, Unsupported)
+from odelab.formats.matlab.values import (
+    Arr,
+    Call,
+    Cell,
+    Const,
+    FuncValue,
+    Named,
+    Op,
+    SolverOutput,
+    Str,
+    Struct,
+    StructArray,
+    Sym,
+    Unknown,
+    Unsupported,
+)
 
 __all__ = ["BUILTINS", "SOLVERS", "PLOTTING", "command", "linspace"]
 
@@ -494,7 +508,6 @@ def _shape_of(interp, value) -> tuple[int, int]:
         return (1, len(value.text))
     if isinstance(value, (Struct, FuncValue)):
         return (1, 1)
-    from odelab.formats.matlab.values import StructArray
 
     if isinstance(value, StructArray):
         return (1, len(value.items))

@@ -14,10 +14,24 @@ from typing import Any
 
 import numpy as np
 
+from odelab.exceptions import ExperimentError
 from odelab.formats.base import GAP, IGNORED, TRANSLATED
 from odelab.formats.matlab import nodes as n
-from odelab.formats.matlab.values import (Arr, FuncValue, Op, ResultRef, SolverOutput, State, Str, Struct, Sym,
-                                          Time, Unknown, Unsupported)
+from odelab.formats.matlab.values import (
+    Arr,
+    Call,
+    FuncValue,
+    Op,
+    ResultRef,
+    SolverOutput,
+    State,
+    Str,
+    Struct,
+    Sym,
+    Time,
+    Unknown,
+    Unsupported,
+)
 
 __all__ = ["SolverCall", "Recorder", "MAX_CASES"]
 
@@ -66,8 +80,6 @@ class Recorder:
             if previous is not None:
                 return _outputs(previous, nargout)
         if len(self.calls) >= MAX_CASES:
-            from odelab.exceptions import ExperimentError
-
             raise ExperimentError(f"line {node.line}: the file calls a solver more than {MAX_CASES} times (loops "
                                   "unrolled); a parameter study is an experiment file's [sweep].", source=scope.file)
         if interp.loops:
@@ -231,8 +243,6 @@ def _reset_of(call: SolverCall) -> dict[int, Sym]:
 
 
 def _at_event(item: Sym) -> Sym:
-    from odelab.formats.matlab.values import Call
-
     if isinstance(item, ResultRef):
         return State(item.index) if item.kind == "y_end" else Time()
     if isinstance(item, Op):

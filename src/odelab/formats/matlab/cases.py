@@ -14,8 +14,8 @@ import numpy as np
 
 from odelab.formats.base import GAP, IGNORED, TRANSLATED
 from odelab.formats.matlab.calls import SolverCall
-from odelab.formats.matlab.exprtext import Namer
-from odelab.formats.matlab.system import Reading, element_gap, read_function, state_names
+from odelab.formats.matlab.exprtext import Namer, _reserved_words
+from odelab.formats.matlab.system import Reading, definition_site, element_gap, read_function, state_names
 from odelab.formats.matlab.values import (Arr, Const, FuncValue, Param, Str, Struct, TooBig, Unknown, Unsupported)
 
 __all__ = ["CaseSpec", "build_case", "KEY_ORDER"]
@@ -78,7 +78,6 @@ def build_case(interp, call: SolverCall, name: str, inputs: dict) -> CaseSpec:
     implicit = call.method == "ode15i"
     reading = read_function(interp, call.fun, call.states, call.extras, 1, flag="" if call.flag else None,
                             derivatives=implicit)
-    from odelab.formats.matlab.exprtext import _reserved_words
 
     names = state_names(reading, call.states, _reserved_words())
     namer = Namer(names, list(interp.inputs))
@@ -114,7 +113,6 @@ def build_case(interp, call: SolverCall, name: str, inputs: dict) -> CaseSpec:
 def _system(b: _Builder, reading: Reading, names: list[str], namer: Namer) -> None:
     call = b.call
     fn = call.fun
-    from odelab.formats.matlab.system import definition_site
 
     file, line, fname = definition_site(b.interp, fn)
     system: dict[str, Any] = {"states": names}

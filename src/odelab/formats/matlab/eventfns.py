@@ -12,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from odelab.formats.base import IGNORED
-from odelab.formats.matlab.system import read_function
+from odelab.formats.matlab.system import definition_site, read_function
 from odelab.formats.matlab.values import Arr, FuncValue, Str, Struct, TooBig, Unsupported
 
 __all__ = ["build_events"]
@@ -73,7 +73,6 @@ def build_events(b, namer, names: list[str]) -> None:
         b.gap(("events",), "the events function's isterminal and direction must be constants (one per event)")
         return
     table: dict = {}
-    from odelab.formats.matlab.system import definition_site
 
     file, line, fname = definition_site(b.interp, fv)
     where = Path(file).name if file else b.file

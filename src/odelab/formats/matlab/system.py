@@ -15,8 +15,18 @@ from dataclasses import dataclass, field
 
 from odelab.formats.matlab import nodes as n
 from odelab.formats.matlab.flow import ErrorCalled
-from odelab.formats.matlab.values import (Arr, FuncValue, ResultRef, State, Str, Time, TooBig, Unknown,
-                                          Unsupported)
+from odelab.formats.matlab.values import (
+    Arr,
+    Deriv,
+    FuncValue,
+    ResultRef,
+    State,
+    Str,
+    Time,
+    TooBig,
+    Unknown,
+    Unsupported,
+)
 
 __all__ = ["Reading", "read_function", "state_names", "uses_flag", "definition_site", "element_gap"]
 
@@ -46,8 +56,6 @@ def read_function(interp, fv: FuncValue, states: int, extras: list, nargout: int
                   time_only: bool = False, flag: str | None = None, derivatives: bool = False) -> Reading:
     """Call ``fv(t, y, extras...)`` on symbols (``flag`` inserts MATLAB 5's flag argument; ``derivatives`` passes
     y' as ode15i's third argument, ``f(t, y, yp)``)."""
-    from odelab.formats.matlab.values import Deriv
-
     t = Arr.scalar(Time())
     y = Arr(states, 1, items=[State(i) for i in range(states)])
     args = [t] if time_only else [t, y]

@@ -18,8 +18,10 @@ from odelab.exceptions import ExperimentError
 from odelab.formats.base import GAP, TRANSLATED, Document, ImportOptions
 from odelab.formats.emit import Entry, Section, write_toml
 from odelab.formats.matlab import nodes as n
+from odelab.formats.matlab.branches import _solver_calls
 from odelab.formats.matlab.calls import Recorder
 from odelab.formats.matlab.cases import CaseSpec, build_case
+from odelab.formats.matlab.exprtext import identifier
 from odelab.formats.matlab.machine import make_interpreter
 from odelab.formats.matlab.parser import parse_text
 from odelab.formats.matlab.scope import Notes, Scope
@@ -82,8 +84,6 @@ def parse_sets(sets, interp) -> dict:
 
 
 def _has_solver_call(body: list[n.Stmt]) -> bool:
-    from odelab.formats.matlab.branches import _solver_calls
-
     return bool(_solver_calls([body]))
 
 
@@ -291,8 +291,6 @@ def assemble(specs: list[CaseSpec], title: str) -> list[Section]:
 
 
 def _problem_names(specs: list[CaseSpec]) -> list[str]:
-    from odelab.formats.matlab.exprtext import identifier
-
     names = []
     for spec in specs:
         base = identifier(spec.function if spec.function != "anonymous" else spec.name.replace(" ", "_"), set())

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 __all__ = ["BY_SOURCE", "BY_TYPE", "PHYSICAL_LIBRARIES", "PHYSICAL_TYPES", "SINKS", "mapped_types"]
 
 #: blocks of the physical-modelling libraries (Simscape and its electrical, mechanical, fluid families)
@@ -318,7 +320,6 @@ def _zero_pole(c):
     if zeros.sym is not None or poles.sym is not None or gain.sym is not None:
         c.gap("a Zero-Pole block of parameters: write it as a Transfer Fcn of the same parameters", "transfer-fcn")
         return
-    import numpy as np
 
     num = float(gain.num.reshape(-1)[0]) * np.real(np.poly(zeros.num.reshape(-1)))
     den = np.real(np.poly(poles.num.reshape(-1)))

@@ -15,6 +15,7 @@ import numpy as np
 
 from odelab.formats.simulink.mexpr import MExprError, V, evaluate, text_of
 from odelab.formats.simulink.tree import Node
+from odelab.formats.simulink.workspace import _statements
 
 __all__ = ["charts", "function_outputs"]
 
@@ -45,8 +46,6 @@ def charts(nodes: list[Node]) -> dict[str, str]:
 
 def function_outputs(script: str, lookup) -> tuple[list[str], str]:
     """(each output's odelab expression of u1, u2..., "") or ([], why not)."""
-    from odelab.formats.simulink.workspace import _statements
-
     statements = [s for _, s in _statements(script)]
     if not statements:
         return [], "the function is empty"

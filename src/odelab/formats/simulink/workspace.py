@@ -18,6 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
+from odelab.exceptions import OdelabError
+from odelab.formats.base import IGNORED, Note
 from odelab.formats.simulink.mexpr import MExprError, V, evaluate
 
 __all__ = ["CALLBACKS", "MAX_SCRIPTS", "Assignment", "Workspace", "assignments", "read_workspace"]
@@ -161,9 +163,6 @@ def _flatten(name: str, value, out: dict) -> None:
 def _read_with(reader, scripts: list[Path], wanted: set[str]):
     """The MATLAB reader's ``workspace`` on ``scripts``: (assignments, its notes about the wanted names); a script it
     refuses (it calls ``system``, ``eval``...) is a note, never the model's failure."""
-    from odelab.exceptions import OdelabError
-    from odelab.formats.base import IGNORED, Note
-
     source = ", ".join(p.name for p in scripts)
     try:
         values, notes = reader(scripts)
