@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import difflib
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -71,7 +72,6 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
     signals, input_fn = _case_inputs(model, built, path, tspan, limits, resolved)
     method, options, backend, solver_options = _case_solver(model, built, params, tspan, limits, resolved)
     if implicit:  # decic: consistent x0 and x'0 at load time, or the file's keys to change
-        from dataclasses import replace
 
         x0, fun, _ = consistent_start(model, built, x0, slopes, fixed, params, float(tspan[0]), options, resolved)
         built = replace(built, fun=fun)
@@ -139,7 +139,6 @@ def with_units_converted(model: schema.Experiment) -> tuple[schema.Experiment, l
 
     if not any(split_unit_value(v) for v in texts):
         return model, []  # pint is imported only when a unit appears
-    from odelab.exceptions import InputError
     from odelab.expressions.units import convert
 
     units = model.units or {}

@@ -45,6 +45,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError
 
 from odelab.exceptions import ExperimentError, InputError
 from odelab.experiment import schema
+from odelab.solvers.registry import get_method
 
 __all__ = ["FitSpec", "FitCase", "parse_fit", "fit_experiment", "fit_summary"]
 
@@ -251,8 +252,6 @@ def parse_fit(raw: Any, cases, models, original: dict, *, path: Path, file_hash:
 
 
 def _fit_method(name: str) -> str:
-    from odelab.solvers.registry import get_method
-
     method = get_method(name, key="fit.method")
     if not method.adaptive or method.stiff or method.delays:  # sensitivities: an adaptive explicit method
         raise ExperimentError(f"`fit.method` is {name!r}; states and sensitivities are integrated by an adaptive "

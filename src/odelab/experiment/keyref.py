@@ -12,6 +12,7 @@ reference page both read :func:`entries`.
 from __future__ import annotations
 
 import difflib
+import textwrap
 import types
 import typing
 from dataclasses import dataclass, field
@@ -609,8 +610,6 @@ def _suggest(key: str) -> list[str]:
 
 def describe(entry: KeyEntry, width: int = 78) -> str:
     """The reference entry as plain text (what ``odelab explain`` prints)."""
-    import textwrap
-
     lines = [f"{entry.path}  ({entry.type})"]
     if entry.text:
         lines.append(textwrap.fill(entry.text, width, initial_indent="  ", subsequent_indent="  "))

@@ -22,6 +22,7 @@ from odelab.experiment.limits import DEFAULT_LIMITS, Limits, check_count
 from odelab.experiment.naming import NAME_RULE, check_experiment_names, folder_key, slug  # noqa: F401 (re-exported)
 from odelab.formats import ImportOptions, read
 from odelab.experiment.schema_errors import describe_value, schema_error  # noqa: F401 (schema_error re-exported)
+from odelab.solvers.optionset import canonical as option_name
 
 __all__ = ["Case", "LoadedExperiment", "Problem", "load_experiment", "load_experiments", "merge", "slug"]
 
@@ -327,7 +328,6 @@ def _normalize_solver(config: dict, src: str, case: str | None) -> dict:
     solver = config.get("solver")
     if not isinstance(solver, dict):
         return config
-    from odelab.solvers.optionset import canonical as option_name
 
     out: dict[str, Any] = {}
     origin: dict[str, str] = {}

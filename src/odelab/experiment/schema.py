@@ -14,6 +14,7 @@ from typing import Annotated, Any, Literal, Optional, Union
 from pydantic import (BaseModel, ConfigDict, Field, StrictBool, StrictFloat, StrictInt, StrictStr, WrapValidator,
                       create_model)
 
+from odelab.solvers.optionset import OPTIONS
 from odelab.solvers.registry import DEFAULT_METHOD, SENSITIVITY_METHOD
 
 Number = Union[StrictInt, StrictFloat]
@@ -86,8 +87,6 @@ def solver_model() -> type[BaseModel]:
     """The model of [solver]: ``method``, every option of :data:`odelab.solvers.optionset.OPTIONS` that a file can
     give (MATLAB's names are mapped to odelab's before validation), ``backend`` and ``zero_crossing``. Rebuilt when
     an option is registered, so a solver option is one declaration in one file."""
-    from odelab.solvers.optionset import OPTIONS
-
     shape = tuple((o.name, o.toml, o.choices) for o in OPTIONS.values() if o.toml)
     model = _SOLVER_MODELS.get(shape)
     if model is None:

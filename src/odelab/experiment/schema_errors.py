@@ -8,7 +8,7 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from odelab.exceptions import ExperimentError
+from odelab.exceptions import ExperimentError, InputError
 
 __all__ = ["describe_value", "schema_error"]
 
@@ -103,7 +103,6 @@ def _required_hint(key: str) -> str:
 def _unit_hint(text: str, key: str) -> str:
     """A value with a unit where a plain number is read: the number it is in SI, converted by pint, so the
     fix never drops a unit (a student told to write 100 for "100 cm" makes the model 100 times wrong)."""
-    from odelab.exceptions import InputError
     from odelab.expressions.units import convert
 
     try:

@@ -20,6 +20,7 @@ from odelab.experiment import schema
 from odelab.experiment.build import SIGNAL_KEYS, _matrix, build_signal
 from odelab.experiment.cases import Built
 from odelab.experiment.fields import constant
+from odelab.experiment.userfiles import resolve_user_file
 
 __all__ = ["build_diagram", "block_types"]
 
@@ -103,7 +104,6 @@ def _source(name: str, spec: dict, path: Path, params: dict[str, float], max_row
 def _table_file(values: dict, key: str, path: Path, max_rows: int | None):
     """A lookup table's ``file``: (breakpoints, values) from a CSV of two columns."""
     from odelab import signals as sg
-    from odelab.experiment.userfiles import resolve_user_file
 
     csv = resolve_user_file(values["file"], f"{key}.file", path)
     if not csv.is_file():

@@ -10,6 +10,7 @@ allows it (``odelab run --allow-native``, :func:`odelab.fmi.allow_native`).
 from __future__ import annotations
 
 import difflib
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -94,6 +95,4 @@ def build_fmu(model: schema.Experiment, params: dict[str, float], path: Path, li
 
 def _with_inputs(fmu, inputs):
     """The FMU's model with only the inputs the case drives (the others keep their start values)."""
-    from dataclasses import replace
-
     return replace(fmu, inputs=tuple(inputs), _classes=fmu._classes)

@@ -32,7 +32,7 @@ import numpy as np
 from odelab.exceptions import ExperimentError, InputError
 from odelab.experiment import schema
 from odelab.experiment.cases import Built
-from odelab.experiment.fields import constant
+from odelab.experiment.fields import constant, expr
 from odelab.solvers.optionset import DEFAULT_ATOL, DEFAULT_RTOL
 from odelab.solvers.registry import join_names, methods_with
 from odelab.systems.outputs import ExpressionOutputs
@@ -50,7 +50,6 @@ def is_implicit_system(built: Built) -> bool:
 def build_implicit(model: schema.Experiment, params: dict[str, float]) -> Built:
     """The system of [system.residuals] (and [system.outputs], expressions of t and the states)."""
     from odelab.experiment.build import check_names
-    from odelab.experiment.fields import expr
     from odelab.systems.implicit import ImplicitSystem
 
     system = model.system

@@ -17,6 +17,7 @@ import numpy as np
 from odelab.exceptions import ExperimentError, InputError
 from odelab.experiment import schema
 from odelab.experiment.cases import Built
+from odelab.expressions.compile import compile_vector
 from odelab.systems.fields import ExpressionField, LinearField
 from odelab.systems.outputs import ExpressionOutputs, LinearOutputs
 
@@ -68,7 +69,6 @@ def network_of(model: schema.Experiment, params: dict[str, float]):
 
 def build_network(model: schema.Experiment, params: dict[str, float]) -> Built:
     """A system from [elements]: linear networks become StateSpace systems, others equations."""
-    from odelab.expressions.compile import compile_vector
     from odelab.solvers.compiled import CompiledSystem
 
     net = network_of(model, params)
