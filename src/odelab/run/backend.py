@@ -16,10 +16,14 @@ the price of not guessing.
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from odelab.exceptions import InputError
-from odelab.solvers.options import given_options
+from odelab.solution import Solution, Stats
+from odelab.solvers.options import as_tspan, given_options, resolved_for
+from odelab.solvers.registry import get_method
 
 __all__ = ["solve_problem", "simulate_problem", "solve_events_problem", "run_hybrid", "case_options"]
 
@@ -28,9 +32,6 @@ def case_options(problem):  # -> odelab.solvers.options.SolverOptions
     """A case's solver options as resolved once at load (``Problem.solver_options``), carried to the driver;
     resolved here from ``problem.options`` only for a problem built otherwise, or whose options were replaced
     since (``dataclasses.replace``)."""
-    from odelab.solvers.options import resolved_for
-    from odelab.solvers.registry import get_method
-
     resolved = problem.solver_options
     if resolved is not None and resolved.given_as(problem.options):
         return resolved
@@ -154,11 +155,8 @@ def _choose(problem, tspan, method_name, options, backend, python, compiled, pil
     """Run ``python(options)`` or ``compiled(options)`` as ``backend`` says (see the module
     docstring); ``pilot(options)`` is the Python run within the budget and None, or None and the
     time it reached when the budget ran out."""
-    import time
-
     from odelab.solvers.compiled import AUTO_STEPS, expected_compile_seconds
     from odelab.solvers.compiled.capability import why_not_compiled
-    from odelab.solvers.registry import get_method
 
     method = get_method(method_name)
     reason = why_not_compiled(method, problem.compiled, given_options(options))
@@ -171,7 +169,6 @@ def _choose(problem, tspan, method_name, options, backend, python, compiled, pil
     if backend == "auto":
         if not method.adaptive:
             from odelab.solvers.api import fixed_grid
-            from odelab.solvers.options import as_tspan, resolved_for
 
             tspan_arr = as_tspan(tspan)
             opts = resolved_for(method, options, tspan_arr, problem.x0.size)  # the case's, as resolved at load
@@ -205,7 +202,6 @@ def run_stateless(problem, tspan, options):  # -> Integration
     """A diagram without state (sources through gains to outputs): evaluated at its output times as Simulink
     evaluates such a model (every MaxStep, the span over 50 by default, and at the sources' jumps), its
     algebraic loops solved at each point; nothing is integrated."""
-    from odelab.solution import Stats
     from odelab.store.result import Integration
 
     d = problem.diagram
@@ -233,7 +229,6 @@ def run_hybrid(problem, tspan, method: str, options, backend: str):  # -> Integr
     options = given_options(options)  # each piece resolves them for its span
     if problem.events is not None:  # [events]: their resets and records, each piece on the hybrid driver
         from odelab.experiment.events import solve_with_events
-        from odelab.solution import Solution
 
         seen: list[str] = []
 

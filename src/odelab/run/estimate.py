@@ -12,9 +12,11 @@ the two do not share. What is on by default, and its cost: docs/guide/trust.md.
 from __future__ import annotations
 
 import time
+import warnings
 
 import numpy as np
 
+from odelab.exceptions import InputError, SolverWarning
 from odelab.run.backend import case_options
 from odelab.solvers.registry import get_method
 
@@ -96,7 +98,6 @@ def estimate_case(result, integrate, max_steps: int | None = None, backend: str 
         return {"skipped": "the run has a single output time"}
     if times.size == 2:  # a two-element tspan would mean Refine output: ask for a midpoint too
         times = np.array([times[0], 0.5 * (times[0] + times[1]), times[1]])
-    from odelab.exceptions import InputError
 
     start = time.perf_counter()
     try:
@@ -150,9 +151,7 @@ def _dense_solve(p, times: np.ndarray, method, options):
     cheaper than output at every time step by step. None where that does not apply."""
     if not method.dense_output or not _plain(p, method):
         return None
-    import warnings
 
-    from odelab.exceptions import InputError, SolverWarning
     from odelab.solvers.api import solve
     from odelab.store.result import Integration
 

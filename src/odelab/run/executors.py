@@ -28,11 +28,19 @@ process that started them dies (:mod:`odelab.run.lifeline`).
 from __future__ import annotations
 
 import dataclasses
+import importlib.machinery
+import io
 import math
 import os
+import signal
+import sys
+import threading
+import time
+import types
 from pathlib import Path
 from typing import Callable, Iterable, Iterator
 
+from odelab import __version__
 from odelab.exceptions import InputError
 
 __all__ = ["EXECUTORS", "CaseError", "ClusterLost", "POOL_WORTHWHILE", "case_cost", "default_jobs", "run_cases", "schedule", "small_work"]
@@ -167,8 +175,6 @@ def _failed(item) -> bool:
 def _init_worker(parent: int) -> None:
     """A pool worker exits with its parent, and leaves Ctrl-C to it (the parent stops the pool
     and reports what finished)."""
-    import signal
-
     from odelab.run.lifeline import exit_with_parent
 
     exit_with_parent(parent)
@@ -449,11 +455,7 @@ def _travelling(cases) -> Callable[[int], object]:
 def travels(case) -> bool:
     """Whether a built case can be sent to another process as it is: it pickles, and every module its pickle
     names can be imported there by name (not a user's function file, loaded here from its path)."""
-    import importlib.machinery
-    import io
     import pickle
-    import sys
-    import types
 
     dispatch = dict(pickle._Pickler.dispatch)  # its table calls save_global unbound: route it to the override
     dispatch[types.FunctionType] = dispatch[types.BuiltinFunctionType] = lambda self, obj: self.save_global(obj)
@@ -477,8 +479,6 @@ def travels(case) -> bool:
 
 def _dask_results(cases, jobs, scheduler, opts, done, Client, LocalCluster, wait, limits=None, import_options=None,
                   on_note=None):
-    import time
-
     cluster = None
     if scheduler:
         client = _dask_client(scheduler, Client)
@@ -538,8 +538,6 @@ class _ClusterWatch:
 
     def check_versions(self, addresses: set[str]) -> None:
         """Refuse workers whose odelab is not this process's (the results would mix versions)."""
-        from odelab import __version__
-
         info = self.client.get_versions(packages=["odelab"])
         for address in sorted(addresses):
             worker = info["workers"].get(address) or {}
@@ -630,7 +628,6 @@ def _dask_client(scheduler: str, Client):
     under a deadline of our own.
     """
     import asyncio
-    import threading
 
     where = f"the Dask scheduler at {scheduler!r}"
     fix = "Check the address (tcp://host:8786) and that `dask scheduler` is running there."

@@ -20,8 +20,10 @@ from __future__ import annotations
 
 import os
 import signal
+import subprocess
 import sys
 import threading
+import time
 
 __all__ = ["POLL_SECONDS", "exit_with_parent", "tied_command"]
 
@@ -45,7 +47,6 @@ def _parent_death_signal(sig: int) -> bool:
 
 
 def _watch(parent: int) -> None:  # pragma: no cover - the fallback where prctl is missing
-    import time
 
     while True:
         if os.getppid() != parent:
@@ -86,8 +87,6 @@ def _run_tied(parent: int, argv: list[str]) -> int:  # pragma: no cover - runs i
         return 1
     if armed:
         os.execvp(argv[0], argv)
-    import subprocess
-    import time
 
     child = subprocess.Popen(argv)
     while child.poll() is None:

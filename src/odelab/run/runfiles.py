@@ -10,6 +10,8 @@ finished, nothing half-written, and propagates; if it reaches the caller between
 
 from __future__ import annotations
 
+import contextlib
+import sys
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -185,9 +187,6 @@ def _native(allowed: bool):
     """``allow_native(allowed)`` (``--allow-native``: files may load FMUs, whose binaries run in this
     process). Nothing to set where odelab.fmi was never imported: nothing can have allowed them, and a run
     without FMUs does not import it."""
-    import contextlib
-    import sys
-
     if not allowed and "odelab.fmi.native" not in sys.modules:
         return contextlib.nullcontext()
     from odelab.fmi.native import allow_native

@@ -5,14 +5,24 @@ from __future__ import annotations
 import copy
 import os
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from odelab.analysis.errors import summarize
+from odelab.exceptions import InputError, SolverWarning
 from odelab.experiment.cases import Case, LoadedExperiment
+from odelab.experiment.limits import capped_max_steps
 from odelab.experiment.loader import load_experiment
-from odelab.run.backend import case_options
+from odelab.run.backend import (
+    case_options,
+    run_hybrid,
+    run_stateless,
+    simulate_problem,
+    solve_events_problem,
+    solve_problem,
+)
 from odelab.store.result import CaseResult, Integration
 from odelab.solution import Stats
 from odelab.solvers.options import given_options
@@ -29,10 +39,6 @@ def _integrate(problem, tspan, method, options, backend="python", rows_to=None) 
     the case's result, so the solvers' SolverWarning is not repeated here. ``rows_to``: the run's spool
     (:mod:`odelab.store.spool`), used by a plain problem's compiled solve (no inputs, events or diagram).
     """
-    import warnings
-
-    from odelab.exceptions import SolverWarning
-
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SolverWarning)
         if getattr(problem, "fmu", None) is not None:  # kind = "fmu": odelab's solvers step the FMU
@@ -40,16 +46,10 @@ def _integrate(problem, tspan, method, options, backend="python", rows_to=None) 
 
             return Integration(*run_fmu(problem, tspan, method, given_options(options)))
         if problem.diagram is not None and not problem.diagram.states:
-            from odelab.run.backend import run_stateless
-
             return run_stateless(problem, tspan, options)
         if problem.diagram is not None and problem.diagram.hybrid:
-            from odelab.run.backend import run_hybrid
-
             return run_hybrid(problem, tspan, method, options, backend)
         if problem.events is not None:
-            from odelab.run.backend import solve_events_problem
-
             (t, x, stats, status, message, warns, events, marks), ran = solve_events_problem(
                 problem, tspan, method, options, backend)
             return Integration(t, x, None, stats, status, message, warns, events, marks, ran)
@@ -58,12 +58,8 @@ def _integrate(problem, tspan, method, options, backend="python", rows_to=None) 
 
 def _integrate_quietly(problem, tspan, method, options, backend="python", rows_to=None):
     if problem.signals:
-        from odelab.run.backend import simulate_problem
-
         r, ran = simulate_problem(problem, tspan, method, options, backend)
         return Integration(r.t, r.x, r.u, r.stats, r.status, r.message, (), backend=ran)
-    from odelab.exceptions import InputError
-    from odelab.run.backend import solve_problem
 
     try:
         sol, ran = solve_problem(problem, tspan, method, options, backend, rows_to)
@@ -123,8 +119,6 @@ def _run_case(case: Case, max_steps: int | None, backend: str | None, estimate: 
     options = case_options(p)  # resolved once, at load
     capped = False
     if max_steps and "h" not in p.options:
-        from odelab.experiment.limits import capped_max_steps
-
         budget, capped = capped_max_steps(p.options.get("max_steps"), max_steps)
         options = options.updated(max_steps=budget)
     start = time.perf_counter()
@@ -168,8 +162,6 @@ def _run_case(case: Case, max_steps: int | None, backend: str | None, estimate: 
                                "reached the end of its span: remove `expect` if that is now right.")
     _drawings(result, p)
     if p.analysis is not None:
-        from odelab.exceptions import InputError
-
         try:
             result.extra["analysis"] = analyze_problem(p)
         except InputError as exc:  # e.g. no equilibrium to linearise about
