@@ -29,12 +29,14 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import io
 import json
 import math
 import os
 import platform
 import secrets
 import shutil
+import time
 from datetime import datetime, timezone
 from importlib import metadata
 from json.encoder import encode_basestring_ascii
@@ -42,7 +44,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import tomli_w
 
+from odelab import __version__  # the one `odelab --version` prints (tests/experiment/test_store.py: the same
+# as the installed metadata's): a metadata lookup fewer at every start
 from odelab.analysis.errors import HEADLINE_RULE, error_columns
 from odelab.fileio import atomic_write
 from odelab.experiment.naming import slug
@@ -90,14 +95,10 @@ class Pace:
         self._next: dict[Any, float] = {}
 
     def due(self, key) -> bool:
-        import time
-
         return time.monotonic() >= self._next.get(key, -math.inf)
 
     @contextlib.contextmanager
     def timed(self, key):
-        import time
-
         start = time.monotonic()
         try:
             yield
@@ -136,9 +137,6 @@ def versions() -> dict[str, str | None]:
             return metadata.version(dist)
         except metadata.PackageNotFoundError:
             return None
-
-    from odelab import __version__  # the one `odelab --version` prints (tests/experiment/test_store.py: the same
-    # as the installed metadata's): a metadata lookup fewer at every start
 
     return {"odelab": __version__, "numpy": np.__version__, "scipy": version("scipy"),
             "python": platform.python_version()}
@@ -272,8 +270,6 @@ def write_case(result: CaseResult, runs: Path, *, mat: bool = False, durable: bo
     ``unsynced``: the case's experiment folder is added to it instead of being flushed now;
     the caller flushes the set with :func:`sync_folders` (see the module's docstring).
     """
-    import tomli_w
-
     case = result.case
     folder = case_dir(runs, case.experiment, case.name)
     record = summary(result)
@@ -477,8 +473,6 @@ def _resolved_toml(result: CaseResult, tomli_w) -> str:
 
 
 def _mat_bytes(result: CaseResult) -> bytes:
-    import io
-
     from scipy.io import savemat
 
 

@@ -6,6 +6,9 @@ writes them atomically and is the one place that knows the format's name and ver
 
 from __future__ import annotations
 
+import csv
+import io
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
@@ -23,8 +26,6 @@ SWEEP_FORMAT = "odelab-sweep/1"
 
 def sweep_record(exp, results) -> dict[str, Any]:
     """What ``sweep.json`` holds: the sweep, its rows, the study's result and provenance."""
-    from datetime import datetime, timezone
-
     from odelab.store.results import versions
 
     rows = sweep_rows(results)
@@ -52,9 +53,6 @@ def sweep_record(exp, results) -> dict[str, Any]:
 
 def sweep_csv(record: dict[str, Any]) -> str:
     """The sweep as one table a spreadsheet opens: a row per case."""
-    import csv
-    import io
-
     from odelab.fileio import spreadsheet_cell
 
     rows = record["rows"]
