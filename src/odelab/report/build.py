@@ -17,6 +17,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Iterable
 
+from odelab import __version__
 from odelab.exceptions import InputError
 from odelab.fileio import atomic_write
 
@@ -203,7 +204,6 @@ def build_report(
     InputError
         If ``runs`` is not a folder, a format is unknown, or a template is missing or broken.
     """
-    from odelab import __version__
     from odelab.analysis.errors import HEADLINE_RULE
     from odelab.report.collect import collect_runs
     from odelab.report.content import build_sections

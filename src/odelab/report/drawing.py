@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import os
 import signal
+import threading
 from collections.abc import Iterable
 
 import numpy as np
@@ -126,7 +127,6 @@ def _draw_in_pool(specs: list, jobs: int) -> list[bytes]:
     die with this process (:func:`odelab.run.lifeline.exit_with_parent`) and are
     joined before it returns."""
     import multiprocessing
-    import threading
 
     from odelab.report import plots
 

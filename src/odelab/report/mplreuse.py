@@ -27,6 +27,7 @@ the dpi, not on the renderer), so each label is parsed once a process.
 
 from __future__ import annotations
 
+import sys
 from contextlib import contextmanager
 
 __all__ = ["forked", "renderer", "ticks_once"]
@@ -104,8 +105,6 @@ def forked() -> None:
     hints"). Matplotlib empties its own font cache in a forked child for that reason; the parses
     go too, and the child parses again with fonts of its own (the grammar, the costly part, is
     kept)."""
-    import sys
-
     mathtext = sys.modules.get("matplotlib.mathtext")
     if mathtext is not None:
         mathtext.MathTextParser._parse_cached.cache_clear()

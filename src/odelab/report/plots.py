@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import io
 import math
+import textwrap
 import zlib
 from dataclasses import dataclass
 
@@ -206,8 +207,6 @@ def _limit_decades(ax, panel: Panel, log_x: bool) -> None:
 
 
 def _draw_panel(ax, panel: Panel, columns: int = 1) -> None:
-    import textwrap
-
     log_x, log_y = panel.xscale == "log", panel.yscale == "log"
     drawn = 0
     # the sparser of two marked lines goes on top, so its markers are never hidden

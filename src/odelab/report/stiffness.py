@@ -17,6 +17,7 @@ import numpy as np
 
 from odelab.report.collect import StoredRun
 from odelab.report.plots import FigureSpec, Line, Panel, axis_label, method_style
+from odelab.solvers.registry import METHODS
 
 __all__ = ["StiffnessView", "stiffness_view"]
 
@@ -40,8 +41,6 @@ STIFF_STEP_RATIO = 5.0
 
 
 def _method(name: str):
-    from odelab.solvers.registry import METHODS
-
     return METHODS.get(name)
 
 
