@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from odelab.exceptions import InputError
 from odelab.grading.compare import NameMap, fmt
 from odelab.grading.rubric import STEPINFO_METRICS, CheckSpec
 
@@ -245,8 +246,6 @@ def _matrices(problem):
 
 def evaluate_matrix(check: CheckSpec, ref_case, stu_case, names: NameMap, differences) -> Outcome:
     """A kind = "matrix" check: the student's A, B, C or D (in the reference's order of states and inputs)."""
-    from odelab.exceptions import InputError
-
     M = check.matrix
     ref, why = _matrices(ref_case.problem)
     if ref is None:  # pragma: no cover - refused when the rubric is checked

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from odelab.exceptions import InputError
+from odelab.exceptions import ExperimentError, InputError
 from odelab.experiment.limits import DEFAULT_LIMITS, Limits
 from odelab.grading.checks import Outcome, evaluate, evaluate_matrix, evaluate_solver, failed
 from odelab.grading.compare import differences, name_map, same_system
@@ -427,7 +427,6 @@ def _shown(student: Student, f: StudentFile) -> str:
 def _load_student_file(student: Student, f: StudentFile, limits: Limits, allow_python: bool,
                        allow_native: bool = False):
     """A student's file loaded as ``odelab run`` loads it, confined to their folder; or the InputError why not."""
-    from odelab.exceptions import ExperimentError
     from odelab.experiment.loader import load_experiments
     from odelab.experiment.userfiles import confined_to
 
