@@ -9,14 +9,21 @@ would cost it a compile and an eval each (18 ms of a start, against 4).
 """
 
 import contextlib
+import os
+import signal
 import sys
+import textwrap
+import warnings
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
 
 from odelab import __version__
-from odelab.run.runfiles import error_text, expand_paths
+from odelab.exceptions import InputError
+from odelab.run import runfiles as rf
+from odelab.run.runfiles import RunConfig, Terminated, error_text, expand_paths, run_files
 
 app = typer.Typer(
     name="odelab",
@@ -75,8 +82,6 @@ def _one_blas_thread() -> None:
     unless the user's environment says otherwise. ``run`` and ``grade`` make thousands of tiny
     calls (a 2-by-2 expm per case, a small LU per step), where OpenBLAS's threads only contend:
     8 ms an expm on a busy 2-core machine, 35 us on one thread; --jobs runs processes instead."""
-    import os
-
     for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, "1")
 
@@ -84,8 +89,6 @@ def _one_blas_thread() -> None:
 def _consoles(width: int | None = None):
     """The output and error consoles. Their width: ``--width``, else ``COLUMNS``, else the terminal's; piped
     or redirected with neither, 200 (a table is never cut to 80 columns for a file)."""
-    import os
-
     from rich.console import Console
 
     if width is None:
@@ -152,12 +155,9 @@ def run(
     ] = False,
 ) -> None:
     """Run experiments: solve every case, print the error tables and store the results."""
-    import warnings
-
     _one_blas_thread()  # before numpy's import
 
     from odelab.run.executors import EXECUTORS
-    from odelab.run.runfiles import RunConfig, run_files
 
     # Everything worth saying (RelTol raised, equilibrium residuals...) reaches the user as a
     # note in the output; Python's own warning lines would only repeat it.
@@ -201,10 +201,6 @@ def _import_options(workspace, sets, call, err, output=None):
 def _stopped_by_signals(err, what: str):
     """Ctrl-C (exit 130) and SIGTERM (exit 143) stop the command with one line saying ``what`` of its
     output (it writes each file whole or not at all), no traceback."""
-    import signal
-
-    from odelab.run.runfiles import Terminated
-
     def on_term(signum, frame):
         raise Terminated()
 
@@ -221,9 +217,6 @@ def _stopped_by_signals(err, what: str):
 
 def _limits(max_steps: int, limit: list[str] | None, err):
     """The run's budgets from --max-steps and --limit NAME=N (a bad --limit is a usage error, exit 2)."""
-    from dataclasses import replace
-
-    from odelab.exceptions import InputError
     from odelab.experiment.limits import DEFAULT_LIMITS, parse_limit
 
     limits = replace(DEFAULT_LIMITS, steps=max_steps)
@@ -239,10 +232,6 @@ def _limits(max_steps: int, limit: list[str] | None, err):
 def _draw_run(run, out, err, *, runs, json_out: bool, table: bool) -> None:
     """Draw a run's events (odelab.run.runfiles): errors, a progress bar, each experiment's tables or one
     JSON document; Ctrl-C and SIGTERM stop it cleanly (finished cases stay stored, nothing half-written)."""
-    import signal
-
-    from odelab.run.runfiles import Terminated
-
     def on_term(signum, frame):
         raise Terminated()
 
@@ -267,8 +256,6 @@ def _draw_run(run, out, err, *, runs, json_out: bool, table: bool) -> None:
 
 def _draw_events(events, out, err, *, runs, json_out: bool, table: bool) -> int:
     """The exit code, after drawing every event."""
-    from odelab.run import runfiles as rf
-
     report_json = {"experiments": []}
     progress = task = None
     with contextlib.ExitStack() as stack:
@@ -394,9 +381,6 @@ def report(
                                                 metavar="N", help="Figures drawn at once (processes).")] = None,
 ) -> None:
     """Build the lab report (HTML and Markdown, with plots and error tables) from stored runs."""
-    import warnings
-
-    from odelab.exceptions import InputError
     from odelab.report import build_report
 
     warnings.simplefilter("ignore")
@@ -428,7 +412,6 @@ def _experiment_names(given: list[str] | None) -> list[str]:
     for item in given or []:
         path = Path(item)
         if is_experiment_file(path) and path.suffix.lower() == ".toml" and path.is_file():
-            from odelab.exceptions import InputError
             from odelab.formats.toml import read_toml
 
             try:
@@ -451,7 +434,6 @@ def validate(
                                                                metavar="NAME=N")] = None,
 ) -> None:
     """Check experiment files without running them (with the budgets `odelab run` would use)."""
-    from odelab.exceptions import InputError
     from odelab.experiment.loader import load_experiments
     from odelab.experiment.naming import check_experiment_names
 
@@ -497,7 +479,6 @@ def export(
                                      "(FMI 3.0).", metavar="2|3")] = 2,
 ) -> None:
     """Export a case as an FMU (FMI 2.0 or 3.0, Model Exchange and Co-Simulation) for other simulation tools."""
-    from odelab.exceptions import InputError
     from odelab.experiment.loader import load_experiment
     from odelab.fmi import export as export_fmu
 
@@ -568,10 +549,7 @@ def grade(
                                                "it runs the machine code inside them.")] = False,
 ) -> None:
     """Grade a class's experiment files against a reference: summary.csv, feedback, results.json."""
-    import warnings
-
     _one_blas_thread()
-    from odelab.exceptions import InputError
 
     warnings.simplefilter("ignore")
     out_console, err = _consoles()
@@ -623,7 +601,6 @@ def import_(
 
     Exit 0: everything translated; 1: written with gaps to fill in (marked GAP:); 2: nothing usable."""
     from odelab.cli.import_view import print_import
-    from odelab.exceptions import InputError
     from odelab.formats import read
 
     out_console, err = _consoles()
@@ -656,8 +633,6 @@ def import_(
 
 def _write_import(target: Path, text: str, force: bool) -> str | None:
     """Write the imported experiment file; why not (it would replace a file odelab import did not write)."""
-    import os
-
     if target.exists() and not force:
         try:
             with open(target, encoding="utf-8", errors="replace") as fh:
@@ -685,7 +660,6 @@ def network(
 ) -> None:
     """Show how a network's equations are derived (element laws, interconnection laws, states,
     state equations; A, B, C, D and transfer functions if linear). Runs nothing."""
-    from odelab.exceptions import InputError
     from odelab.cli.network_view import describe_file
 
     out, err = _consoles()
@@ -741,8 +715,6 @@ def explain(
                                                  show_default=False, metavar="[KEY]")] = None,
 ) -> None:
     """Print the reference entry of an experiment-file key: type, default, choices, MATLAB names."""
-    import textwrap
-
     from odelab.experiment.keyref import entries, explain as entry_text
     from odelab.terminal import visible
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 from rich.cells import cell_len
 from rich.console import Console
 from rich.text import Text
@@ -163,8 +165,6 @@ _SHORT = {"points": "pts", "failed": "fail", "fevals": "fev", "evaluations": "ev
 
 def _camel(name: str) -> str:
     """MATLAB's CamelCase titles with a space where a line may break (SettlingTime: Settling Time)."""
-    import re
-
     return re.sub(r"(?<=[a-z])(?=[A-Z])", " ", name)
 
 

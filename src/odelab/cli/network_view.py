@@ -10,6 +10,7 @@ from pathlib import Path
 
 from odelab.exceptions import ExperimentError, InputError
 from odelab.experiment import schema
+from odelab.experiment.fields import expr
 from odelab.experiment.loader import load_experiments
 from odelab.experiment.kinds.network import network_of
 
@@ -56,7 +57,6 @@ def describe_file(path, width: int = 80) -> str:
 
 def _describe_base(path, width: int) -> str:
     """The derivation from a file's base tables alone (a file whose [inputs] are still missing)."""
-    from odelab.experiment.fields import expr
     from odelab.formats.toml import read_toml
     from odelab.systems.network.show import derivation_text
 
