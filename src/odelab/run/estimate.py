@@ -19,6 +19,7 @@ import numpy as np
 from odelab.exceptions import InputError, SolverWarning
 from odelab.run.backend import case_options
 from odelab.solvers.registry import get_method
+from odelab.store.spool import release, take
 
 __all__ = ["estimate_case", "estimate_warning", "wants_estimate", "UNRELIABLE"]
 
@@ -89,7 +90,7 @@ def estimate_case(result, integrate, max_steps: int | None = None, backend: str 
         candidates = np.arange(0, t.size, refine)
         if (t.size - 1) % refine:
             candidates = np.append(candidates, t.size - 1)
-        times = t[candidates]
+        times = take(t, candidates)
     else:
         times = np.unique(t)
         if t.size > 1 and t[-1] < t[0]:
@@ -125,14 +126,15 @@ def estimate_case(result, integrate, max_steps: int | None = None, backend: str 
     # point by point (np.interp, searchsorted), which would copy a strided array at each point
     tight_values = {n: np.ascontiguousarray(np.asarray(v)[tight_rows]) for n, v in tight_series.items()}
     del ran, tight_series  # what is left of the tighter solve is what is compared (a long run's arrays)
-    run_values = {n: np.asarray(v)[rows] for n, v in result.series().items() if n in tight_values}
+    # gathered a block at a time: a spooled run's maps hand their pages back (odelab.store.spool)
+    run_values = {n: take(v, rows) for n, v in result.series().items() if n in tight_values}
     atol_map = None
     if rtol is not None:
         atol = np.broadcast_to(np.asarray(case.atol, dtype=float), (len(p.states),))
         atol_map = {name: float(a) for name, a in zip(p.states, atol)}
     from odelab.analysis.estimate import compare_solves
 
-    est = compare_solves(t[rows], run_values, tight_values, factor=factor, proportion=proportion, rtol=rtol,
+    est = compare_solves(take(t, rows), run_values, tight_values, factor=factor, proportion=proportion, rtol=rtol,
                          atol=atol_map, advice=ADVICE)
     out = est.as_dict()
     out["tight"] = stats
@@ -186,6 +188,7 @@ def _strictly_monotonic(t: np.ndarray) -> bool:
         piece = t[lo:lo + block + 1]
         if not np.all(sign * np.diff(piece) > 0):
             return False
+        release(t)  # a spooled run's map: its pages handed back
     return True
 
 
@@ -206,7 +209,7 @@ def _aligned(result, ran, candidates: np.ndarray | None = None) -> tuple[np.ndar
     (``slice(None)``)."""
     t, tt = np.asarray(result.t, dtype=float), np.asarray(ran.t, dtype=float)
     if candidates is not None:
-        t = t[candidates]
+        t = take(t, candidates)
     run_events = [e["t"] for e in (result.events or [])]
     tight_events = [e["t"] for e in (ran.events or [])]
     if not run_events and not tight_events and np.array_equal(t, tt):  # output at the run's compared times
