@@ -61,3 +61,37 @@ def test_a_broken_tableau_is_rejected_at_construction():
                        b=np.array([0.5, 0.5]), order=2)
     with pytest.raises(ValueError, match="implicit"):
         ButcherTableau(name="implicit", c=np.array([0.5]), A=np.array([[0.5]]), b=np.array([1.0]), order=1)
+
+
+def _shipped_tableaux():
+    """Every ButcherTableau held by a module of odelab.solvers (built with verify=False at import)."""
+    import importlib
+    import pkgutil
+
+    import odelab.solvers
+
+    found = {}
+    for info in pkgutil.walk_packages(odelab.solvers.__path__, "odelab.solvers."):
+        module = importlib.import_module(info.name)
+        for name, value in vars(module).items():
+            if isinstance(value, ButcherTableau):
+                found[value.name] = value
+    return found
+
+
+def test_every_shipped_tableau_passes_its_checks():
+    """The shipped constants skip the checks at import; here every one of them is verified."""
+    found = _shipped_tableaux()
+    assert {t.name for t in ALL} <= set(found) and len(found) >= len(ALL) + 2  # with Verner's 8(7), 9(8)
+    for tab in found.values():
+        tab.verify()  # raises ValueError naming the failed condition
+
+
+def test_verify_catches_a_typo_in_a_shipped_tableau():
+    """verify=False only defers the checks: the same coefficients with one digit wrong fail verify()."""
+    A = tb.DP54.A.copy()
+    A[3, 1] += 1e-6
+    c = A.sum(axis=1)
+    typo = ButcherTableau(name="DP54 typo", c=c, A=A, b=tb.DP54.b, order=5, verify=False)
+    with pytest.raises(ValueError, match=r"order-\d condition gives"):
+        typo.verify()

@@ -2,9 +2,12 @@
 
 Every method odelab integrates itself is one of these constants plus a registry entry: the
 one stepping engine (:mod:`odelab.solvers.engine`) reads the arrays, it never special-cases
-a method. A tableau checks its own invariants when it is built (row sums, consistency,
-the order conditions up to its order, the error weights and the continuous extension), so
-a typo in a coefficient fails at import, not in a user's results.
+a method. A tableau checks its own invariants (row sums, consistency, the order conditions
+up to its order, the error weights and the continuous extension): one built by a user is
+checked when it is built; the shipped ones are built with ``verify=False`` (the checks cost
+about 35 M instructions at import, a tenth of a second of every run's start-up) and checked
+by ``tests/solvers/test_tableau.py``, which calls :meth:`ButcherTableau.verify` on every
+shipped tableau, so a typo in a coefficient fails the test suite, not a user's results.
 
 The order conditions are checked for every rooted tree up to order 9 (486 trees): Butcher's
 elementary weights ``b . Phi(t) = 1/gamma(t)`` (Butcher, *Numerical Methods for ODEs*, 3rd
@@ -15,7 +18,7 @@ every power of ``s`` separately. Verner's high-order pairs (``ode78``, ``ode89``
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import InitVar, dataclass, field
 from functools import cached_property
 from fractions import Fraction as Fr
 
@@ -235,10 +238,18 @@ class ButcherTableau:
     extra_A: np.ndarray | None = None
     dense_basis: str = "monomial"
     stages: int = field(init=False)
+    verify: InitVar[bool] = True  # check the invariants now (False: the shipped constants, checked by the tests)
 
-    def __post_init__(self) -> None:
-        s = self.c.size
-        object.__setattr__(self, "stages", s)
+    def __post_init__(self, verify: bool) -> None:
+        object.__setattr__(self, "stages", self.c.size)
+        if verify:
+            self.verify()
+
+    def verify(self) -> None:
+        """Check the invariants: shapes, row sums, the order conditions (exactly the stated
+        order), the embedded pair's and the continuous extension's; ``ValueError`` naming the first
+        failures."""
+        s = self.stages
         problems = []
         if self.A.shape != (s, s) or self.b.shape != (s,):
             problems.append(f"shapes c {self.c.shape}, A {self.A.shape}, b {self.b.shape} disagree")
@@ -423,7 +434,7 @@ def _tableau(name, c, A, b, order, **kw) -> ButcherTableau:
     for key in ("error_weights", "dense", "extra_c", "extra_A"):
         if kw.get(key) is not None:
             kw[key] = _array(kw[key])
-    return ButcherTableau(name=name, c=_array(c), A=_array(A), b=_array(b), order=order, **kw)
+    return ButcherTableau(name=name, c=_array(c), A=_array(A), b=_array(b), order=order, verify=False, **kw)
 
 
 # --- embedded pairs used by ode23 / ode45 ------------------------------------------------
