@@ -82,7 +82,7 @@ def test_pi_loop_inside_the_limits_equals_its_linear_model():
     case = {c.name: c for c in load_experiment(FEEDBACK).cases}["small-step"]
     r = run_case(case)
     assert np.max(np.abs(r.series()["u"])) < 5  # never saturates
-    lin = linearize(case.problem.system, u0=[0.0])
+    lin = linearize(case.problem.system.model, u0=[0.0])
     _, y = lti_response(lin, r.t, np.zeros(3), u=[Step(time=0, final=0.5)])
     err = np.abs(r.series()["y"] - y[:, 0])
     assert err.max() <= 10 * (1e-6 * np.abs(y[:, 0]).max() + 1e-9) * 10  # rtol 1e-6, atol 1e-9 (x q)

@@ -127,7 +127,7 @@ stop = 1
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "lin.toml"
         path.write_text(text)
-        d = load_experiment(path).cases[0].problem.diagram
+        d = load_experiment(path).cases[0].problem.system.diagram
     A, B, C, D = d.matrices()
     n, m = len(d.states), len(d.inputs)
     one = np.eye(n)
@@ -151,7 +151,7 @@ def test_a_long_diagram_chain_builds_its_matrices_exactly():
         path = Path(folder) / "chain.toml"
         path.write_text('[system]\nkind = "diagram"\noutputs = { y = "i599" }\n[blocks]\n' + "\n".join(blocks)
                         + '\n[time]\nstop = 1\n[reference]\nmethod = "none"\n')
-        d = load_experiment(path).cases[0].problem.diagram
+        d = load_experiment(path).cases[0].problem.system.diagram
     A, B, C, D = d.matrices()
     assert np.array_equal(A, np.eye(n, k=-1)) and B[0, 0] == 1 and B[1:].sum() == 0
     assert C[0, n - 1] == 1 and C.sum() == 1 and D.sum() == 0
@@ -267,7 +267,7 @@ def test_the_generated_code_of_a_wide_sum_is_flat():
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "wide.toml"
         path.write_text(text)
-        fast = load_experiment(path).cases[0].problem.compiled
+        fast = load_experiment(path).cases[0].problem.system.compiled
     body = fast.body
     assert max(line.count("(") for line in body) < 10
     namespace: dict = {}

@@ -114,7 +114,7 @@ def test_cases_share_the_build_of_an_unchanged_system(tmp_path, monkeypatch):
     real = constants_module.compile_expression
     monkeypatch.setattr(constants_module, "compile_expression", lambda *a, **k: calls.append(a[0]) or real(*a, **k))
     exp = load_experiment(write(tmp_path, text))
-    systems = [c.problem.system for c in exp.cases]
+    systems = [c.problem.system.model for c in exp.cases]
     assert all(s is systems[0] for s in systems[:5]) and systems[5] is not systems[0]
     assert systems[5].A[0, 0] == -3 and systems[0].A[0, 0] == -2
     assert calls.count("-k") == 2  # once per value of k, not once per entry and case (72 entries)

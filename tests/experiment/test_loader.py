@@ -45,7 +45,7 @@ def test_one_case_named_after_the_method_and_experiment_named_after_the_file(tmp
     assert exp.name == "spring" and [c.name for c in exp.cases] == ["ode45"]
     p = exp.cases[0].problem
     assert p.states == ("x", "v") and p.tspan.tolist() == [0, 2 * np.pi]
-    np.testing.assert_allclose(p.fun(0.0, np.array([1.0, 0.0])), [0.0, -4.0])
+    np.testing.assert_allclose(p.system.fun(0.0, np.array([1.0, 0.0])), [0.0, -4.0])
 
 
 def test_cases_merge_over_the_base_and_name_overrides(tmp_path):
@@ -85,7 +85,7 @@ def test_parameters_may_be_expressions_of_parameters(tmp_path):
     text = BASE.replace("k = 4", 'k = "w^2"\nw = 3')
     p = load_experiment(write(tmp_path, text)).cases[0].problem
     assert p.parameters == {"k": 9.0, "w": 3.0}
-    np.testing.assert_allclose(p.fun(0.0, np.array([1.0, 0.0])), [0.0, -9.0])
+    np.testing.assert_allclose(p.system.fun(0.0, np.array([1.0, 0.0])), [0.0, -9.0])
 
 
 def test_errors_carry_file_and_key(tmp_path):

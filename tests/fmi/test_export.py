@@ -28,8 +28,8 @@ def odelab_tight(case, t):
     p = case.problem
     unique = np.unique(t)
     run = _integrate(p, unique, "DOP853", {"rtol": 1e-13, "atol": 1e-15}, "python")
-    u = p.input_fn(run.t) if p.input_fn is not None else None
-    y = p.output_fn(run.t, run.x, u)
+    u = p.system.input_fn(run.t) if p.system.input_fn is not None else None
+    y = p.system.output_fn(run.t, run.x, u)
     rows = np.searchsorted(unique, t)
     return {**{s: run.x[rows, i] for i, s in enumerate(p.states)}, **{o: y[rows, i] for i, o in enumerate(p.outputs)}}
 

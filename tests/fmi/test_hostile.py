@@ -105,8 +105,8 @@ def test_a_model_identifier_that_is_a_path(tmp_path, test_fmus):
     with zipfile.ZipFile(test_fmus["Dahlquist"]) as z:
         description = z.read("modelDescription.xml").replace(b'modelIdentifier="Dahlquist"',
                                                               b'modelIdentifier="../../../../tmp/evil"')
-    write_zip(tmp_path / "p.fmu", {"modelDescription.xml": description})
-    assert load(tmp_path, "p.fmu") == ("p.fmu: its modelIdentifier '../../../../tmp/evil' is not a C identifier, as "
+    write_zip(tmp_path / "p.system.fmu", {"modelDescription.xml": description})
+    assert load(tmp_path, "p.system.fmu") == ("p.system.fmu: its modelIdentifier '../../../../tmp/evil' is not a C identifier, as "
                                        "the standard asks (it names the binary to load); refusing to load it.")
 
 

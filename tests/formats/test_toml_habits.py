@@ -46,7 +46,7 @@ def test_matlab_matrix_strings_and_range_run_like_toml_rows(tmp_path: Path):
     (a,), (b,) = run_experiment(matlab), run_experiment(rows)
     assert a.t.size == 151 and a.t[-1] == 15.0
     np.testing.assert_allclose(a.t, b.t, rtol=0, atol=1e-12)
-    np.testing.assert_array_equal(a.case.problem.system.A, [[0, 1], [-3, -4]])
+    np.testing.assert_array_equal(a.case.problem.system.model.A, [[0, 1], [-3, -4]])
     np.testing.assert_allclose(a.y, b.y, rtol=1e-9, atol=1e-12)
     # the step response of the lab's plant settles at q/k = 10/3, within the tolerance
     assert abs(a.y[-1, 0] - 10 / 3) < 1e-3

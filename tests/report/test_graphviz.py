@@ -36,7 +36,7 @@ def dot_of(path: Path) -> str:
     from odelab.run.runner import diagram_record
 
     problem = load_experiment(path).cases[0].problem
-    return (diagram_record(problem) if problem.diagram is not None else network_record(problem))["dot"]
+    return (diagram_record(problem) if problem.system.diagram is not None else network_record(problem))["dot"]
 
 
 def dot_labels(dot: str) -> tuple[dict[str, str], list[tuple[str, str, list[str]]]]:

@@ -85,6 +85,6 @@ def test_a_linearised_network_keeps_its_drawing_and_derivation():
     result = run_case(exp.cases[0])
     assert "linearization" in result.extra
     network = result.extra["network"]
-    for element in exp.cases[0].problem.network.elements:
+    for element in exp.cases[0].problem.system.network.elements:
         assert element in network["dot"], element
     assert network["sections"] and not network["linear"]

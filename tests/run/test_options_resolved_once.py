@@ -90,13 +90,13 @@ def test_a_run_resolves_nothing_again(tmp_path, resolutions, method):
 def test_the_carried_options_give_the_keyword_apis_bits(tmp_path):
     case = _case(tmp_path)
     p = case.problem
-    by_keywords = api.solve(p.fun, p.tspan, p.x0, method="ode45", RelTol=1e-5, AbsTol=[1e-7, 1e-8])
-    carried = api.solve(p.fun, p.tspan, p.x0, method="ode45", resolved=p.solver_options)
+    by_keywords = api.solve(p.system.fun, p.tspan, p.x0, method="ode45", RelTol=1e-5, AbsTol=[1e-7, 1e-8])
+    carried = api.solve(p.system.fun, p.tspan, p.x0, method="ode45", resolved=p.solver_options)
     assert np.array_equal(carried.t, by_keywords.t) and np.array_equal(carried.y, by_keywords.y)
     assert carried.stats == by_keywords.stats
     # for another span they are resolved again from the options as given (MaxStep is a tenth of the span)
-    half = api.solve(p.fun, [0, 3], p.x0, method="ode45", resolved=p.solver_options)
-    assert np.array_equal(half.y, api.solve(p.fun, [0, 3], p.x0, method="ode45", rtol=1e-5, atol=[1e-7, 1e-8]).y)
+    half = api.solve(p.system.fun, [0, 3], p.x0, method="ode45", resolved=p.solver_options)
+    assert np.array_equal(half.y, api.solve(p.system.fun, [0, 3], p.x0, method="ode45", rtol=1e-5, atol=[1e-7, 1e-8]).y)
 
 
 def test_resolved_options_and_keywords_together_are_refused(tmp_path):
@@ -104,9 +104,9 @@ def test_resolved_options_and_keywords_together_are_refused(tmp_path):
     p = case.problem
     with pytest.raises(InputError, match="give the options either resolved or as keywords, not both; got "
                                          "`resolved` and `rtol`"):
-        api.solve(p.fun, p.tspan, p.x0, resolved=p.solver_options, rtol=1e-3)
+        api.solve(p.system.fun, p.tspan, p.x0, resolved=p.solver_options, rtol=1e-3)
     with pytest.raises(InputError, match="`resolved` must be a SolverOptions"):
-        api.solve(p.fun, p.tspan, p.x0, resolved={"rtol": 1e-3})
+        api.solve(p.system.fun, p.tspan, p.x0, resolved={"rtol": 1e-3})
 
 
 def test_a_budget_is_checked_alone_and_other_changes_resolve_again(tmp_path):

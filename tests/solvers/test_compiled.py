@@ -47,7 +47,7 @@ def _shipped():
 
 def _why_python(case):
     p = case.problem
-    return why_not_compiled(get_method(p.method), p.compiled, p.options)
+    return why_not_compiled(get_method(p.method), p.system.compiled, p.options)
 
 
 def compiled_cases():
@@ -330,7 +330,7 @@ def test_auto_keeps_lab_runs_on_python_and_moves_long_runs(tmp_path):
     (tmp_path / "long.toml").write_text(LONG, encoding="utf-8")
     case = load_experiment(tmp_path / "long.toml").cases[0]
     solve_compiled(RIGID, [0, 1], [0, 1, 1])  # the same module text as the file's: built now
-    assert expected_compile_seconds(case.problem.compiled) == COMPILE_SECONDS["load"]
+    assert expected_compile_seconds(case.problem.system.compiled) == COMPILE_SECONDS["load"]
     result = run_case(case)  # ~30 000 steps: about 1 s on Python against a 0.5 s load
     # Exact counts: both engines sum in one order without BLAS (odelab.solvers.ordered), so the
     # same bits on every BLAS kernel, and no attempt of the 31 747 has err/rtol within 2e-4 of
@@ -422,8 +422,8 @@ method = "ode45"
 def test_an_expression_input_runs_compiled(tmp_path):
     (tmp_path / "forced.toml").write_text(EXPRESSION_INPUT, encoding="utf-8")
     case = load_experiment(tmp_path / "forced.toml").cases[0]
-    assert why_not_compiled(get_method("ode45"), case.problem.compiled, case.problem.options) is None
-    assert "(0.5 * _np.sin((_p[" in case.problem.compiled.source()  # w is run-time data, t is _tu
+    assert why_not_compiled(get_method("ode45"), case.problem.system.compiled, case.problem.options) is None
+    assert "(0.5 * _np.sin((_p[" in case.problem.system.compiled.source()  # w is run-time data, t is _tu
     python, compiled = run_case(case, backend="python"), run_case(case, backend="compiled")
     assert compiled.backend == "compiled" and compiled.stats == python.stats
     np.testing.assert_allclose(compiled.t, python.t, rtol=0, atol=1e-12 * 8)
@@ -585,7 +585,7 @@ def test_min_and_max_of_600_arguments_compile_flat_and_give_the_python_values(tm
         f'[system]\nstates = ["x", "y"]\n[system.equations]\nx = "-max({args})"\ny = "min({args}) - y"\n'
         '[initial]\nx = 1\ny = -0.5\n[time]\nstop = 2\n[solver]\nmethod = "ode45"\n', encoding="utf-8")
     case = load_experiment(tmp_path / "many.toml").cases[0]
-    source = case.problem.compiled.source()
+    source = case.problem.system.compiled.source()
     depth = deepest = 0
     for ch in source:
         depth += ch == "("
@@ -595,10 +595,10 @@ def test_min_and_max_of_600_arguments_compile_flat_and_give_the_python_values(tm
     python, compiled = run_case(case, backend="python"), run_case(case, backend="compiled")
     assert compiled.backend == "compiled" and compiled.stats == python.stats
     np.testing.assert_array_equal(compiled.x, python.x)
-    module = case.problem.compiled.module()
+    module = case.problem.system.compiled.module()
     for x, y in [(0.0, -0.0), (-0.0, 0.0), (np.nan, 1.0), (1.0, np.nan), (2.0, 2.0)]:
         out = np.empty(2)
-        module.rhs(0.0, np.array([x, y]), case.problem.compiled.parameter_vector(), out)
+        module.rhs(0.0, np.array([x, y]), case.problem.system.compiled.parameter_vector(), out)
         F = compile_vector([f"-max({args})", f"min({args}) - y"], args=["t", "x", "y"])
         expected = F(0.0, x, y)
         np.testing.assert_array_equal(out, expected)

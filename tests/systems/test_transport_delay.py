@@ -212,7 +212,7 @@ stop = 10
     assert r.status == "success"
     assert any("Pade approximation of order 2" in w for w in r.warnings)  # the run says so
     closed = control.feedback(control.tf([2], [1, 1]), control.tf(*control.pade(0.3, 2)))
-    ss = r.case.problem.system
+    ss = r.case.problem.system.model
     ours = control.ss(ss.A, ss.B, ss.C, ss.D)
     np.testing.assert_allclose(np.sort_complex(control.poles(ours)), np.sort_complex(control.poles(closed)),
                                rtol=1e-10)

@@ -66,7 +66,7 @@ SWEEP_ROWS_SHOWN = 40
 
 def print_experiment(console: Console, exp, results, *, table: bool = False) -> None:
     console.print(f"\n[bold]{_shown(exp.title)}[/]  [dim]({_shown(str(exp.source))})[/]")
-    network = next((c.problem.network for c in exp.cases if getattr(c.problem, "network", None)), None)
+    network = next((c.problem.system.network for c in exp.cases if c.problem.system.network is not None), None)
     if network is not None:  # kind = "network": the derived states and equations, compactly
         from odelab.systems.network.show import compact_lines
 

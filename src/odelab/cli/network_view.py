@@ -35,21 +35,21 @@ def describe_file(path, width: int = 80) -> str:
         return _describe_base(Path(path), width)
     out = []
     for exp in experiments:
-        problems = [c for c in exp.cases if getattr(c.problem, "network", None) is not None]
+        problems = [c for c in exp.cases if c.problem.system.network is not None]
         if not problems:
             raise ExperimentError(f"{exp.source}: the system is not a network; `odelab network` shows the derivation "
                                   "of a kind = \"network\" file (for others, `odelab run` shows the equations).",
                                   key="system.kind")
         first = problems[0]
         out.append(f"{exp.title}\n({exp.source})\n")
-        out.append(derivation_text(first.problem.network, first.problem.parameters, width=width))
+        out.append(derivation_text(first.problem.system.network, first.problem.parameters, width=width))
         shown = {tuple(sorted(first.problem.parameters.items()))}
         for case in problems[1:]:
             key = tuple(sorted(case.problem.parameters.items()))
-            if key in shown or not case.problem.network.derive().linear:
+            if key in shown or not case.problem.system.network.derive().linear:
                 continue
             shown.add(key)
-            m = case.problem.network.matrices(case.problem.parameters)
+            m = case.problem.system.network.matrices(case.problem.parameters)
             out.append(f"case {case.name}: " + ", ".join(f"{k} = {matrix_text(m[k].tolist())}" for k in "ABCD"
                                                          if m[k].size) + "\n")
     return "\n".join(out)

@@ -102,7 +102,7 @@ def build_ode(model: schema.Experiment, params: dict[str, float]) -> Built:
     if system.jacobian is not None:
         resolved["jacobian"] = [list(row) for row in system.jacobian]
     return Built(states=states, inputs=inputs, outputs=outputs, fun=fun, output_fn=output_fn, resolved=resolved,
-                 linear=False, system=sys_obj, compiled=compiled, jacobian=jacobian)
+                 linear=False, model=sys_obj, compiled=compiled, jacobian=jacobian)
 
 
 def _jacobian(system, states: tuple[str, ...], params: dict[str, float]):
@@ -199,7 +199,7 @@ def build_state_space(model: schema.Experiment, params: dict[str, float]) -> Bui
                               "its A matrix, which the stiff solvers use already: remove `jacobian`.",
                               key="system.jacobian")
     return Built(states=ss.states, inputs=ss.inputs, outputs=ss.outputs, fun=fun, output_fn=output_fn,
-                 resolved=resolved, linear=True, system=ss, compiled=compiled, jacobian=A)
+                 resolved=resolved, linear=True, model=ss, compiled=compiled, jacobian=A)
 
 
 class _SignalKeys(Mapping):

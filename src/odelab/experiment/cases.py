@@ -16,6 +16,8 @@ if TYPE_CHECKING:  # the types only: none of these is imported at run time
     from odelab.experiment.data import MeasuredData
     from odelab.experiment.events import EventSet
     from odelab.experiment.schema import Linearize
+    from odelab.solvers.options import SolverOptions
+    from odelab.systems.system import System
     from odelab.fmi.simulate import FmuRun
     from odelab.solvers.compiled import CompiledSystem
     from odelab.systems.diagram.compile import CompiledDiagram
@@ -28,39 +30,39 @@ __all__ = ["Built", "Case", "LoadedExperiment", "Problem"]
 
 @dataclass(frozen=True, eq=False)
 class Problem:
-    """A case compiled for running: everything the runner needs, nothing it must parse."""
+    """A case compiled for running: its system and how to run it, nothing the runner must parse."""
 
-    states: tuple[str, ...]
-    inputs: tuple[str, ...]
-    outputs: tuple[str, ...]
-    fun: Callable  # fun(t, x) -> dx/dt, with the inputs applied
+    system: System  # what the case computes: fun, outputs, inputs, Jacobian, events, closed form, model...
     tspan: np.ndarray  # MATLAB tspan given to the solver
     x0: np.ndarray
     method: str
-    options: dict[str, Any]
-    output_fn: Callable | None = None  # (t (N,), x (N, n)) -> (N, ny)
-    input_fn: Callable | None = None  # t (N,) -> (N, nu)
-    exact_fn: Callable | None = None  # t (N,) -> {name: (N,)} for states and outputs
+    options: dict[str, Any]  # as the file gives them (state names made indices): resolved.toml, the notes
+    # ``options`` resolved once at load (odelab.solvers.options.SolverOptions: checked, MATLAB's defaults filled
+    # in, for tspan and the states, the exact Jacobian included), carried to the driver
+    solver_options: SolverOptions
     reference: str = "none"  # "exact", "lti", "high-accuracy" or "none"
     reference_solver: tuple[str, float, float] = ("auto", 1e-12, 1e-14)
-    system: StateSpace | NonlinearSystem | None = None  # where one was built
-    signals: tuple = ()  # one odelab.signals signal per input
     linearize: Linearize | None = None  # the [linearize] section, if any
     parameters: dict[str, float] = field(default_factory=dict)
-    diagram: CompiledDiagram | None = None  # a kind = "diagram" system's
-    events: EventSet | None = None  # the compiled [events], if any
     backend: str = "auto"  # [solver] backend: "auto", "python" or "compiled"
-    compiled: CompiledSystem | None = None  # the compiled backend's description, where the system allows one
     analysis: dict | None = None  # the resolved [analysis] section: {"step_info", "bode", "poles", "input"}
     data: MeasuredData | None = None  # [data]: the case's reference
     fit: dict | None = None  # the summary of the experiment's [fit], once it has been fitted
-    network: Network | None = None  # the derived network of a kind = "network" system
-    fmu: FmuRun | None = None  # kind = "fmu": the FMU, its interface, values, signals
     initial_given: tuple[str, ...] = ()  # the states the file's [initial] gives (the rest took their defaults)
     notes: tuple[str, ...] = ()  # what loading did that the run's notes say (values converted from their units)
-    # ``options`` resolved once at load (odelab.solvers.options.SolverOptions: checked, MATLAB's defaults filled
-    # in, for tspan and the states), carried to the driver; odelab.run.backend.case_options reads it
-    solver_options: Any = None
+
+    # the names, read from the system (the one place they are held)
+    @property
+    def states(self) -> tuple[str, ...]:
+        return self.system.states
+
+    @property
+    def inputs(self) -> tuple[str, ...]:
+        return self.system.inputs
+
+    @property
+    def outputs(self) -> tuple[str, ...]:
+        return self.system.outputs
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,7 +101,7 @@ class Built:
     output_fn: Callable | None
     resolved: dict
     linear: bool = False
-    system: StateSpace | NonlinearSystem | None = None
+    model: StateSpace | NonlinearSystem | None = None
     x0: np.ndarray | None = None  # initial state set by the system itself (a diagram's blocks)
     signals: tuple = ()  # input signals set by the system itself (a diagram's sources)
     diagram: CompiledDiagram | None = None  # for drawings and reports

@@ -26,6 +26,7 @@ from odelab.experiment.section_checks import (check_analysis, check_jacobian, ch
                                               check_units)
 from odelab.solvers.optionset import DEFAULT_ATOL, DEFAULT_RTOL
 from odelab.solvers.registry import get_method, join_names, methods_with
+from odelab.systems.system import System
 
 __all__ = ["compile_case"]
 
@@ -115,13 +116,15 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
         resolved["analysis"] = _plain({k: v for k, v in model.analysis.model_dump(by_alias=True).items()
                                        if v is not None})
     ref = model.reference
+    system = System(
+        states=states, inputs=inputs, outputs=outputs, fun=built.fun, output_fn=built.output_fn, input_fn=input_fn,
+        jacobian=built.jacobian, signals=signals, events=events, exact_fn=exact_fn, linear=built.linear,
+        model=built.model, compiled=fast, diagram=built.diagram, network=built.network,
+        fmu=_bound_fmu(built.fmu, signals))
     problem = Problem(
-        states=states, inputs=inputs, outputs=outputs, fun=built.fun, tspan=tspan, x0=x0, method=method.name,
-        options=options, output_fn=built.output_fn, input_fn=input_fn, exact_fn=exact_fn, reference=kind,
-        reference_solver=(ref.solver, float(ref.rtol), float(ref.atol)), system=built.system, signals=signals,
-        linearize=linearize, parameters=params, diagram=built.diagram, events=events, backend=backend,
-        compiled=fast, analysis=analysis, data=data, network=built.network, fmu=_bound_fmu(built.fmu, signals),
-        initial_given=given, notes=tuple(notes), solver_options=solver_options,
+        system=system, tspan=tspan, x0=x0, method=method.name, options=options, solver_options=solver_options,
+        reference=kind, reference_solver=(ref.solver, float(ref.rtol), float(ref.atol)), linearize=linearize,
+        parameters=params, backend=backend, analysis=analysis, data=data, initial_given=given, notes=tuple(notes),
     )
     return problem, resolved
 

@@ -297,10 +297,10 @@ def model_at_times(problem, times: np.ndarray, integrate, result=None) -> tuple[
         return {}, ran.message
     rows = np.searchsorted(rt, times)
     out = {name: rx[rows, i] for i, name in enumerate(problem.states)}
-    if problem.output_fn is not None:
-        if ru is None and problem.input_fn is not None:
-            ru = problem.input_fn(rt)
-        ry = problem.output_fn(rt, rx, ru)
+    if problem.system.output_fn is not None:
+        if ru is None and problem.system.input_fn is not None:
+            ru = problem.system.input_fn(rt)
+        ry = problem.system.output_fn(rt, rx, ru)
         out.update({name: ry[rows, i] for i, name in enumerate(problem.outputs)})
     return out, None
 

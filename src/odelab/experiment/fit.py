@@ -288,7 +288,7 @@ def _fit_case(case, model: schema.Experiment, names: tuple[str, ...], quantities
     if system.kind not in ("ode", "state-space") or system.function is not None:
         raise _error(f"[fit] differentiates the model exactly, which needs {_SUPPORTED}; case {case.name!r} is a "
                      f"{'`function`' if system.function is not None else system.kind} system.", "fit")
-    if p.events is not None or p.linearize is not None:
+    if p.system.events is not None or p.linearize is not None:
         raise _error(f"[fit] cannot fit case {case.name!r}, which has [events] or [linearize].", "fit")
     dependent, derived, depends, fixed, parameter_values = _dependent_parameters(
         dict(model.parameters), dict(p.parameters), names)
@@ -313,7 +313,7 @@ def _fit_case(case, model: schema.Experiment, names: tuple[str, ...], quantities
             ce = compile_texts([text], [f"inputs.{iname}.expression"], ["t", *dependent])
             signal_fns.append(("expression", ce))
         else:
-            signal_fns.append(("signal", p.signals[j]))
+            signal_fns.append(("signal", p.system.signals[j]))
 
     def input_values(t, pvals, piece):
         out = []
@@ -349,7 +349,7 @@ def _fit_case(case, model: schema.Experiment, names: tuple[str, ...], quantities
         def evaluate_outputs(t, X, P, pv, U):
             return G(t, *X, *U, *pv)
     else:
-        ss = p.system
+        ss = p.system.model
         mats = {}
         for mname in "ABCD":
             M = getattr(ss, mname)
@@ -405,7 +405,7 @@ def _fit_case(case, model: schema.Experiment, names: tuple[str, ...], quantities
             reach.add(pname)
     breakpoints = []
     t0, tf = float(p.tspan[0]), float(p.tspan[-1])
-    for s in p.signals:
+    for s in p.system.signals:
         breakpoints.extend(float(b) for b in s.breakpoints(t0, tf))
     model_obj = ParametricModel(states=tuple(states), parameters=names, rhs=rhs, initial=initial,
                                 breakpoints=tuple(sorted(set(breakpoints))))
@@ -428,17 +428,17 @@ def _fmu_fit_case(case, model: schema.Experiment, names: tuple[str, ...], quanti
     from odelab.fmi.fitting import FmuFitModel
 
     p = case.problem
-    if p.events is not None or p.linearize is not None:
+    if p.system.events is not None or p.linearize is not None:
         raise _error(f"[fit] cannot fit case {case.name!r}, which has [events] or [linearize].", "fit")
     dependent, derived, depends, _fixed, parameter_values = _dependent_parameters(
         dict(model.parameters), dict(p.parameters), names)
-    fmu_parameters = p.fmu.model.parameters
+    fmu_parameters = p.system.fmu.model.parameters
     variables = {n: fmu_parameters[n] for n in dependent if n in fmu_parameters}
     reach = {n for n in names if n in variables or any(n in _closure(d, depends) and d in variables for d in derived)}
     case_quantities, measured, weights, atol = _measured(p, quantities, spec)
     lower = np.array([-math.inf if e.lower is None else float(e.lower) for e in spec.parameters.values()])
     upper = np.array([math.inf if e.upper is None else float(e.upper) for e in spec.parameters.values()])
-    fit_model = FmuFitModel(run=p.fmu, x0=np.asarray(p.x0, dtype=float), dependent=tuple(dependent),
+    fit_model = FmuFitModel(run=p.system.fmu, x0=np.asarray(p.x0, dtype=float), dependent=tuple(dependent),
                             parameter_values=parameter_values, variables=variables, states=tuple(p.states),
                             outputs=tuple(p.outputs), quantities=case_quantities, lower=lower, upper=upper)
     t0, tf = float(p.tspan[0]), float(p.tspan[-1])

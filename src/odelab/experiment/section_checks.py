@@ -77,7 +77,7 @@ def check_jacobian(jacobian, system, states, params, t0: float, x0: np.ndarray) 
 
 def check_linearize(spec: schema.Linearize, states, inputs, outputs, built) -> None:
     """Catch [linearize] mistakes when the file is loaded, not halfway through a run."""
-    if built.system is None:
+    if built.model is None:
         raise ExperimentError("[linearize] needs a system of equations or a state-space model; a `function` "
                               "system cannot be linearised from the file.", key="linearize")
     for field_name, names, what in (("input", inputs, "inputs"), ("state", states, "states"),
@@ -109,7 +109,7 @@ def check_linearize(spec: schema.Linearize, states, inputs, outputs, built) -> N
 
 def check_analysis(spec: schema.Analysis, inputs, built, params) -> dict:
     """[analysis] checked at load time; returns what the runner needs."""
-    if built.system is None:
+    if built.model is None:
         raise ExperimentError("[analysis] needs a state-space model, a diagram or a system of equations; a "
                               "`function` system cannot be analysed from the file.", key="analysis")
     if not inputs:

@@ -153,8 +153,8 @@ def is_quadrature(problem) -> bool:
         for t in (t0, t0 + 0.37 * (t1 - t0), t1):
             for shift in (1.0, -2.5):
                 moved = x0 + shift * (1.0 + np.abs(x0))
-                if not np.array_equal(np.asarray(problem.fun(t, x0.copy()), dtype=float),
-                                      np.asarray(problem.fun(t, moved), dtype=float)):
+                if not np.array_equal(np.asarray(problem.system.fun(t, x0.copy()), dtype=float),
+                                      np.asarray(problem.system.fun(t, moved), dtype=float)):
                     return False
     except Exception:  # a right-hand side that cannot take the moved state: not a plain quadrature
         return False
@@ -166,7 +166,7 @@ def sweep_rows(results) -> list[dict[str, Any]]:
     rows = []
     quadrature: dict[int, bool] = {}  # by problem: a sweep's cases usually share one right-hand side
     for r in results:
-        fun = r.case.problem.fun
+        fun = r.case.problem.system.fun
         if id(fun) not in quadrature:
             quadrature[id(fun)] = is_quadrature(r.case.problem)
         ends = _end_errors(r)

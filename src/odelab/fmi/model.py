@@ -82,15 +82,15 @@ def refusal(case) -> str | None:
                 "[system.equations] to export it")
     if getattr(METHODS.get(problem.method), "delays", False) or "history" in config:
         return "it is a delay equation (lag), whose history an FMU's interface cannot carry"
-    if problem.events is not None:
+    if problem.system.events is not None:
         return "its [events] (an FMU's state events with resets) are not exported yet; remove [events] to export"
-    if problem.diagram is not None:
-        return _diagram_refusal(problem.diagram)
-    if problem.fmu is not None:
+    if problem.system.diagram is not None:
+        return _diagram_refusal(problem.system.diagram)
+    if problem.system.fmu is not None:
         return "it is an FMU already"
-    if problem.compiled is None:
+    if problem.system.compiled is None:
         return "odelab does not generate its right-hand side"
-    return problem.compiled.why_not()
+    return problem.system.compiled.why_not()
 
 
 def _diagram_refusal(diagram) -> str | None:
@@ -154,7 +154,7 @@ def _identifier(name: str) -> str:
 
 def _linear_lines(problem, compiled, data_offset: int) -> tuple[list[str], list[str], list[float]]:
     """Straight-line numba-style source of x' = A x + B u and y = C x + D u, numbers as p entries."""
-    ss = problem.system
+    ss = problem.system.model
     A, B = np.asarray(ss.A, float), np.asarray(ss.B, float)
     C, D = np.asarray(ss.C, float), np.asarray(ss.D, float)
     data: list[float] = []
@@ -208,11 +208,11 @@ def model_of_case(case, output_texts: dict[str, str] | None = None, name: str | 
     if reason:
         raise InputError(f"case {case.name!r} of {case.experiment} cannot be exported as an FMU: {reason}.",
                          key="system")
-    compiled = problem.compiled
-    if compiled is None and problem.diagram is not None:
+    compiled = problem.system.compiled
+    if compiled is None and problem.system.diagram is not None:
         from odelab.solvers.compiled import CompiledSystem
 
-        compiled = CompiledSystem.generated(problem.states, problem.diagram.inputs, (), ())  # its inputs' count
+        compiled = CompiledSystem.generated(problem.states, problem.system.diagram.inputs, (), ())  # its inputs' count
     n = len(problem.states)
     if n == 0:
         raise InputError("a system without states cannot be exported.", key="system.states")
@@ -221,13 +221,13 @@ def model_of_case(case, output_texts: dict[str, str] | None = None, name: str | 
     config = case.config
     system = config.get("system", {})
     indicator_body: list[str] = []
-    if problem.diagram is not None:
+    if problem.system.diagram is not None:
         parameters = ()
-        has_inputs = bool(problem.diagram.inputs)
+        has_inputs = bool(problem.system.diagram.inputs)
         first = 2 if has_inputs else 0
-        rhs_lines, out_lines, indicator_lines, numbers = _diagram_lines(problem.diagram, first)
+        rhs_lines, out_lines, indicator_lines, numbers = _diagram_lines(problem.system.diagram, first)
         data = []
-        input_lines = inputs_source(problem.signals, data, first + len(numbers)) if has_inputs else []
+        input_lines = inputs_source(problem.system.signals, data, first + len(numbers)) if has_inputs else []
         p = np.array([-math.inf, math.inf][:first] + numbers + data, dtype=float)
         rhs_body = input_lines + rhs_lines
         out_body = input_lines + out_lines
@@ -272,7 +272,7 @@ def model_of_case(case, output_texts: dict[str, str] | None = None, name: str | 
         "{\n    (void)t; (void)y; (void)p; (void)out;\n}\n"
     breaks: list[float] = []
     t0, tf = float(problem.tspan[0]), float(problem.tspan[-1])
-    for signal in problem.signals:
+    for signal in problem.system.signals:
         breaks.extend(float(b) for b in signal.breakpoints(t0, tf))
     units = dict(config.get("units") or {})
     variables = _variables(problem, parameters, p, first, units)

@@ -238,7 +238,7 @@ def run_co_simulation(run: FmuRun, tspan, x0, method: str, options: dict):
 def run_fmu(problem, tspan, method: str, options: dict):
     """The runner's entry: an FMU case's run on the interface the case chose, as the fields of
     :class:`odelab.store.result.Integration`: (t, x, u, stats, status, message, warnings, events, marks)."""
-    run = problem.fmu
+    run = problem.system.fmu
     if run.interface == "co-simulation":
         return run_co_simulation(run, tspan, problem.x0, method, options)
     values = dict(run.values)

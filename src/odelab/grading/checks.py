@@ -82,13 +82,13 @@ def _truth(ref_result, t: np.ndarray, quantity: str):
     """The reference's exact values of ``quantity`` at times ``t``: its [exact] or its model's LTI response."""
     p = ref_result.case.problem
     kind = ref_result.reference_kind
-    if kind == "exact" and p.exact_fn is not None:
-        values = p.exact_fn(t)
+    if kind == "exact" and p.system.exact_fn is not None:
+        values = p.system.exact_fn(t)
         return None if quantity not in values else np.asarray(values[quantity], dtype=float)
     if kind == "lti" and t.size >= 2 and np.all(np.diff(t) > 0):
         from odelab.analysis.lti import lti_response
 
-        x, y = lti_response(p.system, t, p.x0, u=list(p.signals) if p.signals else None)
+        x, y = lti_response(p.system.model, t, p.x0, u=list(p.system.signals) if p.system.signals else None)
         if quantity in p.states:
             return x[:, p.states.index(quantity)]
         if quantity in p.outputs:
@@ -234,7 +234,7 @@ def evaluate_solver(check: CheckSpec, stu_case) -> Outcome:
 def _matrices(problem):
     from odelab.systems.statespace import StateSpace
 
-    system = problem.system
+    system = problem.system.model
     if system is None:
         return None, "your system cannot be linearised from the file"
     if not isinstance(system, StateSpace):

@@ -66,9 +66,9 @@ class NameMap:
 
 def _rhs(problem):
     """f(t, x, u) of a case's system (None where it has none that can be evaluated safely)."""
-    system = problem.system
+    system = problem.system.model
     if system is None:
-        fun = problem.fun  # an equations system without inputs: f(t, x)
+        fun = problem.system.fun  # an equations system without inputs: f(t, x)
         return None if fun is None or problem.inputs else (lambda t, x, u: np.asarray(fun(t, x), dtype=float))
     from odelab.systems.statespace import StateSpace
 

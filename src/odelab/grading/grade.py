@@ -320,7 +320,7 @@ def _run_reference(rubric: Rubric, targets: dict, *, max_steps, backend) -> dict
                               f"{case.name!r} has no error for it: give the reference an [exact] solution (or a "
                               "linear state-space model, whose exact response odelab computes), or grade it with "
                               "kind = \"trajectory\".", source=str(rubric.path), key=check.key)
-        if check.kind == "matrix" and case.problem.system is None:
+        if check.kind == "matrix" and case.problem.system.model is None:
             raise RubricError(f"`{check.key}` is a matrix check, but the reference's system has no linear model "
                               "(a Python function): give the reference as equations or a state-space model.",
                               source=str(rubric.path), key=check.key)

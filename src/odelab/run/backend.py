@@ -52,11 +52,12 @@ def solve_problem(problem, tspan, method_name: str, options, backend: str, rows_
 
     def python(opts):
         if isinstance(opts, dict):
-            return solve(problem.fun, tspan, problem.x0, method=method_name, **opts)
-        return solve(problem.fun, tspan, problem.x0, method=method_name, resolved=opts)
+            return solve(problem.system.fun, tspan, problem.x0, method=method_name, **opts)
+        return solve(problem.system.fun, tspan, problem.x0, method=method_name, resolved=opts)
 
     def compiled(opts):
-        return solve_compiled(problem.compiled, tspan, problem.x0, method_name, rows_to=rows_to, **given_options(opts))
+        return solve_compiled(problem.system.compiled, tspan, problem.x0, method_name, rows_to=rows_to,
+                              **given_options(opts))
 
     def pilot(opts):
         sol = python(_with(opts, max_steps=AUTO_STEPS))
@@ -102,18 +103,18 @@ def simulate_problem(problem, tspan, method_name: str, options, backend: str):
     from odelab.solvers.compiled import solve_compiled
     from odelab.systems.simulate import python_piece_solver, simulate
 
-    signals = list(problem.signals)
+    signals = list(problem.system.signals)
 
     def python(opts, piece_solver=None):  # each piece resolves the options for its span
-        return simulate(problem.system, tspan, problem.x0, u=signals, method=method_name, piece_solver=piece_solver,
+        return simulate(problem.system.model, tspan, problem.x0, u=signals, method=method_name, piece_solver=piece_solver,
                         **given_options(opts))
 
     def compiled_piece(grid, x, lo, hi, opts):
-        return solve_compiled(problem.compiled, grid, x, method_name, input_bounds=(lo, hi), **opts)
+        return solve_compiled(problem.system.compiled, grid, x, method_name, input_bounds=(lo, hi), **opts)
 
     def pilot(opts):
         try:
-            return python(opts, _budgeted(python_piece_solver(problem.system, signals, method_name))), None
+            return python(opts, _budgeted(python_piece_solver(problem.system.model, signals, method_name))), None
         except _BudgetSpent as spent:
             return None, spent.t
 
@@ -130,17 +131,17 @@ def solve_events_problem(problem, tspan, method_name: str, options, backend: str
     from odelab.solvers.api import solve
     from odelab.solvers.compiled import solve_compiled
 
-    events = problem.events
+    events = problem.system.events
 
     def run(opts, solve_piece=None):  # each piece (between events) resolves the options for its span
-        return solve_with_events(problem.fun, tspan, problem.x0, method_name, given_options(opts), events,
+        return solve_with_events(problem.system.fun, tspan, problem.x0, method_name, given_options(opts), events,
                                  problem.states, solve_piece=solve_piece)
 
     def python_piece(ts, x, o):
-        return solve(problem.fun, ts, x, method=method_name, events=events.function, **o)
+        return solve(problem.system.fun, ts, x, method=method_name, events=events.function, **o)
 
     def compiled_piece(ts, x, o):
-        return solve_compiled(problem.compiled, ts, x, method_name, **o)
+        return solve_compiled(problem.system.compiled, ts, x, method_name, **o)
 
     def pilot(opts):
         try:
@@ -159,8 +160,8 @@ def _choose(problem, tspan, method_name, options, backend, python, compiled, pil
     from odelab.solvers.compiled.capability import why_not_compiled
 
     method = get_method(method_name)
-    reason = why_not_compiled(method, problem.compiled, given_options(options))
-    if reason is None and problem.events is not None and not problem.compiled.events:
+    reason = why_not_compiled(method, problem.system.compiled, given_options(options))
+    if reason is None and problem.system.events is not None and not problem.system.compiled.events:
         reason = "the compiled loop locates [events] of expression systems only"
     if backend == "compiled" and reason:
         raise InputError(f"`--backend compiled` cannot run this case: {reason}. Use --backend auto.")
@@ -190,10 +191,10 @@ def _choose(problem, tspan, method_name, options, backend, python, compiled, pil
             steps = AUTO_STEPS / progress if progress > 0 else float("inf")
             if limit:  # max_steps (or odelab run's budget) caps the work: stiff.toml's ode45 stops at 20 000
                 steps = min(steps, limit)
-            loop = "events" if getattr(problem, "events", None) is not None else "adaptive"
+            loop = "events" if problem.system.events is not None else "adaptive"
             if method.stiff:
                 loop = method.name
-            if elapsed * steps / AUTO_STEPS < expected_compile_seconds(problem.compiled, loop):
+            if elapsed * steps / AUTO_STEPS < expected_compile_seconds(problem.system.compiled, loop):
                 return python(options), "python"
     return compiled(options), "compiled"
 
@@ -204,7 +205,7 @@ def run_stateless(problem, tspan, options):  # -> Integration
     algebraic loops solved at each point; nothing is integrated."""
     from odelab.store.result import Integration
 
-    d = problem.diagram
+    d = problem.system.diagram
     t, u = d.output_times(tspan, given_options(options).get("max_step"))
     message = (f"the diagram has no state: its outputs evaluated at {t.size} times (every max_step and at the "
                "sources' jumps), as Simulink evaluates a model without states")
@@ -225,22 +226,22 @@ def run_hybrid(problem, tspan, method: str, options, backend: str):  # -> Integr
     from odelab.store.result import Integration
     from odelab.systems.diagram.hybrid import simulate_hybrid
 
-    d = problem.diagram
+    d = problem.system.diagram
     options = given_options(options)  # each piece resolves them for its span
-    if problem.events is not None:  # [events]: their resets and records, each piece on the hybrid driver
+    if problem.system.events is not None:  # [events]: their resets and records, each piece on the hybrid driver
         from odelab.experiment.events import solve_with_events
 
         seen: list[str] = []
 
         def piece(ts, x, opts):
             r = simulate_hybrid(d, ts, x, method=method, zero_crossing=d.zero_crossing,
-                                events=problem.events.function, **opts)
+                                events=problem.system.events.function, **opts)
             seen.extend(n for n in r.notes if n not in seen)
             return Solution(t=r.t, y=r.x, stats=r.stats, status=r.status, message=r.message, method=r.method,
                             warnings=r.warnings, te=r.te, ye=r.ye, ie=r.ie)
 
         t, x, stats, status, message, warns, records, marks = solve_with_events(
-            None, tspan, problem.x0, method, options, problem.events, problem.states, solve_piece=piece)
+            None, tspan, problem.x0, method, options, problem.system.events, problem.states, solve_piece=piece)
         return Integration(t, x, None, stats, status, message, [*warns, *seen], records, marks)
     r = simulate_hybrid(d, tspan, problem.x0, method=method, zero_crossing=d.zero_crossing, **options)
     from odelab.solvers.compiled import AUTO_STEPS

@@ -58,7 +58,7 @@ def estimate_case(result, integrate, max_steps: int | None = None, backend: str 
     from odelab.analysis.estimate import ESTIMATE_FACTOR  # only for a case that gets an estimate: not at start-up
 
     p = result.case.problem
-    if p.diagram is not None and p.diagram.hybrid:
+    if p.system.diagram is not None and p.system.diagram.hybrid:
         return {"skipped": "a hybrid diagram's switching instants move with the tolerances; compare a case at a "
                            "tighter rtol"}
     method = get_method(p.method)
@@ -160,7 +160,7 @@ def _dense_solve(p, times: np.ndarray, method, options):
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", SolverWarning)
-            sol = solve(p.fun, [float(times[0]), float(times[-1])], p.x0, method=p.method,
+            sol = solve(p.system.fun, [float(times[0]), float(times[-1])], p.x0, method=p.method,
                         resolved=options.updated(refine=1))
     except InputError:
         return None
@@ -173,8 +173,9 @@ def _dense_solve(p, times: np.ndarray, method, options):
 
 def _plain(p, method) -> bool:
     """A plain problem (no inputs, events, diagram, FMU or residual form) solved by an adaptive method."""
-    return not (p.signals or p.events is not None or p.diagram is not None or getattr(p, "fmu", None) is not None
-                or not method.adaptive or getattr(p.fun, "residual", None) is not None or not callable(p.fun))
+    system = p.system
+    return not (system.signals or system.events is not None or system.diagram is not None or system.fmu is not None
+                or not method.adaptive or getattr(system.fun, "residual", None) is not None or not callable(system.fun))
 
 
 def _strictly_monotonic(t: np.ndarray) -> bool:
@@ -194,9 +195,9 @@ def _strictly_monotonic(t: np.ndarray) -> bool:
 
 def _series(p, ran) -> dict[str, np.ndarray]:
     out = {name: ran.x[:, i] for i, name in enumerate(p.states)}
-    if p.output_fn is not None:
-        u = ran.u if ran.u is not None else (p.input_fn(ran.t) if p.input_fn is not None else None)
-        y = p.output_fn(ran.t, ran.x, u)
+    if p.system.output_fn is not None:
+        u = ran.u if ran.u is not None else (p.system.input_fn(ran.t) if p.system.input_fn is not None else None)
+        y = p.system.output_fn(ran.t, ran.x, u)
         out.update({name: y[:, i] for i, name in enumerate(p.outputs)})
     return out
 

@@ -53,7 +53,7 @@ def run_linearization_case(case: Case, *, max_steps: int | None = None) -> CaseR
 
     p = case.problem
     spec = p.linearize
-    system = p.system
+    system = p.system.model
     params = p.parameters
     u_bar = _vector(spec.input, p.inputs, "linearize.input", params)
     x_bar = _vector(spec.state, p.states, "linearize.state", params) if spec.state else None
@@ -79,7 +79,7 @@ def run_linearization_case(case: Case, *, max_steps: int | None = None) -> CaseR
     op = lin.operating_point
     start_from = _start(case, spec, op.x, notes)
     x_init = op.x if start_from == "operating-point" else p.x0
-    u = list(p.signals) if p.signals else [Constant(float(v)) for v in u_bar]
+    u = list(p.system.signals) if p.system.signals else [Constant(float(v)) for v in u_bar]
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         cmp = compare_linearization(system, lin, u, x_init, p.tspan, method=p.method, **options)

@@ -29,9 +29,9 @@ def can_share(problem) -> bool:
     from odelab.analysis.reference import AUTO, DENSE_SOLVERS
 
     solver = problem.reference_solver[0]
-    hybrid = problem.diagram is not None and getattr(problem.diagram, "hybrid", False)
-    fmu = getattr(problem, "fmu", None) is not None  # an FMU's reference is its own run (events, its state)
-    return (problem.reference == "high-accuracy" and not problem.signals and problem.events is None and not hybrid
+    hybrid = problem.system.diagram is not None and getattr(problem.system.diagram, "hybrid", False)
+    fmu = problem.system.fmu is not None  # an FMU's reference is its own run (events, its state)
+    return (problem.reference == "high-accuracy" and not problem.system.signals and problem.system.events is None and not hybrid
             and not fmu
             and (solver == AUTO or solver in DENSE_SOLVERS))
 
@@ -52,7 +52,7 @@ def shared_reference(case, max_steps: int | None):
     solver, rtol, atol = p.reference_solver
 
     def compute():
-        return high_accuracy(p.fun, float(p.tspan[0]), float(p.tspan[-1]), p.x0, solver=solver, rtol=rtol,
+        return high_accuracy(p.system.fun, float(p.tspan[0]), float(p.tspan[-1]), p.x0, solver=solver, rtol=rtol,
                              atol=atol, max_steps=int(max_steps or 0), jac=_jacobian(p), progress=_PROGRESS[0])
 
     return cached(reference_key(case, max_steps), compute)

@@ -41,15 +41,15 @@ def _integrate(problem, tspan, method, options, backend="python", rows_to=None) 
     """
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SolverWarning)
-        if getattr(problem, "fmu", None) is not None:  # kind = "fmu": odelab's solvers step the FMU
+        if problem.system.fmu is not None:  # kind = "fmu": odelab's solvers step the FMU
             from odelab.fmi.simulate import run_fmu
 
             return Integration(*run_fmu(problem, tspan, method, given_options(options)))
-        if problem.diagram is not None and not problem.diagram.states:
+        if problem.system.diagram is not None and not problem.system.diagram.states:
             return run_stateless(problem, tspan, options)
-        if problem.diagram is not None and problem.diagram.hybrid:
+        if problem.system.diagram is not None and problem.system.diagram.hybrid:
             return run_hybrid(problem, tspan, method, options, backend)
-        if problem.events is not None:
+        if problem.system.events is not None:
             (t, x, stats, status, message, warns, events, marks), ran = solve_events_problem(
                 problem, tspan, method, options, backend)
             return Integration(t, x, None, stats, status, message, warns, events, marks, ran)
@@ -57,7 +57,7 @@ def _integrate(problem, tspan, method, options, backend="python", rows_to=None) 
 
 
 def _integrate_quietly(problem, tspan, method, options, backend="python", rows_to=None):
-    if problem.signals:
+    if problem.system.signals:
         r, ran = simulate_problem(problem, tspan, method, options, backend)
         return Integration(r.t, r.x, r.u, r.stats, r.status, r.message, (), backend=ran)
 
@@ -133,9 +133,9 @@ def _run_case(case: Case, max_steps: int | None, backend: str | None, estimate: 
         message += (f" It was odelab run's step budget that stopped it (--max-steps, {max_steps} steps){why}: lift "
                     f"it with --max-steps {10 * max_steps if not capped or not asked else asked} (or --max-steps 0 "
                     "for no limit).")
-    if u is None and p.input_fn is not None:
-        u = p.input_fn(t)
-    y = p.output_fn(t, x, u) if p.output_fn is not None else None
+    if u is None and p.system.input_fn is not None:
+        u = p.system.input_fn(t)
+    y = p.system.output_fn(t, x, u) if p.system.output_fn is not None else None
     from odelab.cachedir import take_notes
 
     # a cache that could not be used or an entry compiled again (odelab.cachedir): said once, with this case
@@ -172,10 +172,10 @@ def _run_case(case: Case, max_steps: int | None, backend: str | None, estimate: 
 def _drawings(result: CaseResult, p) -> CaseResult:
     """A diagram's or a network's drawing (and a network's derivation) on its result, whatever ran the case
     (a [linearize] case too: the report draws the system it linearised)."""
-    if p.diagram is not None:
+    if p.system.diagram is not None:
         result.extra["diagram"] = diagram_record(p)
-        result.warnings.extend(n for n in p.diagram.notes if n not in result.warnings)
-    if getattr(p, "network", None) is not None:  # kind = "network": its drawing and derivation
+        result.warnings.extend(n for n in p.system.diagram.notes if n not in result.warnings)
+    if p.system.network is not None:  # kind = "network": its drawing and derivation
         from odelab.experiment.kinds.network import network_record
 
         result.extra["network"] = network_record(p)
@@ -186,7 +186,7 @@ def diagram_record(p) -> dict:
     """What the report needs of a diagram: its drawing (DOT) and, if linear, its A, B, C, D."""
     from odelab.systems.diagram.draw import to_dot
 
-    d = p.diagram
+    d = p.system.diagram
     record = {"linear": d.linear, "dot": to_dot(d.wiring), "states": list(d.states), "inputs": list(d.inputs),
               "outputs": list(d.outputs)}
     if d.linear and d.outputs:
@@ -200,12 +200,12 @@ def analyze_problem(p) -> dict:
     from odelab.analysis.control import analyze
     from odelab.systems.statespace import StateSpace
 
-    key = None if not isinstance(p.system, StateSpace) else (
-        p.system.A.tobytes(), p.system.B.tobytes(), p.system.C.tobytes(), p.system.D.tobytes(), p.system.A.shape,
-        p.system.B.shape, p.system.C.shape, p.system.states, p.system.inputs, p.system.outputs, repr(p.analysis))
+    key = None if not isinstance(p.system.model, StateSpace) else (
+        p.system.model.A.tobytes(), p.system.model.B.tobytes(), p.system.model.C.tobytes(), p.system.model.D.tobytes(), p.system.model.A.shape,
+        p.system.model.B.shape, p.system.model.C.shape, p.system.model.states, p.system.model.inputs, p.system.model.outputs, repr(p.analysis))
     if key is not None and key in _ANALYSES:  # the cases of an experiment usually share their system
         return copy.deepcopy(_ANALYSES[key])
-    system, point = p.system, None
+    system, point = p.system.model, None
     if not isinstance(system, StateSpace):
         from odelab.analysis.linearize import linearize
 
@@ -215,14 +215,14 @@ def analyze_problem(p) -> dict:
                  "residual": op.residual}
     spec = p.analysis
     info = analyze(system, step_info=spec["step_info"], bode_range=spec["bode"], show_poles=spec["poles"],
-                   linearized_at=point, with_margins=p.diagram is None)
+                   linearized_at=point, with_margins=p.system.diagram is None)
     if spec.get("loop"):
         from odelab.analysis.control import loop_analysis
 
         op = getattr(system, "operating_point", None)
         x0 = op.x if op is not None else np.zeros(len(p.states))
         u0 = op.u if op is not None else np.zeros(len(p.inputs))
-        info["loop"] = loop_analysis(p.diagram.open_loop(spec["loop"]), x0, u0, spec["loop"], spec["bode"])
+        info["loop"] = loop_analysis(p.system.diagram.open_loop(spec["loop"]), x0, u0, spec["loop"], spec["bode"])
     if key is not None:
         if len(_ANALYSES) > 64:
             _ANALYSES.clear()
@@ -246,11 +246,11 @@ def _reference(result: CaseResult, max_steps: int | None = None) -> None:
     if kind == "none" or t.size < 2:
         return
     if kind == "exact":
-        ref = p.exact_fn(t)
+        ref = p.system.exact_fn(t)
     elif kind == "lti" and np.all(np.diff(t) > 0):
         from odelab.analysis.lti import lti_response
 
-        xr, yr = lti_response(p.system, t, p.x0, u=list(p.signals) if p.signals else None)
+        xr, yr = lti_response(p.system.model, t, p.x0, u=list(p.system.signals) if p.system.signals else None)
         ref = {name: xr[:, i] for i, name in enumerate(p.states)}
         ref.update({name: yr[:, i] for i, name in enumerate(p.outputs)})
     else:
@@ -278,10 +278,10 @@ def _reference(result: CaseResult, max_steps: int | None = None) -> None:
                 result.warnings.append(f"the high-accuracy reference ({solver}, rtol {rtol:g}) failed: {ran.message}")
                 return
         ref = {name: rx[:, i] for i, name in enumerate(p.states)}
-        if p.output_fn is not None:
-            if ru is None and p.input_fn is not None:
-                ru = p.input_fn(rt)
-            ry = p.output_fn(rt, rx, ru)
+        if p.system.output_fn is not None:
+            if ru is None and p.system.input_fn is not None:
+                ru = p.system.input_fn(rt)
+            ry = p.system.output_fn(rt, rx, ru)
             ref.update({name: ry[:, i] for i, name in enumerate(p.outputs)})
     result.reference_kind = kind
     series = result.series()

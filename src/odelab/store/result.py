@@ -86,11 +86,11 @@ class CaseResult:
         before and at each (:func:`odelab.signals.input_jumps`), so that the report draws a step
         as a step whatever rows the solver output."""
         p = self.case.problem
-        if self.u is None or not p.signals:
+        if self.u is None or not p.system.signals:
             return
         from odelab.signals import input_jumps
 
-        jumps = input_jumps(p.signals, float(p.tspan[0]), float(p.tspan[-1]))
+        jumps = input_jumps(p.system.signals, float(p.tspan[0]), float(p.tspan[-1]))
         if jumps is not None:
             self.extra["input_jumps"] = jumps
 

@@ -174,7 +174,7 @@ def summary(result: CaseResult) -> dict[str, Any]:
         "warnings": list(result.warnings),
         "elapsed_s": result.elapsed,
         "extra": result.extra,
-        **({"events": result.events} if result.case.problem.events is not None else {}),
+        **({"events": result.events} if result.case.problem.system.events is not None else {}),
         # the global error estimate (odelab.run.estimate): per quantity the estimated max error and digits
         **({"estimate": result.estimate} if result.estimate is not None else {}),
     })

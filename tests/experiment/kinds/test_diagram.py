@@ -76,7 +76,7 @@ def test_nonlinear_diagram_runs_with_a_high_accuracy_reference_and_its_resolved_
     assert second["stats"] == first["stats"] and second["max_abs_error"] == first["max_abs_error"]
     case = load_experiment(path).cases[0]
     assert case.problem.reference == "none"  # no closed form: "high-accuracy" must be asked for
-    assert type(case.problem.system).__name__ == "NonlinearSystem"
+    assert type(case.problem.system.model).__name__ == "NonlinearSystem"
 
 
 def test_nonlinear_diagram_linearises_exactly(tmp_path):
@@ -86,7 +86,7 @@ def test_nonlinear_diagram_linearises_exactly(tmp_path):
                                        'spring   = { type = "fcn", expression = "k*u + 2*u^3", input = "position" }')
     path = tmp_path / "hard.toml"
     path.write_text(text)
-    system = load_experiment(path).cases[0].problem.system
+    system = load_experiment(path).cases[0].problem.system.model
     lin = linearize(system, u0=[1.0])
     xbar = lin.operating_point.x[0]
     assert 3 * xbar + 2 * xbar**3 == pytest.approx(1.0, abs=1e-14)
@@ -131,7 +131,7 @@ points = 41
     case = load_experiment(path).cases[0]
     assert case.problem.inputs == ("s1", "s2", "s3", "s4", "s5", "s6", "s7", "s8")
     # linear, but an expression source has no exact form: no automatic reference, as for [inputs]
-    assert type(case.problem.system).__name__ == "StateSpace" and case.problem.reference == "none"
+    assert type(case.problem.system.model).__name__ == "StateSpace" and case.problem.reference == "none"
     r = run_case(case)
     t = r.t
     expected = {

@@ -69,7 +69,7 @@ def _assert_close(a, b, path="linearization"):
 def test_nonlinear_spring_network_linearises_as_linearisation_toml(case):
     net = {c.name: c for c in load_experiment(NETWORKS / "network_nonlinear_spring.toml").cases}[case]
     ref = {c.name: c for c in load_experiment(EXPERIMENTS / "linearisation.toml").cases}[case]
-    assert net.problem.network.equations()["mass.v"] == "(f - b*mass.v - k1*mass.x - k3*mass.x^3)/m"
+    assert net.problem.system.network.equations()["mass.v"] == "(f - b*mass.v - k1*mass.x - k3*mass.x^3)/m"
     a, b = run_case(net), run_case(ref)
     assert a.status == b.status == "success" and a.stats == b.stats and np.array_equal(a.t, b.t)
     assert np.max(np.abs(a.x - b.x)) <= 8 * np.finfo(float).eps * np.max(np.abs(b.x))
@@ -98,7 +98,7 @@ def test_every_shipped_network_runs(name):
 def test_the_python_api_gives_the_system_the_toml_gives():
     from odelab.network import Damper, ForceSource, Mass, Network, Spring
 
-    toml = load_experiment(NETWORKS / "network_msd.toml").cases[0].problem.system
+    toml = load_experiment(NETWORKS / "network_msd.toml").cases[0].problem.system.model
     net = Network({"mass": Mass(node="p", m="m"), "spring": Spring(nodes=["p", "ground"], k="k"),
                    "damper": Damper(nodes=["p", "ground"], b="b"),
                    "push": ForceSource(nodes=["p", "ground"], value="f")},
@@ -111,8 +111,8 @@ def test_the_python_api_gives_the_system_the_toml_gives():
 
 def test_tanks_network_is_nonlinear_and_keeps_the_orifice_law():
     p = load_experiment(NETWORKS / "network_tanks.toml").cases[0].problem
-    assert type(p.system).__name__ == "NonlinearSystem" and p.states == ("tank1.p", "tank2.p")
-    eq = p.network.equations()
+    assert type(p.system.model).__name__ == "NonlinearSystem" and p.states == ("tank1.p", "tank2.p")
+    eq = p.system.network.equations()
     assert "sqrt(abs(tank1.p - tank2.p))*sign(tank1.p - tank2.p)" in eq["tank1.p"]
     r = run_case(load_experiment(NETWORKS / "network_tanks.toml").cases[0])
     # the steady state: all of the pump's flow leaves through the outlet, q = p2/Rout, and the

@@ -134,4 +134,4 @@ def build_delay_diagram(model: schema.Experiment, compiled, outputs: dict, t0: f
         compiled.notes.extend(n for n in linear.notes if n not in compiled.notes)
     return Built(states=compiled.states, inputs=inputs, outputs=compiled.outputs, fun=delays,
                  output_fn=delays.output_many if compiled.outputs else None, resolved=resolved, linear=False,
-                 system=system, x0=compiled.x0, signals=(), diagram=compiled, compiled=None)
+                 model=system, x0=compiled.x0, signals=(), diagram=compiled, compiled=None)

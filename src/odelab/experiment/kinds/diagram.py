@@ -314,5 +314,5 @@ def build_diagram(model: schema.Experiment, params: dict[str, float], path: Path
         body = [] if reason else diagram_source(compiled, data, 2 if compiled.inputs else 0)
         fast = CompiledSystem.generated(compiled.states, compiled.inputs, body, data, unsupported=reason)
     return Built(states=compiled.states, inputs=compiled.inputs, outputs=compiled.outputs, fun=fun,
-                 output_fn=output_fn, resolved=resolved, linear=compiled.linear, system=sys_obj,
+                 output_fn=output_fn, resolved=resolved, linear=compiled.linear, model=sys_obj,
                  x0=compiled.x0, signals=compiled.signals, diagram=compiled, compiled=fast)

@@ -88,7 +88,7 @@ def build_network(model: schema.Experiment, params: dict[str, float]) -> Built:
 
             fun = LinearField(A) if not inputs else None
             return Built(states=states, inputs=inputs, outputs=outputs, fun=fun,
-                         output_fn=output_fn if outputs else None, resolved=resolved, linear=True, system=ss,
+                         output_fn=output_fn if outputs else None, resolved=resolved, linear=True, model=ss,
                          compiled=CompiledSystem.linear(A, states, B, inputs), jacobian=A, network=net,
                          x0=np.zeros(len(states)))
         from odelab.systems.jacobian import complex_step_jacobian
@@ -111,7 +111,7 @@ def build_network(model: schema.Experiment, params: dict[str, float]) -> Built:
     except InputError as exc:  # pragma: no cover - the derivation's own expressions compile
         raise ExperimentError(f"the derived network does not compile: {exc.message}", key="elements") from None
     return Built(states=states, inputs=inputs, outputs=outputs, fun=fun, output_fn=output_fn, resolved=resolved,
-                 linear=False, system=sys_obj, compiled=compiled, jacobian=jacobian, network=net,
+                 linear=False, model=sys_obj, compiled=compiled, jacobian=jacobian, network=net,
                  x0=np.zeros(len(states)))  # [initial] gives some states by name; the others start at 0
 
 
@@ -120,7 +120,7 @@ def network_record(p) -> dict:
     from odelab.systems.network.draw import network_dot
     from odelab.systems.network.show import derivation_sections
 
-    net = p.network
+    net = p.system.network
     key = tuple(sorted(p.parameters.items()))
     cache = net.__dict__.setdefault("_sections", {})  # the cases of a file share their network
     if key not in cache:
