@@ -87,6 +87,26 @@ def test_a_run_resolves_nothing_again(tmp_path, resolutions, method):
     assert result.estimate["verdict"] == "ok" and resolutions == {"normalize": 0, "resolve": 1}
 
 
+@pytest.mark.parametrize("method", ["ode45", "ode15s"])
+def test_the_compiled_backend_resolves_nothing_again(tmp_path, resolutions, method):
+    """The compiled loops (explicit and stiff) take the case's resolved options as they are, and give the
+    bits the same options given as keywords give."""
+    pytest.importorskip("numba")
+    from odelab.solvers.compiled import solve_compiled
+
+    case = _case(tmp_path, method, 'RelTol = 1e-5\nAbsTol = [1e-7, 1e-8]\nbackend = "compiled"')
+    resolutions.update(normalize=0, resolve=0)
+    result = run_case(case, max_steps=100_000, estimate=False)
+    assert result.status == "success" and result.backend == "compiled"
+    assert resolutions == {"normalize": 0, "resolve": 0}
+    p = case.problem
+    keywords = solve_compiled(p.system.compiled, p.tspan, p.x0, method, RelTol=1e-5, AbsTol=[1e-7, 1e-8],
+                              max_steps=100_000)
+    assert np.array_equal(result.x, keywords.y) and np.array_equal(result.t, keywords.t)
+    with pytest.raises(InputError, match="give the options either resolved or as keywords, not both"):
+        solve_compiled(p.system.compiled, p.tspan, p.x0, method, resolved=p.solver_options, rtol=1e-3)
+
+
 def test_the_carried_options_give_the_keyword_apis_bits(tmp_path):
     case = _case(tmp_path)
     p = case.problem

@@ -56,8 +56,10 @@ def solve_problem(problem, tspan, method_name: str, options, backend: str, rows_
         return solve(problem.system.fun, tspan, problem.x0, method=method_name, resolved=opts)
 
     def compiled(opts):
+        if isinstance(opts, dict):
+            return solve_compiled(problem.system.compiled, tspan, problem.x0, method_name, rows_to=rows_to, **opts)
         return solve_compiled(problem.system.compiled, tspan, problem.x0, method_name, rows_to=rows_to,
-                              **given_options(opts))
+                              resolved=opts)
 
     def pilot(opts):
         sol = python(_with(opts, max_steps=AUTO_STEPS))

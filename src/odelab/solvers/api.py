@@ -163,12 +163,7 @@ def solve(fun, tspan, y0, method: str = "ode45", *, resolved: SolverOptions | No
         :class:`~odelab.exceptions.SolverWarning` with its message.
     """
     if resolved is not None:
-        if options:
-            raise InputError(f"give the options either resolved or as keywords, not both; got `resolved` and "
-                             f"{', '.join(f'`{k}`' for k in options)}.", key="resolved")
-        if not isinstance(resolved, SolverOptions):
-            raise InputError(f"`resolved` must be a SolverOptions (odelab.solvers.options.resolve_options); got "
-                             f"{resolved!r}.", key="resolved")
+        check_resolved(resolved, options)
     sol = _solve(fun, tspan, y0, method, options if resolved is None else resolved)
     _warn_if_failed(sol, 3)
     _warn_if_implausible(sol, 3)
@@ -238,6 +233,16 @@ def _atol_of(sol: Solution, options: dict | SolverOptions):
         return np.asarray(options.atol, dtype=float).ravel()
     atol = normalize_options(options, get_method(sol.method)).get("atol", DEFAULT_ATOL)
     return np.asarray(atol, dtype=float).ravel()
+
+
+def check_resolved(resolved, options: dict) -> None:
+    """``resolved=`` is a SolverOptions and comes alone (odelab.solve's and solve_compiled's rule)."""
+    if options:
+        raise InputError(f"give the options either resolved or as keywords, not both; got `resolved` and "
+                         f"{', '.join(f'`{k}`' for k in options)}.", key="resolved")
+    if not isinstance(resolved, SolverOptions):
+        raise InputError(f"`resolved` must be a SolverOptions (odelab.solvers.options.resolve_options); got "
+                         f"{resolved!r}.", key="resolved")
 
 
 def _given(options: dict | SolverOptions, m: Method) -> dict:

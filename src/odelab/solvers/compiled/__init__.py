@@ -320,7 +320,8 @@ def unavailable() -> str | None:
 
 
 def solve_compiled(system: CompiledSystem, tspan, y0, method: str = DEFAULT_METHOD, *,
-                   input_bounds: tuple[float, float] = (-np.inf, np.inf), rows_to=None, **options) -> Solution:
+                   input_bounds: tuple[float, float] = (-np.inf, np.inf), rows_to=None, resolved=None,
+                   **options) -> Solution:
     """Solve ``system`` with an odelab method (ode23, ode45, fixed-step, ode23s, ode15s) on the compiled path.
 
     Same arguments, options and result as :func:`odelab.solvers.api.solve` with the
@@ -330,18 +331,25 @@ def solve_compiled(system: CompiledSystem, tspan, y0, method: str = DEFAULT_METH
     :func:`odelab.systems.simulate.simulate`, which restarts at the inputs' breakpoints). ``rows_to``: where an
     adaptive run's Refine output goes block by block once a block has filled (:func:`.rows.adaptive_rows`'s
     ``sink``, a run's :class:`odelab.store.spool.Spool`); its ``t`` and ``y`` are then the sink's.
+    ``resolved`` (a :class:`~odelab.solvers.options.SolverOptions`, a loaded case's) instead of
+    ``**options``: used as they are when resolved for this method, span and number of states, as
+    :func:`odelab.solve` takes them.
     """
     from odelab.solvers import api
 
+    if resolved is not None:
+        api.check_resolved(resolved, options)
+        options = resolved
     sol = _solve_compiled(system, tspan, y0, method, options, input_bounds, rows_to)
     api._warn_if_failed(sol, 3)
     return sol
 
 
-def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dict,
+def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options,
                     input_bounds: tuple[float, float] = (-np.inf, np.inf), rows_to=None) -> Solution:
+    """``options``: a dict as given, or SolverOptions resolved already (used as they are if they fit)."""
     from odelab.solvers import api
-    from odelab.solvers.options import as_tspan, as_y0, normalize_options, resolve_options
+    from odelab.solvers.options import as_tspan, as_y0, resolved_for
 
     m = get_method(method)
     refusal = method_refusal(m)
@@ -361,7 +369,7 @@ def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dic
     if np.iscomplexobj(y0_arr):
         raise InputError("the compiled backend integrates real states; `y0` is complex: use backend \"python\".",
                          key="y0")
-    opts = resolve_options(m, normalize_options(options, m), tspan_arr, n)
+    opts = resolved_for(m, options, tspan_arr, n)
     python_only = [name for name in PYTHON_ONLY_OPTIONS if getattr(opts, name, None) not in (None, ())]
     if python_only:
         raise InputError(f"the compiled backend does not run `{python_only[0]}` (it calls Python); use backend "
@@ -435,7 +443,7 @@ def _solve_compiled(system: CompiledSystem, tspan, y0, method: str, options: dic
 
 
 
-def _solve_stiff(system: CompiledSystem, m, tspan, y0, options: dict) -> Solution:
+def _solve_stiff(system: CompiledSystem, m, tspan, y0, options) -> Solution:
     """ode23s and ode15s (:mod:`.stiff`), after the checks every compiled run makes."""
     from odelab.solvers.compiled.stiff import solve_stiff
     from odelab.solvers.options import as_tspan, as_y0

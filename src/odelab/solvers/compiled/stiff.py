@@ -72,19 +72,20 @@ def _jacobian_refusal(system, jacobian) -> str | None:
     return "`jacobian` is a matrix other than the system's own Jacobian"
 
 
-def solve_stiff(system, m, tspan_arr: np.ndarray, y0_arr: np.ndarray, options: dict) -> Solution:
-    """Run ``m`` (ode23s or ode15s) compiled; ``options`` as :func:`odelab.solve` takes them."""
+def solve_stiff(system, m, tspan_arr: np.ndarray, y0_arr: np.ndarray, options) -> Solution:
+    """Run ``m`` (ode23s or ode15s) compiled; ``options`` as :func:`odelab.solve` takes them (a dict, or
+    SolverOptions resolved already: used as they are when they fit this method, span and size)."""
     from odelab.solvers import api
     from odelab.solvers.compiled.cache import load_kernels
     from odelab.solvers.implicit import resolve_extras, step_class
-    from odelab.solvers.options import normalize_options, resolve_options
+    from odelab.solvers.options import resolved_for
 
-    reason = why_not_stiff(m.name, system, options)
+    opts = resolved_for(m, options, tspan_arr, y0_arr.size)
+    given = opts.given
+    reason = why_not_stiff(m.name, system, given)
     if reason:
         raise InputError(f"the compiled backend cannot run {m.name} here: {reason}; use backend \"python\".",
                          key="backend")
-    given = normalize_options(options, m)
-    opts = resolve_options(m, given, tspan_arr, y0_arr.size)
     for name in ("events", "nonnegative", "output_fcn", "args"):
         if getattr(opts, name, None) not in (None, ()):
             raise InputError(f"the compiled backend does not run `{name}` with {m.name} (it calls Python); use "
