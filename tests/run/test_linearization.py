@@ -88,3 +88,20 @@ def test_a_linearised_network_keeps_its_drawing_and_derivation():
     for element in exp.cases[0].problem.system.network.elements:
         assert element in network["dot"], element
     assert network["sections"] and not network["linear"]
+
+
+def test_a_system_without_inputs_is_linearised_and_compared(tmp_path):
+    """A pendulum with no inputs: linearised about its rest point and the free responses from [initial]
+    compared (the run failed with "`u` must be None; got []" before: the inputs were an empty list)."""
+    path = tmp_path / "pendulum.toml"
+    path.write_text('[system]\nstates = ["th", "w"]\n[system.equations]\nth = "w"\nw = "-9.81*sin(th) - 0.1*w"\n'
+                    '[time]\nstop = 2\n[initial]\nth = 0.01\nw = 0\n[linearize]\nstart = "initial"\n')
+    (result,) = run_experiment(path)
+    assert result.status == "success", result.message
+    info = result.extra["linearization"]
+    np.testing.assert_allclose(info["A"], [[0, 1], [-9.81, -0.1]], rtol=0, atol=1e-15)
+    assert info["B"] == [[], []] and info["operating_point"]["x"] == {"th": 0.0, "w": 0.0}
+    # from th = 0.01 rad the two models differ by the cubic term, th^3/6 against th, a relative 1.7e-5 of the
+    # swing, and by their solves' errors (ode45 at RelTol 1e-3 each): within 1e-3 of the 0.01 rad peak
+    assert result.errors["th"].max_abs < 1e-3 * 0.01
+    assert result.errors["th"].scale == pytest.approx(0.01, rel=1e-12)

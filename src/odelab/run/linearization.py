@@ -79,7 +79,8 @@ def run_linearization_case(case: Case, *, max_steps: int | None = None) -> CaseR
     op = lin.operating_point
     start_from = _start(case, spec, op.x, notes)
     x_init = op.x if start_from == "operating-point" else p.x0
-    u = list(p.system.signals) if p.system.signals else [Constant(float(v)) for v in u_bar]
+    # the inputs held at the operating point (or the file's signals); None for a system without inputs
+    u = list(p.system.signals) if p.system.signals else [Constant(float(v)) for v in u_bar] if p.inputs else None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         cmp = compare_linearization(system, lin, u, x_init, p.tspan, method=p.method, **options)
