@@ -54,8 +54,12 @@ def build_ode(model: schema.Experiment, params: dict[str, float]) -> Built:
 
     delayed = uses_lag(system.equations.values()) or model.history is not None  # dde23: experiment/delays.py
     args = ["t", *states, *inputs]
-    F = None if delayed else ex.compile_vector([system.equations[s] for s in states], args=args, constants=params,
-                                               keys=[f"system.equations.{s}" for s in states])
+    keys = [f"system.equations.{s}" for s in states]
+    # Each text is compiled once: by NonlinearSystem.from_expressions where the case needs the system object
+    # (inputs, [linearize], [analysis]; with its complex-step twin for exact Jacobians), else here.
+    as_object = not delayed and (inputs or model.linearize is not None or model.analysis is not None)
+    F = None if delayed or as_object else ex.compile_vector([system.equations[s] for s in states], args=args,
+                                                             constants=params, keys=keys)
     outputs: tuple[str, ...] = ()
     output_fn = None
     resolved = {"states": list(states), "equations": dict(system.equations)}
@@ -67,10 +71,10 @@ def build_ode(model: schema.Experiment, params: dict[str, float]) -> Built:
         if dup:
             raise ExperimentError(f"output {dup[0]!r} has the name of a state, input or parameter; rename it.",
                                   key=f"system.outputs.{dup[0]}")
-        G = ex.compile_vector(list(system.outputs.values()), args=args, constants=params,
-                              keys=[f"system.outputs.{n}" for n in outputs])
-        output_fn = ExpressionOutputs(G, len(outputs))
-
+        if not as_object:
+            G = ex.compile_vector(list(system.outputs.values()), args=args, constants=params,
+                                  keys=[f"system.outputs.{n}" for n in outputs])
+            output_fn = ExpressionOutputs(G, len(outputs))
         resolved["outputs"] = dict(system.outputs)
     if delayed:
         from odelab.experiment.kinds.delays import build_delay
@@ -79,13 +83,16 @@ def build_ode(model: schema.Experiment, params: dict[str, float]) -> Built:
 
     sys_obj = None
     fun = None  # with inputs, the runner integrates through odelab.simulate, which applies them
-    if inputs or model.linearize is not None or model.analysis is not None:
+    F_complex = None
+    if as_object:
         from odelab.systems.nonlinear import NonlinearSystem
 
-        # The system object keeps a complex-step-safe compilation for exact Jacobians.
         sys_obj = NonlinearSystem.from_expressions(
             {s: system.equations[s] for s in states}, inputs=inputs,
             outputs=dict(system.outputs) if system.outputs else None, parameters=params)
+        F, G, F_complex = sys_obj.expression_parts()
+        if outputs:
+            output_fn = ExpressionOutputs(G, len(outputs))
     from odelab.solvers.compiled import CompiledSystem
 
     if not inputs:
@@ -95,24 +102,24 @@ def build_ode(model: schema.Experiment, params: dict[str, float]) -> Built:
 
     # the compiled backend's description (nothing is compiled unless that backend runs);
     # the loader binds the inputs' signals to it
-    compiled = CompiledSystem.from_system(states, [system.equations[s] for s in states], params, inputs,
-                                          keys=[f"system.equations.{s}" for s in states])
+    compiled = CompiledSystem.from_system(states, [system.equations[s] for s in states], params, inputs, keys=keys)
 
-    jacobian = _jacobian(system, states, params)
+    jacobian = _jacobian(system, states, params, None if inputs else F_complex)
     if system.jacobian is not None:
         resolved["jacobian"] = [list(row) for row in system.jacobian]
     return Built(states=states, inputs=inputs, outputs=outputs, fun=fun, output_fn=output_fn, resolved=resolved,
                  linear=False, model=sys_obj, compiled=compiled, jacobian=jacobian)
 
 
-def _jacobian(system, states: tuple[str, ...], params: dict[str, float]):
-    """The exact df/dx for the stiff solvers: the file's `jacobian`, else complex step on the equations."""
+def _jacobian(system, states: tuple[str, ...], params: dict[str, float], compiled=None):
+    """The exact df/dx for the stiff solvers: the file's `jacobian`, else complex step on the equations
+    (``compiled``: their complex-step compilation over t and the states, where one was made)."""
     from odelab.systems.jacobian import complex_step_jacobian, expression_jacobian
 
     n = len(states)
     if system.jacobian is None:
         return complex_step_jacobian([system.equations[s] for s in states], states, params,
-                                     keys=[f"system.equations.{s}" for s in states])
+                                     keys=[f"system.equations.{s}" for s in states], compiled=compiled)
     rows = system.jacobian
     if len(rows) != n or any(len(row) != n for row in rows):
         shape = f"rows of {', '.join(str(len(r)) for r in rows)} entries"

@@ -30,10 +30,16 @@ _H = 1e-200  # complex step: any tiny h works, as there is no subtractive cancel
 
 
 def complex_step_jacobian(equations: Sequence[str], states: Sequence[str], parameters: Mapping[str, float],
-                          *, keys: Sequence[str] | None = None, source: str | None = None) -> ComplexStepJacobian:
-    """``J(t, y)`` of the right-hand sides ``equations`` (one per state) by complex step."""
-    return ComplexStepJacobian(tuple(equations), tuple(states), dict(parameters),
-                               None if keys is None else tuple(keys), source)
+                          *, keys: Sequence[str] | None = None, source: str | None = None,
+                          compiled=None) -> ComplexStepJacobian:
+    """``J(t, y)`` of the right-hand sides ``equations`` (one per state) by complex step. ``compiled``: the
+    equations compiled already with ``complex_step=True`` over ``t`` and the states with these parameters
+    (a NonlinearSystem's twin, :meth:`~odelab.systems.nonlinear.NonlinearSystem.expression_parts`), used
+    instead of compiling them again on first use."""
+    jacobian = ComplexStepJacobian(tuple(equations), tuple(states), dict(parameters),
+                                   None if keys is None else tuple(keys), source)
+    jacobian._compiled = compiled
+    return jacobian
 
 
 class ComplexStepJacobian:

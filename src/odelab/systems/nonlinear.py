@@ -370,6 +370,16 @@ class NonlinearSystem:
         system.parameters = parameters
         return system
 
+    def expression_parts(self):
+        """``(F, G, F_complex)``: the functions :meth:`from_expressions` compiled, ``F(t, *x, *u)`` and
+        ``G(t, *x, *u)`` (None without outputs) and F's complex-step twin, for the builders that hand
+        the same right-hand side on as a case's ``fun`` and outputs without compiling the texts again."""
+        from odelab.systems.fields import InputField
+
+        if not isinstance(self._dynamics, InputField) or not isinstance(self.complex_step_dynamics, InputField):
+            raise TypeError("expression_parts() is for a system made by NonlinearSystem.from_expressions")
+        return self._dynamics.F, None if self._output is None else self._output.F, self.complex_step_dynamics.F
+
     def __repr__(self) -> str:
         label = f"{self.name!r}, " if self.name else ""
         return (

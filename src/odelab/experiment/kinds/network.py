@@ -96,18 +96,15 @@ def build_network(model: schema.Experiment, params: dict[str, float]) -> Built:
         texts = d.equation_texts()
         eqs = [texts[s] for s in states]
         keys = [f"elements (d({s})/dt)" for s in states]
-        args = ["t", *states, *inputs]
-        F = compile_vector(eqs, args=args, constants=params, keys=keys)
-        output_fn = None
-        if outputs:
-            out_texts = d.output_texts()
-            G = compile_vector([out_texts[y] for y in outputs], args=args, constants=params,
-                               keys=[f"system.outputs.{y}" for y in outputs])
-            output_fn = ExpressionOutputs(G, len(outputs))
+        # each equation text compiled once (and once for complex step): the case's fun, its outputs and
+        # its Jacobian are the NonlinearSystem's functions; the compiled backend's source is made on use
         sys_obj = net.compile(params)
+        F, G, F_complex = sys_obj.expression_parts()
         fun = ExpressionField(F) if not inputs else None
+        output_fn = ExpressionOutputs(G, len(outputs)) if outputs else None
         compiled = CompiledSystem.from_system(states, eqs, params, inputs, keys=keys)
-        jacobian = complex_step_jacobian(eqs, states, params, keys=keys)
+        jacobian = complex_step_jacobian(eqs, states, params, keys=keys,
+                                         compiled=None if inputs else F_complex)  # same arguments: t, the states
     except InputError as exc:  # pragma: no cover - the derivation's own expressions compile
         raise ExperimentError(f"the derived network does not compile: {exc.message}", key="elements") from None
     return Built(states=states, inputs=inputs, outputs=outputs, fun=fun, output_fn=output_fn, resolved=resolved,
