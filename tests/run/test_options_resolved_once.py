@@ -142,7 +142,12 @@ def test_a_budget_is_checked_alone_and_other_changes_resolve_again(tmp_path):
     assert tighter.rtol == fresh.rtol and np.array_equal(tighter.atol, fresh.atol) and tighter.max_step == fresh.max_step
 
 
-def test_a_problem_whose_options_were_replaced_is_resolved_from_them(tmp_path):
+def test_a_problem_holds_one_copy_of_its_options(tmp_path):
+    """Problem.options is the resolved options' given (no second dict to drift); a changed case is made by
+    replacing its solver_options, and runs with them."""
     p = _case(tmp_path).problem
-    changed = dataclasses.replace(p, options={**p.options, "rtol": 1e-8})
-    assert case_options(changed).rtol == 1e-8 and case_options(p).rtol == 1e-5
+    assert p.options is p.solver_options.given and dict(p.options) == {"rtol": 1e-5, "atol": [1e-7, 1e-8]}
+    changed = dataclasses.replace(p, solver_options=p.solver_options.updated(rtol=1e-8))
+    assert case_options(changed).rtol == 1e-8 and changed.options["rtol"] == 1e-8 and case_options(p).rtol == 1e-5
+    with pytest.raises(TypeError):
+        dataclasses.replace(p, options={"rtol": 1e-8})  # not a field: one place holds the options

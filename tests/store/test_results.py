@@ -291,7 +291,7 @@ def test_a_file_cannot_lift_the_run_step_budget(asked):
     import dataclasses
 
     case = load_experiment(ROOT / "experiments" / "rigid_body.toml").cases[0]
-    problem = dataclasses.replace(case.problem, options={**case.problem.options, "max_steps": asked})
+    problem = dataclasses.replace(case.problem, solver_options=case.problem.solver_options.updated(max_steps=asked))
     result = run_case(dataclasses.replace(case, problem=problem), max_steps=5)
     assert result.status == "failed" and result.stats.nsteps == 5
     assert f"[solver] asks max_steps = {asked:,}" in result.message

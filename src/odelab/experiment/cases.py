@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, Mapping
 
 import numpy as np
 
@@ -36,9 +36,9 @@ class Problem:
     tspan: np.ndarray  # MATLAB tspan given to the solver
     x0: np.ndarray
     method: str
-    options: dict[str, Any]  # as the file gives them (state names made indices): resolved.toml, the notes
-    # ``options`` resolved once at load (odelab.solvers.options.SolverOptions: checked, MATLAB's defaults filled
-    # in, for tspan and the states, the exact Jacobian included), carried to the driver
+    # the [solver] options resolved once at load (odelab.solvers.options.SolverOptions: checked, MATLAB's
+    # defaults filled in, for tspan and the states, the exact Jacobian included), carried to the driver as they
+    # are; a change is ``solver_options.updated(...)`` (a step budget checked alone, anything else resolved again)
     solver_options: SolverOptions
     reference: str = "none"  # "exact", "lti", "high-accuracy" or "none"
     reference_solver: tuple[str, float, float] = ("auto", 1e-12, 1e-14)
@@ -50,6 +50,12 @@ class Problem:
     fit: dict | None = None  # the summary of the experiment's [fit], once it has been fitted
     initial_given: tuple[str, ...] = ()  # the states the file's [initial] gives (the rest took their defaults)
     notes: tuple[str, ...] = ()  # what loading did that the run's notes say (values converted from their units)
+
+    @property
+    def options(self) -> Mapping[str, Any]:
+        """The options as the file gives them, in odelab's names (state names made indices): the resolved
+        options' ``given``, the one copy (a solve of another span starts from them)."""
+        return self.solver_options.given
 
     # the names, read from the system (the one place they are held)
     @property

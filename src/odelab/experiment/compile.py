@@ -95,8 +95,8 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
     if system.kind == "ode" and system.jacobian is not None and built.jacobian is not None:
         check_jacobian(built.jacobian, system, states, params, float(tspan[0]), x0)
     if "jacobian" in method.options and built.jacobian is not None:
-        # The stiff solvers get the exact Jacobian of a known system, never finite differences.
-        options["jacobian"] = built.jacobian
+        # The stiff solvers get the exact Jacobian of a known system, never finite differences (it is in the
+        # resolved options since _case_solver)
         resolved["solver"]["jacobian"] = getattr(built.jacobian, "source", "the A matrix")
     exact_fn, kind = _case_reference(model, built, method, signals, events, data, params, resolved)
     if model.units:
@@ -122,7 +122,7 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
         model=built.model, compiled=fast, diagram=built.diagram, network=built.network,
         fmu=_bound_fmu(built.fmu, signals))
     problem = Problem(
-        system=system, tspan=tspan, x0=x0, method=method.name, options=options, solver_options=solver_options,
+        system=system, tspan=tspan, x0=x0, method=method.name, solver_options=solver_options,
         reference=kind, reference_solver=(ref.solver, float(ref.rtol), float(ref.atol)), linearize=linearize,
         parameters=params, backend=backend, analysis=analysis, data=data, initial_given=given, notes=tuple(notes),
     )

@@ -29,13 +29,8 @@ __all__ = ["solve_problem", "simulate_problem", "solve_events_problem", "run_hyb
 
 
 def case_options(problem):  # -> odelab.solvers.options.SolverOptions
-    """A case's solver options as resolved once at load (``Problem.solver_options``), carried to the driver;
-    resolved here from ``problem.options`` only for a problem built otherwise, or whose options were replaced
-    since (``dataclasses.replace``)."""
-    resolved = problem.solver_options
-    if resolved is not None and resolved.given_as(problem.options):
-        return resolved
-    return resolved_for(get_method(problem.method), problem.options, problem.tspan, np.size(problem.x0))
+    """A case's solver options as resolved once at load (``Problem.solver_options``), carried to the driver."""
+    return problem.solver_options
 
 
 def _with(options, **changes):
