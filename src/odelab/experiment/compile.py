@@ -116,13 +116,13 @@ def compile_case(model: schema.Experiment, path: Path, *, limits: Limits = DEFAU
         resolved["analysis"] = _plain({k: v for k, v in model.analysis.model_dump(by_alias=True).items()
                                        if v is not None})
     ref = model.reference
-    system = System(
+    case_system = System(
         states=states, inputs=inputs, outputs=outputs, fun=built.fun, output_fn=built.output_fn, input_fn=input_fn,
         jacobian=built.jacobian, signals=signals, events=events, exact_fn=exact_fn, linear=built.linear,
         model=built.model, compiled=fast, diagram=built.diagram, network=built.network,
         fmu=_bound_fmu(built.fmu, signals))
     problem = Problem(
-        system=system, tspan=tspan, x0=x0, method=method.name, solver_options=solver_options,
+        system=case_system, tspan=tspan, x0=x0, method=method.name, solver_options=solver_options,
         reference=kind, reference_solver=(ref.solver, float(ref.rtol), float(ref.atol)), linearize=linearize,
         parameters=params, backend=backend, analysis=analysis, data=data, initial_given=given, notes=tuple(notes),
     )
