@@ -365,3 +365,17 @@ def test_json_trajectories_are_there_when_asked_and_never_dropped_silently():
         assert case["name"] == "ode23" and len(traj["t"]) == 12 == case["points"]
         assert set(traj) == {"t", "y", "y_ref", "y_abs_err", "y_rel_err"}
         assert f"{max(traj['y_rel_err']):.3e}" == "1.068e-04"
+
+
+def test_a_linearised_system_without_inputs_prints_its_empty_b_as_matlab_builds_it(tmp_path):
+    path = tmp_path / "pendulum.toml"
+    path.write_text('[system]\nstates = ["th", "w"]\n[system.equations]\nth = "w"\nw = "-9.81*sin(th) - 0.1*w"\n'
+                    '[time]\nstop = 2\n[initial]\nth = 0.01\nw = 0\n[linearize]\nstart = "initial"\n')
+    result = runner.invoke(app, ["run", str(path), "--runs", str(tmp_path / "runs")], env={"COLUMNS": "160"})
+    assert result.exit_code == 0, result.output
+    assert "A = [0 1; -9.81 -0.1], B = zeros(2, 0), C = [1 0; 0 1], D = zeros(2, 0)" in result.output
+    # with an output whose slope is -0.0 at the rest point (d(-cos th)/dth = sin 0), C shows 0 as MATLAB does
+    path.write_text(path.read_text().replace('[system.equations]', 'outputs = { y = "-cos(th)" }\n[system.equations]'))
+    result = runner.invoke(app, ["run", str(path), "--runs", str(tmp_path / "runs2")], env={"COLUMNS": "160"})
+    assert result.exit_code == 0, result.output
+    assert "C = [0 0], D = zeros(1, 0)" in result.output

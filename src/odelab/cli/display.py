@@ -199,7 +199,10 @@ def print_point_table(console: Console, r) -> None:
 
 
 def _matrix(rows) -> str:
-    return "[" + "; ".join(" ".join(f"{v:.6g}" for v in row) for row in rows) + "]"
+    """MATLAB's notation; an empty matrix as MATLAB builds it, ``zeros(2, 0)`` (no inputs: B is 2-by-0)."""
+    if not rows or not rows[0]:
+        return f"zeros({len(rows)}, 0)"
+    return "[" + "; ".join(" ".join(f"{v + 0.0:.6g}" for v in row) for row in rows) + "]"  # -0 shown as 0
 
 
 def _num(v: float, digits: int = 4) -> str:
