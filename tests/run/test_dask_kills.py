@@ -157,3 +157,28 @@ def test_a_worker_with_another_odelab_is_refused_naming_both_versions(tmp_path):
     assert "has odelab 0.0.9, and this process runs odelab " + __version__ in " ".join(err.split())
     assert f"pip install odelab=={__version__}" in " ".join(err.split())
     assert not (tmp_path / "runs").exists()
+
+
+def test_a_worker_with_the_same_version_but_other_code_is_refused(tmp_path):
+    """A worker started from another checkout (the same version number, one file edited) is refused before
+    any case runs: the version strings agree, the source digests do not."""
+    import shutil
+
+    import odelab
+    from odelab.run.executors import source_digest
+
+    other = tmp_path / "other-checkout"
+    shutil.copytree(Path(odelab.__file__).resolve().parent, other / "odelab",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    edited = other / "odelab" / "solvers" / "tableau.py"
+    edited.write_text(edited.read_text() + "\n# an edit in the worker's tree\n")
+    (tmp_path / "grid.toml").write_text(_study(4, 4))
+    path = os.pathsep.join([str(other), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    with dask_processes(1, tmp_path / "cluster", worker_env={"PYTHONPATH": path}) as address:
+        run = _odelab("run", "grid.toml", "--executor", "dask", "--scheduler", address, cwd=tmp_path)
+        out, err = run.communicate(timeout=120)
+    said = " ".join(err.split())
+    assert run.returncode == 2 and "Traceback" not in err, err
+    assert f"runs odelab {__version__} from other source files than this process" in said
+    assert f"this one's {source_digest()[:12]}): every worker must run the same odelab code" in said
+    assert not (tmp_path / "runs").exists()

@@ -43,7 +43,7 @@ from typing import Callable, Iterable, Iterator
 from odelab import __version__
 from odelab.exceptions import InputError
 
-__all__ = ["EXECUTORS", "CaseError", "ClusterLost", "POOL_WORTHWHILE", "case_cost", "default_jobs", "run_cases", "schedule", "small_work"]
+__all__ = ["EXECUTORS", "CaseError", "ClusterLost", "POOL_WORTHWHILE", "case_cost", "default_jobs", "run_cases", "schedule", "small_work", "source_digest"]
 
 EXECUTORS = ("serial", "process", "dask")
 
@@ -477,6 +477,29 @@ def travels(case) -> bool:
                for top in tops)
 
 
+_DIGEST: list[str] = []  # this process's source digest, computed once
+
+
+def source_digest() -> str:
+    """SHA-256 over the files of the odelab package this process imports (each file's path inside the
+    package and its bytes, in sorted order; bytecode caches left out), computed once a process: a Dask
+    worker must give the client's."""
+    if not _DIGEST:
+        import hashlib
+
+        import odelab
+
+        root = Path(odelab.__file__).resolve().parent
+        digest = hashlib.sha256()
+        for path in sorted(p for p in root.rglob("*") if p.is_file() and "__pycache__" not in p.parts
+                           and p.suffix != ".pyc"):
+            name = path.relative_to(root).as_posix().encode()
+            data = path.read_bytes()
+            digest.update(len(name).to_bytes(4, "little") + name + len(data).to_bytes(8, "little") + data)
+        _DIGEST.append(digest.hexdigest())
+    return _DIGEST[0]
+
+
 def _dask_results(cases, jobs, scheduler, opts, done, Client, LocalCluster, wait, limits=None, import_options=None,
                   on_note=None):
     cluster = None
@@ -537,7 +560,8 @@ class _ClusterWatch:
         self.said: set[str] = set()
 
     def check_versions(self, addresses: set[str]) -> None:
-        """Refuse workers whose odelab is not this process's (the results would mix versions)."""
+        """Refuse workers whose odelab is not this process's (the results would mix versions): another version
+        number, or the same number over other source files (a worker started from another checkout)."""
         info = self.client.get_versions(packages=["odelab"])
         for address in sorted(addresses):
             worker = info["workers"].get(address) or {}
@@ -548,8 +572,27 @@ class _ClusterWatch:
                                  f"odelab {__version__}: every worker must run the same odelab, or the results would "
                                  f"mix versions. Install odelab {__version__} in the workers' environment (pip install "
                                  f"odelab=={__version__}) and restart them.", key="scheduler")
+        self._check_sources(sorted(addresses), __version__)
         workers = self.client.scheduler_info(n_workers=-1)["workers"]
         self.known.update({a: str(workers.get(a, {}).get("name", a)) for a in addresses})
+
+    def _check_sources(self, addresses: list[str], version: str) -> None:
+        """The same version number is not the same code (a development tree, an edited install): each worker
+        hashes its odelab's files (:func:`source_digest`) and must find this process's digest."""
+        if not addresses:
+            return
+        mine = source_digest()
+        try:
+            theirs = self.client.run(source_digest, workers=addresses)
+        except Exception as exc:  # noqa: BLE001 - a worker that cannot even run the check runs other code
+            theirs = {a: f"unknown ({type(exc).__name__})" for a in addresses}
+        for address in addresses:
+            if theirs.get(address) != mine:
+                raise InputError(f"the Dask worker {address} of {self.where} runs odelab {version} from other source "
+                                 f"files than this process (their digest {str(theirs.get(address))[:12]}, this one's "
+                                 f"{mine[:12]}): every worker must run the same odelab code, or the results would "
+                                 "mix versions. Start the workers from the environment this process runs in (the "
+                                 "same install or checkout) and restart them.", key="scheduler")
 
     def look(self, now: float, progressed: bool) -> None:
         """After each wait (at most every DASK_POLL_SECONDS): workers that left or joined; and when
