@@ -485,11 +485,9 @@ def source_digest() -> str:
     package and its bytes, in sorted order; bytecode caches left out), computed once a process: a Dask
     worker must give the client's."""
     if not _DIGEST:
-        import hashlib
+        import hashlib  # only a Dask run asks
 
-        import odelab
-
-        root = Path(odelab.__file__).resolve().parent
+        root = Path(__file__).resolve().parents[1]  # the odelab package this module belongs to
         digest = hashlib.sha256()
         for path in sorted(p for p in root.rglob("*") if p.is_file() and "__pycache__" not in p.parts
                            and p.suffix != ".pyc"):
