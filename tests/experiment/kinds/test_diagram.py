@@ -21,12 +21,12 @@ def test_figure1_matrices_equal_exercise2_exactly():
     fig = load_experiment(FIGURE1).cases[0].problem
     ex2 = load_experiment(EXERCISE2).cases[0].problem
     assert fig.states == ("position", "velocity") and fig.inputs == ("force",) and fig.outputs == ("y", "x")
-    assert type(fig.system).__name__ == "StateSpace" and fig.reference == "lti"
+    assert type(fig.system.model).__name__ == "StateSpace" and fig.reference == "lti"
     for name in "AB":
-        np.testing.assert_array_equal(getattr(fig.system, name), getattr(ex2.system, name))
-    np.testing.assert_array_equal(fig.system.C[:1], ex2.system.C)  # y = q x; the second row is x itself
-    np.testing.assert_array_equal(fig.system.D[:1], ex2.system.D)
-    assert fig.system.C[1].tolist() == [1.0, 0.0]
+        np.testing.assert_array_equal(getattr(fig.system.model, name), getattr(ex2.system.model, name))
+    np.testing.assert_array_equal(fig.system.model.C[:1], ex2.system.model.C)  # y = q x; the second row is x itself
+    np.testing.assert_array_equal(fig.system.model.D[:1], ex2.system.model.D)
+    assert fig.system.model.C[1].tolist() == [1.0, 0.0]
 
 
 @pytest.mark.parametrize("kind", ["step", "sine", "ramp"])

@@ -20,10 +20,10 @@ def test_msd_network_has_exercise2s_states_and_matrices_entry_for_entry():
     net = load_experiment(NETWORKS / "network_msd.toml").cases[0].problem
     ex2 = load_experiment(EXPERIMENTS / "exercise2.toml").cases[0].problem
     assert net.states == ("mass.x", "mass.v") and net.inputs == ("f",) and net.outputs == ("y",)
-    assert type(net.system).__name__ == "StateSpace" and net.reference == "lti"
+    assert type(net.system.model).__name__ == "StateSpace" and net.reference == "lti"
     for name in "ABCD":
-        np.testing.assert_array_equal(getattr(net.system, name), getattr(ex2.system, name))
-    eq = net.network.equations()
+        np.testing.assert_array_equal(getattr(net.system.model, name), getattr(ex2.system.model, name))
+    eq = net.system.network.equations()
     assert eq == {"mass.x": "mass.v", "mass.v": "(f - b*mass.v - k*mass.x)/m"}
 
 
