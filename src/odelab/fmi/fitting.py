@@ -67,7 +67,7 @@ class FmuFitModel:
         options = {"rtol": rtol, "atol": atol}
         if max_steps:
             options["max_steps"] = max_steps
-        t, x, _u, _stats, status, message, *_ = run_fmu(SimpleNamespace(fmu=run, x0=self.x0), tspan, method, options)
+        t, x, _u, _stats, status, message, *_ = run_fmu(run, self.x0, tspan, method, options)
         run_info = SimpleNamespace(status=status, message=message)
         if status != "success":
             return None, run_info

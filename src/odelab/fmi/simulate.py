@@ -235,17 +235,17 @@ def run_co_simulation(run: FmuRun, tspan, x0, method: str, options: dict):
     return _integration(rec, run, Stats(len(rec_t) - 1, 0, 0), status, message, [], [])
 
 
-def run_fmu(problem, tspan, method: str, options: dict):
-    """The runner's entry: an FMU case's run on the interface the case chose, as the fields of
-    :class:`odelab.store.result.Integration`: (t, x, u, stats, status, message, warnings, events, marks)."""
-    run = problem.system.fmu
+def run_fmu(run, x0, tspan, method: str, options: dict):
+    """The runner's entry: an FMU case's run (``problem.system.fmu``) from ``x0`` on the interface the case
+    chose, as the fields of :class:`odelab.store.result.Integration`: (t, x, u, stats, status, message,
+    warnings, events, marks)."""
     if run.interface == "co-simulation":
-        return run_co_simulation(run, tspan, problem.x0, method, options)
+        return run_co_simulation(run, tspan, x0, method, options)
     values = dict(run.values)
-    for var, value in zip(run.model.states, problem.x0):
+    for var, value in zip(run.model.states, x0):
         if var.initial != "calculated" and var.causality != "independent" and var.start is not None:
             values[var] = float(value)
-    return _me_with(run, values, tspan, problem.x0, method, options)
+    return _me_with(run, values, tspan, x0, method, options)
 
 
 def _me_with(run: FmuRun, values: dict, tspan, x0, method, options):

@@ -44,7 +44,7 @@ def _integrate(problem, tspan, method, options, backend="python", rows_to=None) 
         if problem.system.fmu is not None:  # kind = "fmu": odelab's solvers step the FMU
             from odelab.fmi.simulate import run_fmu
 
-            return Integration(*run_fmu(problem, tspan, method, given_options(options)))
+            return Integration(*run_fmu(problem.system.fmu, problem.x0, tspan, method, given_options(options)))
         if problem.system.diagram is not None and not problem.system.diagram.states:
             return run_stateless(problem, tspan, options)
         if problem.system.diagram is not None and problem.system.diagram.hybrid:
