@@ -64,7 +64,7 @@ def test_a_broken_tableau_is_rejected_at_construction():
 
 
 def _shipped_tableaux():
-    """Every ButcherTableau held by a module of odelab.solvers (built with verify=False at import)."""
+    """Every ButcherTableau held by a module of odelab.solvers (built with check=False at import)."""
     import importlib
     import pkgutil
 
@@ -88,10 +88,21 @@ def test_every_shipped_tableau_passes_its_checks():
 
 
 def test_verify_catches_a_typo_in_a_shipped_tableau():
-    """verify=False only defers the checks: the same coefficients with one digit wrong fail verify()."""
+    """check=False only defers the checks: the same coefficients with one digit wrong fail verify()."""
     A = tb.DP54.A.copy()
     A[3, 1] += 1e-6
     c = A.sum(axis=1)
-    typo = ButcherTableau(name="DP54 typo", c=c, A=A, b=tb.DP54.b, order=5, verify=False)
+    typo = ButcherTableau(name="DP54 typo", c=c, A=A, b=tb.DP54.b, order=5, check=False)
     with pytest.raises(ValueError, match=r"order-\d condition gives"):
         typo.verify()
+
+
+def test_a_tableau_built_unchecked_is_checked_only_when_asked():
+    """check=False defers verify(); the default checks at construction (a user's tableau)."""
+    bad = dict(name="bad heun", c=np.array([0.0, 1.0]), A=np.array([[0.0, 0.0], [1.0, 0.0]]), b=np.array([0.4, 0.6]),
+               order=2)
+    deferred = ButcherTableau(**bad, check=False)
+    with pytest.raises(ValueError, match="order-2 condition"):
+        deferred.verify()
+    with pytest.raises(ValueError, match="order-2 condition"):
+        ButcherTableau(**bad)

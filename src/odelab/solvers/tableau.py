@@ -4,7 +4,7 @@ Every method odelab integrates itself is one of these constants plus a registry 
 one stepping engine (:mod:`odelab.solvers.engine`) reads the arrays, it never special-cases
 a method. A tableau checks its own invariants (row sums, consistency, the order conditions
 up to its order, the error weights and the continuous extension): one built by a user is
-checked when it is built; the shipped ones are built with ``verify=False`` (the checks cost
+checked when it is built; the shipped ones are built with ``check=False`` (the checks cost
 about 35 M instructions at import, a tenth of a second of every run's start-up) and checked
 by ``tests/solvers/test_tableau.py``, which calls :meth:`ButcherTableau.verify` on every
 shipped tableau, so a typo in a coefficient fails the test suite, not a user's results.
@@ -238,11 +238,11 @@ class ButcherTableau:
     extra_A: np.ndarray | None = None
     dense_basis: str = "monomial"
     stages: int = field(init=False)
-    verify: InitVar[bool] = True  # check the invariants now (False: the shipped constants, checked by the tests)
+    check: InitVar[bool] = True  # verify() now (False: the shipped constants, which the tests verify)
 
-    def __post_init__(self, verify: bool) -> None:
+    def __post_init__(self, check: bool) -> None:
         object.__setattr__(self, "stages", self.c.size)
-        if verify:
+        if check:
             self.verify()
 
     def verify(self) -> None:
@@ -434,7 +434,7 @@ def _tableau(name, c, A, b, order, **kw) -> ButcherTableau:
     for key in ("error_weights", "dense", "extra_c", "extra_A"):
         if kw.get(key) is not None:
             kw[key] = _array(kw[key])
-    return ButcherTableau(name=name, c=_array(c), A=_array(A), b=_array(b), order=order, verify=False, **kw)
+    return ButcherTableau(name=name, c=_array(c), A=_array(A), b=_array(b), order=order, check=False, **kw)
 
 
 # --- embedded pairs used by ode23 / ode45 ------------------------------------------------

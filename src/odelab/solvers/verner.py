@@ -466,7 +466,7 @@ def _verner(name, order, error_order, c, A, b, bhat, c_extra, A_extra, dense, de
     return ButcherTableau(
         name=name, c=c_arr, A=A_main, b=b_arr, order=order, error_weights=error_weights,
         error_order=error_order, dense=dense_arr, dense_order=dense_order, fsal=False,
-        reference=reference, extra_c=c_extra_arr, extra_A=extra, dense_basis="chebyshev", verify=False,
+        reference=reference, extra_c=c_extra_arr, extra_A=extra, dense_basis="chebyshev", check=False,
     )
 
 
