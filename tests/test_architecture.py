@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import ast
 import functools
+import importlib
 import json
 import re
 import subprocess
@@ -317,6 +318,18 @@ def test_every_module_imports_on_its_own():
     assert not new, f"modules that fail to import on their own: {list(new.values())}"
     stale = sorted(set(CANNOT_IMPORT_ALONE) - set(failed))
     assert not stale, f"these modules import on their own now: remove them from CANNOT_IMPORT_ALONE: {stale}"
+
+
+def test_every_name_in_a_modules_all_exists():
+    """``from odelab.x import *`` works: each module's ``__all__`` names what it defines (solvers/dense.py listed
+    deval and odextend, which live in odelab.solution and odelab.solvers.api)."""
+    missing = []
+    for name in sorted(m for m in _modules() if not m.endswith("__main__")):
+        if name in CANNOT_IMPORT_ALONE:
+            continue
+        module = importlib.import_module(name)
+        missing += [f"{name}.{n}" for n in getattr(module, "__all__", ()) if not hasattr(module, n)]
+    assert not missing, f"__all__ names what the module does not define: {missing}"
 
 
 # --- imports inside functions (issue 38 item 6): only where a start-up or a cycle asks for it ------------------

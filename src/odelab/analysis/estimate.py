@@ -176,7 +176,7 @@ def _judge(q: QuantityEstimate, t, values, other, s, rtol: float, atol: float, f
     suspect = np.flatnonzero((units > DISAGREE_UNITS) | digit_bad)
     if suspect.size == 0:
         return q, "", ""
-    worst, worst_units, worst_rel, shifted = None, 0.0, 0.0, 0.0
+    worst, worst_units, shifted = None, 0.0, 0.0
     for j in suspect.tolist():
         width = PHASE_SHIFT * rtol * abs(t[j] - t[0])
         # either curve shifted onto the other: each is sampled densely only where it moves fast itself
@@ -185,7 +185,7 @@ def _judge(q: QuantityEstimate, t, values, other, s, rtol: float, atol: float, f
         rel_left = d / (tenth if np.ndim(tenth) == 0 else tenth[j]) if controlled else 0.0
         if u > DISAGREE_UNITS or rel_left > 1:
             if worst is None or u > worst_units:
-                worst, worst_units, worst_rel = j, u, rel_left
+                worst, worst_units = j, u
         else:
             shifted = max(shifted, width)
     name = q.name

@@ -56,7 +56,6 @@ def _hint(line: str) -> str | None:
         return None
     unit = _NUMBER_UNIT.match(value)
     if unit is not None:
-        number = value[:unit.start(1)].strip()
         return (f"`{value}` has a unit in it: write it in quotes, `{key} = \"{value}\"`, and odelab converts it "
                 "with pint (in [parameters], [initial] and [time]: to the unit [units] declares for the name, else "
                 "to SI)")

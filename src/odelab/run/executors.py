@@ -698,7 +698,7 @@ def _dask_client(scheduler: str, Client):
         raise InputError(f"cannot reach {where}: {why}. {fix}", key="scheduler") from None
     try:
         client.wait_for_workers(1, timeout=DASK_WORKERS_SECONDS)
-    except (OSError, TimeoutError, asyncio.TimeoutError) as exc:
+    except (OSError, TimeoutError, asyncio.TimeoutError):
         client.close()
         raise InputError(f"{where} has no workers (none joined within {DASK_WORKERS_SECONDS:g} s): start some "
                          f"with `dask worker {scheduler}`, or leave out --scheduler for a local cluster.",

@@ -24,8 +24,8 @@ import numpy as np
 from odelab.exceptions import InputError
 from odelab.solvers.ordered import backwards, combine, stage
 
-__all__ = ["basis_values", "clip_nonnegative", "query_times", "refine_weights", "step_value", "step_slopes",
-           "StageCompletion", "DenseOutput", "deval", "odextend"]
+__all__ = ["basis_slopes", "basis_values", "clip_nonnegative", "query_times", "refine_weights", "step_value",
+           "step_slopes", "StageCompletion", "DenseOutput"]
 
 
 #: Times a deval evaluates at once (DenseOutput.__call__): larger queries go block by block, so that
