@@ -12,7 +12,6 @@ import odelab.solvers.api as api
 import odelab.solvers.options as options_module
 from odelab.exceptions import InputError
 from odelab.experiment.loader import load_experiment
-from odelab.run.backend import case_options
 from odelab.run.runner import run_case
 from odelab.solvers.options import SolverOptions, normalize_options, resolve_options
 from odelab.solvers.registry import METHODS
@@ -70,7 +69,7 @@ def test_the_case_carries_its_options_resolved_at_load(tmp_path):
     assert resolved.rtol == 1e-5 and resolved.atol.tolist() == [1e-7, 1e-8]
     assert resolved.refine == METHODS["ode45"].refine and resolved.max_step == pytest.approx(0.6, rel=1e-15)
     assert dict(resolved.given) == {"rtol": 1e-5, "atol": [1e-7, 1e-8]}
-    assert case_options(case.problem) is resolved
+    assert case.problem.solver_options is resolved
     again = pickle.loads(pickle.dumps(resolved))  # a plain dataclass: it travels with a built case
     assert again.rtol == resolved.rtol and np.array_equal(again.atol, resolved.atol) and again.given == resolved.given
 
@@ -148,6 +147,6 @@ def test_a_problem_holds_one_copy_of_its_options(tmp_path):
     p = _case(tmp_path).problem
     assert p.options is p.solver_options.given and dict(p.options) == {"rtol": 1e-5, "atol": [1e-7, 1e-8]}
     changed = dataclasses.replace(p, solver_options=p.solver_options.updated(rtol=1e-8))
-    assert case_options(changed).rtol == 1e-8 and changed.options["rtol"] == 1e-8 and case_options(p).rtol == 1e-5
+    assert changed.solver_options.rtol == 1e-8 and changed.options["rtol"] == 1e-8 and p.solver_options.rtol == 1e-5
     with pytest.raises(TypeError):
         dataclasses.replace(p, options={"rtol": 1e-8})  # not a field: one place holds the options

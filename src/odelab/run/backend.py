@@ -25,12 +25,13 @@ from odelab.solution import Solution, Stats
 from odelab.solvers.options import as_tspan, given_options, resolved_for
 from odelab.solvers.registry import get_method
 
-__all__ = ["solve_problem", "simulate_problem", "solve_events_problem", "run_hybrid", "case_options"]
+__all__ = ["solve_problem", "simulate_problem", "solve_events_problem", "run_hybrid"]
 
 
-def case_options(problem):  # -> odelab.solvers.options.SolverOptions
-    """A case's solver options as resolved once at load (``Problem.solver_options``), carried to the driver."""
-    return problem.solver_options
+def _given(opts) -> dict:
+    """The keyword arguments that hand ``opts`` to odelab.solve or solve_compiled: a dict as keywords, resolved
+    SolverOptions as ``resolved=`` (carried to the driver as they are)."""
+    return dict(opts) if isinstance(opts, dict) else {"resolved": opts}
 
 
 def _with(options, **changes):
@@ -46,15 +47,11 @@ def solve_problem(problem, tspan, method_name: str, options, backend: str, rows_
     from odelab.solvers.compiled import AUTO_STEPS, solve_compiled
 
     def python(opts):
-        if isinstance(opts, dict):
-            return solve(problem.system.fun, tspan, problem.x0, method=method_name, **opts)
-        return solve(problem.system.fun, tspan, problem.x0, method=method_name, resolved=opts)
+        return solve(problem.system.fun, tspan, problem.x0, method=method_name, **_given(opts))
 
     def compiled(opts):
-        if isinstance(opts, dict):
-            return solve_compiled(problem.system.compiled, tspan, problem.x0, method_name, rows_to=rows_to, **opts)
         return solve_compiled(problem.system.compiled, tspan, problem.x0, method_name, rows_to=rows_to,
-                              resolved=opts)
+                              **_given(opts))
 
     def pilot(opts):
         sol = python(_with(opts, max_steps=AUTO_STEPS))

@@ -17,7 +17,6 @@ import warnings
 import numpy as np
 
 from odelab.exceptions import InputError, SolverWarning
-from odelab.run.backend import case_options
 from odelab.solvers.registry import get_method
 from odelab.store.spool import release, take
 
@@ -62,7 +61,7 @@ def estimate_case(result, integrate, max_steps: int | None = None, backend: str 
         return {"skipped": "a hybrid diagram's switching instants move with the tolerances; compare a case at a "
                            "tighter rtol"}
     method = get_method(p.method)
-    case = case_options(p)  # the options the run had, resolved once at load
+    case = p.solver_options  # the options the run had, resolved once at load
     changes: dict = {}
     if max_steps and method.adaptive:  # the tighter solve takes more steps (10^(1/2)x at order 1): its own budget
         changes["max_steps"] = 10 * max_steps

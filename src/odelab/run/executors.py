@@ -74,7 +74,6 @@ def case_cost(case) -> float:
     rtol^(-1/order) per unit of span (the step size an error-per-step controller settles at),
     which orders a tolerance sweep correctly. Anything else counts 1.
     """
-    from odelab.run.backend import case_options
     from odelab.solvers.registry import get_method
 
     p = case.problem
@@ -83,7 +82,7 @@ def case_cost(case) -> float:
         span = float(abs(p.tspan[-1] - p.tspan[0]))
         tableau = getattr(method, "tableau", None)
         stages = tableau.c.size if tableau is not None else 1
-        options = case_options(p)  # resolved at load
+        options = p.solver_options  # resolved at load
         if not method.adaptive:
             return stages * span / options.h
         rtol = options.rtol

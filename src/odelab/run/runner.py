@@ -16,7 +16,6 @@ from odelab.experiment.cases import Case, LoadedExperiment
 from odelab.experiment.limits import capped_max_steps
 from odelab.experiment.loader import load_experiment
 from odelab.run.backend import (
-    case_options,
     run_hybrid,
     run_stateless,
     simulate_problem,
@@ -35,7 +34,7 @@ def _integrate(problem, tspan, method, options, backend="python", rows_to=None) 
     """Solve (no inputs) or simulate (inputs, restarting at their discontinuities), a hybrid diagram or a run
     with [events]: one :class:`~odelab.store.result.Integration` whichever ran (its ``backend``: the engine,
     "python" or "compiled", see :mod:`odelab.run.backend`). ``options``: the case's resolved SolverOptions
-    (:func:`~odelab.run.backend.case_options`), or a dict (a reference's). A failed integration is reported in
+    (``Problem.solver_options``), or a dict (a reference's). A failed integration is reported in
     the case's result, so the solvers' SolverWarning is not repeated here. ``rows_to``: the run's spool
     (:mod:`odelab.store.spool`), used by a plain problem's compiled solve (no inputs, events or diagram).
     """
@@ -116,7 +115,7 @@ def _run_case(case: Case, max_steps: int | None, backend: str | None, estimate: 
         from odelab.run.linearization import run_linearization_case
 
         return _drawings(run_linearization_case(case, max_steps=max_steps), p)
-    options = case_options(p)  # resolved once, at load
+    options = p.solver_options  # resolved once, at load
     capped = False
     if max_steps and "h" not in p.options:
         budget, capped = capped_max_steps(p.options.get("max_steps"), max_steps)

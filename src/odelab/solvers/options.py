@@ -191,10 +191,6 @@ class SolverOptions:
         """Whether these options were resolved for ``method`` over ``tspan``'s span and ``n`` states."""
         return self.method == method.name and self.n == n and self.span == abs(float(tspan[-1] - tspan[0]))
 
-    def given_as(self, options: Mapping[str, object]) -> bool:
-        """Whether these were resolved from ``options`` (odelab's names): the same names, the same values."""
-        return options.keys() == self.given.keys() and all(options[k] is v for k, v in self.given.items())
-
     def updated(self, **changes) -> SolverOptions:
         """These options with ``changes`` (odelab's names, as given; None removes one): a step budget
         (``max_steps``) or ``refine`` is checked alone, any other change resolves them again from ``given``."""
