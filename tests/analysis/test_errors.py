@@ -68,3 +68,42 @@ def test_the_near_zero_threshold_is_ten_percent_of_the_peak():
     assert headline_basis(np.array([1.0, 0.0999, 1.0])) == "peak"
     assert headline_basis(np.zeros(3)) == "peak"
     assert "10%" in HEADLINE_RULE and "max |f - y| / max |f|" in HEADLINE_RULE
+
+
+def _summary_of_whole_columns(name, t, values, reference):
+    """summarize() as it was, over the whole columns at once (the reference for the blockwise one)."""
+    from odelab.analysis.errors import ErrorSummary, headline_basis
+
+    reference = np.asarray(reference, dtype=float)
+    abs_err, rel_err = error_columns(values, reference)
+    i = int(np.nanargmax(abs_err)) if np.any(np.isfinite(abs_err)) else 0
+    undefined = int(np.count_nonzero(np.isnan(rel_err)))
+    finite_ref = np.abs(reference[np.isfinite(reference)])
+    scale = float(finite_ref.max()) if finite_ref.size else float("nan")
+    basis = headline_basis(reference)
+    if undefined == rel_err.size:
+        return ErrorSummary(name, float(abs_err[i]), float(t[i]), None, None, undefined, scale, None, basis)
+    j = int(np.nanargmax(rel_err))
+    return ErrorSummary(name, float(abs_err[i]), float(t[i]), float(rel_err[j]), float(t[j]), undefined, scale,
+                        float(abs(reference[j])), basis)
+
+
+@pytest.mark.filterwarnings("ignore:invalid value encountered in subtract:RuntimeWarning")  # inf - inf, as ever
+@pytest.mark.parametrize("seed", range(40))
+def test_summarize_a_block_at_a_time_is_the_whole_columns_summary(seed):
+    # ties (values on a coarse grid), zeros, NaN and inf in either column, runs of NaN longer than a block
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 300))
+    reference = np.round(rng.normal(size=n) * rng.choice([1e-9, 1, 1e6]), int(rng.integers(0, 3)))
+    values = reference + np.round(rng.normal(size=n), 1) * rng.choice([0, 1e-3, 1])
+    for column in (reference, values):
+        if rng.random() < 0.5:
+            k = rng.integers(0, n, size=int(rng.integers(1, max(2, n // 3))))
+            column[k] = rng.choice([np.nan, np.inf, -np.inf, 0.0], size=k.size)
+    if rng.random() < 0.2:
+        values[: n // 2] = np.nan
+    t = np.linspace(0, 1, n)
+    want = _summary_of_whole_columns("y", t, values, reference)
+    for block in (1, 3, 7, 64, n):
+        got = summarize("y", t, values, reference, block=block)
+        assert repr(got) == repr(want), block

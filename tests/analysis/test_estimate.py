@@ -137,6 +137,25 @@ def test_a_phase_error_is_not_a_wrong_value():
     a, _, est = _estimate(vdp, [0, 3000], [2, 0], "ode15s", 1e-3, 1e-6)
     assert est.quantities["y0"].max_abs > 3 and est.quantities["y0"].digits == 0
     assert est.verdict == "ok" and any("phase error" in n for n in est.notes)
+    # the jumps lie up to 2.3 s apart (above), within the 100 RelTol |t - t0| searched (up to 300 s)
+    assert 0.1 < est.quantities["y0"].phase_shift < 5
+
+
+def test_the_phase_note_quotes_the_shift_found_not_the_window_searched():
+    # two ramps 0 -> 1 over 0.1, the tighter solve's 0.3 later (t on a 0.001 grid, RelTol 1e-3, AbsTol 1e-6). Where
+    # the run is at 1 and the tighter solve still at 0, the two curves pass within the band 1000 AbsTol = 0.001 of
+    # each other's value after shifting the run back to 5.0001 or the tighter solve on to 5.3999: the
+    # shorter of the two is largest at t = 5.2, 0.1999 (worked by hand); the window searched there is
+    # 100 RelTol t = 0.52. The note said "at most 0.54" before (the window at the last suspect point, t = 5.399).
+    t = np.round(np.linspace(0, 10, 10001), 12)
+    run = {"x": np.clip((t - 5) / 0.1, 0, 1)}
+    tight = {"x": np.clip((t - 5.3) / 0.1, 0, 1)}
+    est = compare_solves(t, run, tight, factor=10, rtol=1e-3, atol={"x": 1e-6})
+    q = est.quantities["x"]
+    assert est.verdict == "ok" and q.digits == 0 and not q.flagged
+    assert q.phase_shift == pytest.approx(0.1999, abs=1e-9) and q.t_phase_shift == pytest.approx(5.2, abs=1e-12)
+    assert "and a shift in time of at most 0.2 explains them (at t = 5.2): a phase error" in est.notes[0]
+    assert est.as_dict()["quantities"]["x"]["phase_shift"] == q.phase_shift
 
 
 def test_fewer_than_one_digit_is_flagged():
@@ -147,3 +166,88 @@ def test_fewer_than_one_digit_is_flagged():
     assert est.unreliable and "fewer than 1 correct digit" in est.reasons[0]
     same = compare_solves(t, run, {"x": np.ones(11) * (1 + 1e-6)}, factor=10, rtol=1e-3, atol={"x": 1e-6})
     assert same.verdict == "ok" and same.quantities["x"].digits == pytest.approx(6 - math.log10(10 / 9), abs=0.01)
+
+
+def _shift_distance(t, values, tight, i, width):
+    """The phase check's distance at one point, as odelab computed it point by point until 2026-12 (the
+    reference for the vectorised :func:`odelab.analysis.estimate._shift_distances`, bit for bit)."""
+    if not (np.isfinite(values[i]) and width > 0):
+        return float(abs(values[i] - tight[i])) if np.isfinite(values[i]) else math.inf
+    rt, rtight = (t, tight) if t[-1] >= t[0] else (t[::-1], tight[::-1])
+    a, b = t[i] - width, t[i] + width
+    j0, j1 = np.searchsorted(rt, a, side="left"), np.searchsorted(rt, b, side="right")
+    pool = np.concatenate([rtight[j0:j1], np.interp([a, b], rt, rtight)])
+    pool = pool[np.isfinite(pool)]
+    if pool.size == 0:
+        return math.inf
+    v = float(values[i])
+    return max(float(pool.min()) - v, v - float(pool.max()), 0.0)
+
+
+def _curves(rng, n, backward, holes):
+    t = np.unique(rng.uniform(0, 100, n))
+    t = t[::-1].copy() if backward else t
+    run = np.sin(0.5 * t) + rng.normal(0, 1e-2, t.size)
+    tight = np.sin(0.5 * (t + rng.uniform(0, 3)))
+    if holes:
+        k = rng.integers(0, t.size, size=max(1, t.size // 50))
+        tight[k] = rng.choice([np.nan, np.inf, -np.inf], size=k.size)
+    return t, run, tight
+
+
+@pytest.mark.parametrize("n", [2, 3, 63, 64, 65, 129, 3000])
+@pytest.mark.parametrize("backward", [False, True])
+@pytest.mark.parametrize("holes", [False, True])
+def test_the_phase_check_over_all_points_at_once_is_the_point_by_point_one_bit_for_bit(n, backward, holes):
+    from odelab.analysis.estimate import _shift_distances
+
+    rng = np.random.default_rng(n + 2 * backward + 4 * holes)
+    t, run, tight = _curves(rng, n, backward, holes)
+    width = rng.uniform(0, 30, t.size) * (rng.random(t.size) < 0.9)  # some windows empty (width 0)
+    points = np.arange(t.size)
+    fast = _shift_distances(t, run, tight, points, width)
+    slow = np.array([_shift_distance(t, run, tight, i, width[i]) for i in points])
+    assert fast.tobytes() == slow.tobytes()
+
+
+@pytest.mark.parametrize("n", [2, 65, 3000])
+@pytest.mark.parametrize("backward", [False, True])
+@pytest.mark.parametrize("holes", [False, True])
+def test_the_shift_each_point_needs_is_the_segment_by_segment_one(n, backward, holes):
+    # vectorised (binary lifting over blocks of the curve's extrema) against one point at a time over every
+    # segment (the fallback for a curve with values that are not finite: there the two are the same function)
+    from odelab.analysis.estimate import _shift_needed, _shifts_needed
+
+    rng = np.random.default_rng(10 + n + 2 * backward + 4 * holes)
+    t, run, tight = _curves(rng, n, backward, holes)
+    band = 10 ** rng.uniform(-4, -1, t.size)
+    fast = _shifts_needed(t, run, tight, np.arange(t.size), band)
+    slow = np.array([_shift_needed(t, run, tight, i, abs(t[-1] - t[0]), band[i]) for i in range(t.size)])
+    assert np.array_equal(np.isinf(fast), np.isinf(slow))
+    finite = np.isfinite(slow)
+    assert np.all(np.abs(fast[finite] - slow[finite]) <= 1e-12 * abs(t[-1] - t[0]))
+    if n > 64:
+        assert np.count_nonzero(slow[finite] > 0) > t.size // 4  # most points need a shift: the test is not vacuous
+
+
+def test_range_extrema_and_the_first_point_beyond_against_a_scan():
+    from odelab.analysis.estimate import _BLOCK, _RangeExtrema
+
+    rng = np.random.default_rng(7)
+    x = rng.normal(size=5 * _BLOCK + 17)
+    x[rng.integers(0, x.size, 9)] = np.nan
+    table = _RangeExtrema(x)
+    j0 = rng.integers(0, x.size, 500)
+    j1 = np.minimum(x.size, j0 + rng.integers(0, 3 * _BLOCK, 500))
+    least, most = table.extrema(j0, j1)
+    for a, b, lo, hi in zip(j0, j1, least, most):
+        finite = x[a:b][np.isfinite(x[a:b])]
+        assert (lo, hi) == ((finite.min(), finite.max()) if finite.size else (np.inf, -np.inf))
+    edge = rng.normal(size=500) - 2.5  # rare values: often none for a while, sometimes none at all
+    for down in (True, False):
+        for forward in (True, False):
+            found = table.first_beyond(j0, edge if down else -edge, down, forward)
+            for s, e, k in zip(j0, edge if down else -edge, found):
+                idx = range(s + 1, x.size) if forward else range(s - 1, -1, -1)
+                want = next((i for i in idx if (x[i] <= e if down else x[i] >= e)), -1)
+                assert k == want

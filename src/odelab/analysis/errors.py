@@ -86,8 +86,12 @@ def error_columns(values: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray
     """Absolute and relative error columns; relative is NaN where |reference| is zero or tiny."""
     values = np.asarray(values, dtype=float)
     reference = np.asarray(reference, dtype=float)
+    return _error_columns(values, reference, float(np.max(np.abs(reference))) if reference.size else 0.0)
+
+
+def _error_columns(values: np.ndarray, reference: np.ndarray, scale: float) -> tuple[np.ndarray, np.ndarray]:
+    """The columns of (a block of) a quantity whose largest |reference| is ``scale``."""
     abs_err = np.abs(reference - values)
-    scale = float(np.max(np.abs(reference))) if reference.size else 0.0
     magnitude = np.abs(reference)
     defined = magnitude > RELATIVE_FLOOR * scale
     rel_err = np.full_like(abs_err, np.nan)
@@ -104,17 +108,49 @@ def headline_basis(reference: np.ndarray) -> str:
     return "pointwise" if finite.min() >= NEAR_ZERO * finite.max() else "peak"
 
 
-def summarize(name: str, t: np.ndarray, values: np.ndarray, reference: np.ndarray) -> ErrorSummary:
-    """Maximum absolute and relative error of one quantity, where they occur, and the headline basis."""
+#: Points summarize() looks at at once: its temporaries stay a few MB for any length of run.
+BLOCK = 1 << 16
+
+
+def summarize(name: str, t: np.ndarray, values: np.ndarray, reference: np.ndarray, *, block: int = BLOCK) -> ErrorSummary:
+    """Maximum absolute and relative error of one quantity, where they occur, and the headline basis.
+
+    The numbers of :func:`error_columns` over the whole columns, their maxima at the first point
+    of the largest, and :func:`headline_basis`, found ``block`` points at a time: maxima and
+    counts do not depend on the blocks (tested against the whole columns)."""
     reference = np.asarray(reference, dtype=float)
-    abs_err, rel_err = error_columns(values, reference)
-    i = int(np.nanargmax(abs_err)) if np.any(np.isfinite(abs_err)) else 0
-    undefined = int(np.count_nonzero(np.isnan(rel_err)))
-    finite_ref = np.abs(reference[np.isfinite(reference)])
-    scale = float(finite_ref.max()) if finite_ref.size else math.nan
-    basis = headline_basis(reference)
-    if undefined == rel_err.size:
-        return ErrorSummary(name, float(abs_err[i]), float(t[i]), None, None, undefined, scale, None, basis)
-    j = int(np.nanargmax(rel_err))
-    return ErrorSummary(name, float(abs_err[i]), float(t[i]), float(rel_err[j]), float(t[j]), undefined, scale,
+    values = np.asarray(values, dtype=float)
+    n = reference.size
+    col_scale = 0.0 if n == 0 else -np.inf  # error_columns' scale: max |f| (NaN if some f is NaN)
+    low, high = np.inf, -np.inf  # the extremes of the finite |f| (headline_basis, and the scale shown)
+    for lo in range(0, n, block):
+        magnitude = np.abs(reference[lo:lo + block])
+        col_scale = np.maximum(col_scale, magnitude.max())
+        finite = magnitude[np.isfinite(magnitude)]
+        if finite.size:
+            low, high = min(low, float(finite.min())), max(high, float(finite.max()))
+    col_scale = float(col_scale)
+    any_finite, i, best_abs = False, 0, None
+    undefined, j, best_rel = 0, None, None
+    for lo in range(0, n, block):
+        abs_err, rel_err = _error_columns(values[lo:lo + block], reference[lo:lo + block], col_scale)
+        any_finite = any_finite or bool(np.isfinite(abs_err).any())
+        if not np.isnan(abs_err).all():
+            k = int(np.nanargmax(abs_err))
+            if best_abs is None or abs_err[k] > best_abs:
+                i, best_abs = lo + k, abs_err[k]
+        nan = np.isnan(rel_err)
+        undefined += int(np.count_nonzero(nan))
+        if not nan.all():
+            k = int(np.nanargmax(rel_err))
+            if best_rel is None or rel_err[k] > best_rel:
+                j, best_rel = lo + k, rel_err[k]
+    if not any_finite:  # as over the whole column: the first point when no error is finite
+        i = 0
+    max_abs = float(np.abs(reference[i] - values[i]))
+    scale = high if high >= low else math.nan
+    basis = "pointwise" if high >= low and high > 0 and low >= NEAR_ZERO * high else "peak"
+    if j is None:
+        return ErrorSummary(name, max_abs, float(t[i]), None, None, undefined, scale, None, basis)
+    return ErrorSummary(name, max_abs, float(t[i]), float(best_rel), float(t[j]), undefined, scale,
                         float(abs(reference[j])), basis)
