@@ -234,11 +234,11 @@ def test_range_extrema_and_the_first_point_beyond_against_a_scan():
     from odelab.analysis.estimate import _BLOCK, _RangeExtrema
 
     rng = np.random.default_rng(7)
-    x = rng.normal(size=5 * _BLOCK + 17)
+    x = rng.normal(size=70 * _BLOCK + 17)
     x[rng.integers(0, x.size, 9)] = np.nan
     table = _RangeExtrema(x)
     j0 = rng.integers(0, x.size, 500)
-    j1 = np.minimum(x.size, j0 + rng.integers(0, 3 * _BLOCK, 500))
+    j1 = np.minimum(x.size, j0 + rng.integers(0, 3 * _BLOCK, 500) * rng.choice([1, 1, 20], 500))  # up to 60 blocks
     least, most = table.extrema(j0, j1)
     for a, b, lo, hi in zip(j0, j1, least, most):
         finite = x[a:b][np.isfinite(x[a:b])]

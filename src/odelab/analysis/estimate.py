@@ -347,7 +347,7 @@ class _RangeExtrema:
         whole = last > first
         if whole.any():
             b0, b1 = first[whole], last[whole]
-            k = np.floor(np.log2(b1 - b0)).astype(np.intp)
+            k = (np.frexp(b1 - b0)[1] - 1).astype(np.intp)  # floor(log2), in integers: 2^k <= b1 - b0 < 2^(k+1)
             span = np.left_shift(1, k)
             for level in np.unique(k):
                 at = k == level
