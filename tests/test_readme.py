@@ -22,6 +22,35 @@ def test_ci_runs_the_readme_test_line_verbatim():
     assert setup_lines()[1] in ci
 
 
+def run_arguments(line: str) -> list[str]:
+    """The paths the first set-up line hands to ``odelab run`` (its words up to the next ``&&``)."""
+    command = line.split("/odelab run ", 1)[1].split("&&", 1)[0]
+    return [word for word in command.split() if not word.startswith("-")]
+
+
+def test_the_first_line_runs_every_shipped_experiment():
+    """`odelab run FOLDER` runs the folder's files, not its subfolders' (a user's `odelab run .` would
+    otherwise pick up runs/**/resolved.toml): the first line names every folder of shipped
+    experiments, so that it runs each one and its report has them all."""
+    from odelab.run.runfiles import expand_paths
+
+    named = run_arguments(setup_lines()[0])
+    folders = sorted({p.parent.relative_to(ROOT).as_posix() + "/" for p in (ROOT / "experiments").rglob("*.toml")})
+    assert {"experiments/", "experiments/networks/"} <= set(folders)  # the walk finds the subfolders
+    assert [f for f in folders if f not in named] == [], f"README.md's first line runs {named}"
+    files, problems = expand_paths([ROOT / arg for arg in named])
+    assert problems == []
+    assert sorted(files) == sorted((ROOT / "experiments").rglob("*.toml"))
+
+
+def test_the_first_line_check_finds_a_folder_left_out():
+    """Not vacuous: the first line as it was (experiments/ alone) leaves the networks out."""
+    old = ("python3 -m venv .venv && .venv/bin/pip install -q -e . && .venv/bin/odelab run experiments/ && "
+           ".venv/bin/odelab report")
+    assert run_arguments(old) == ["experiments/"]
+    assert run_arguments(setup_lines()[0]) == ["experiments/", "experiments/networks/"]
+
+
 def test_readme_lists_every_block_with_its_keys_and_defaults():
     """Issue 21: the README's table of blocks names every registered block, each of its keys,
     and whether a key is required or what its default is."""

@@ -106,6 +106,6 @@ def test_slug_cannot_escape(name):
 def test_shipped_experiments_load():
     from odelab.experiment.loader import load_experiments
 
-    for path in sorted((ROOT / "experiments").glob("*.toml")):
+    for path in sorted((ROOT / "experiments").rglob("*.toml")):  # networks/ too
         for exp in load_experiments(path):
             assert exp.cases, path

@@ -1,6 +1,6 @@
 """Fixtures for the report tests: real runs made with ``odelab run``, and reports built from them.
 
-The shipped experiments (``experiments/``) are run through the CLI once per session, with two
+The shipped experiments (``experiments/`` and ``experiments/networks/``, as the README runs them) are run through the CLI once per session, with two
 test experiments from ``assets/``: ``msd_inputs`` (cases that differ by their input, as in
 Exercise 2) and ``nonlinear_spring``, to whose stored run a linearisation study of the
 documented ``extra["linearization"]`` shape is added by hand (see :func:`linearisation_study`).
@@ -26,6 +26,14 @@ if str(HERE) not in sys.path:
 from report_support import ROOT, Report, build  # noqa: E402
 
 EXPERIMENTS = ROOT / "experiments"
+
+
+def readme_folders() -> list[Path]:
+    """The folders the README's first line runs (tests/test_readme.py checks they are every folder of
+    shipped experiments): `odelab run experiments/ experiments/networks/`."""
+    line = (ROOT / "README.md").read_text(encoding="utf-8").split("```sh\n", 1)[1].splitlines()[0]
+    command = line.split("/odelab run ", 1)[1].split("&&", 1)[0]
+    return [ROOT / word for word in command.split() if not word.startswith("-")]
 
 
 def odelab_run(paths: list[Path], runs: Path):
@@ -87,7 +95,7 @@ def study() -> dict:
 def lab_runs(tmp_path_factory, study) -> Path:
     """Runs of every shipped experiment plus the two test experiments, made by `odelab run`."""
     runs = tmp_path_factory.mktemp("lab") / "runs"
-    shipped = odelab_run([EXPERIMENTS], runs)
+    shipped = odelab_run(readme_folders(), runs)
     assert shipped.exit_code == 0, shipped.output  # stiff.toml's ode45 stops as it says it will
     extra = odelab_run([ASSETS / "msd_inputs.toml", ASSETS / "nonlinear_spring.toml"], runs)
     assert extra.exit_code == 0, extra.output
@@ -101,11 +109,11 @@ def lab_report(lab_runs, tmp_path_factory) -> Report:
 
 
 def shipped_names() -> list[str]:
-    """The experiment names of ``experiments/*.toml``: the lab's own report."""
+    """The experiment names of the files the README's first line runs: the shipped report."""
     import tomllib
 
     names = []
-    for path in sorted(EXPERIMENTS.glob("*.toml")):
+    for path in sorted(p for folder in readme_folders() for p in folder.glob("*.toml")):
         name = tomllib.loads(path.read_text(encoding="utf-8")).get("name", path.stem)
         names.append(name)
     return names
@@ -113,7 +121,7 @@ def shipped_names() -> list[str]:
 
 @pytest.fixture(scope="session")
 def shipped_report(lab_runs, tmp_path_factory) -> Report:
-    """The report of the shipped experiments alone: what `odelab run experiments/ && odelab report` gives."""
+    """The report of the shipped experiments alone: what the README's first line gives."""
     return build(lab_runs, tmp_path_factory.mktemp("shipped-report"), experiments=shipped_names())
 
 

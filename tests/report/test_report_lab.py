@@ -143,9 +143,33 @@ def test_every_figure_is_an_embedded_non_trivial_png(tree):
             assert drawn(png_of(img)), figure_id
         assert img.attrs.get("alt")
         assert img.parent.tag == "figure" and img.parent.find("figcaption").text()
-    # the shipped experiments with a [blocks] diagram (experiments/networks/ is not in `odelab run experiments/`)
-    assert sorted(drawings) == [f"fig-{name}-diagram" for name in ("feedback_pi", "figure1", "speed_control",
-                                                                   "thermostat")]
+    # the shipped experiments with a [blocks] diagram, and the networks (the README's first line runs them too)
+    assert sorted(drawings) == [f"fig-{name}-diagram" for name in ("feedback_pi", "figure1")] + [
+        f"fig-network_{name}-network" for name in ("dc_motor", "msd", "nonlinear_spring", "quarter_car", "rlc",
+                                                   "tanks", "thermal")] + [
+        f"fig-{name}-diagram" for name in ("speed_control", "thermostat")]
+
+
+def test_the_readme_report_has_every_network_with_its_section_figures_and_drawing(shipped_report):
+    """The README's first line runs experiments/networks/ too: each network has its section, its
+    solution figure and its network drawing (an SVG by Graphviz) in the report it writes."""
+    from conftest import readme_folders
+
+    root, errors, _ = parse_html(shipped_report.html)
+    assert not errors, errors[:10]
+    networks = sorted(p.stem for folder in readme_folders() for p in folder.glob("network_*.toml"))
+    assert networks == ["network_dc_motor", "network_msd", "network_nonlinear_spring", "network_quarter_car",
+                        "network_rlc", "network_tanks", "network_thermal"]
+    sections = [s.attrs["id"] for s in root.find_all("section", cls="experiment")]
+    assert sorted(name for name in sections if name.startswith("network_")) == networks
+    for name in networks:
+        node = section(root, name)
+        assert node.find("h2").text().endswith(("by its elements", "by their elements", name)), name
+        figures = {f.attrs["id"] for f in node.find_all("figure")}
+        assert {f"fig-{name}-solution", f"fig-{name}-network"} <= figures, (name, figures)
+        img = node.find("figure", id=f"fig-{name}-network").find("img")
+        assert drawing_problems(base64.b64decode(img.attrs["src"].split(",", 1)[1], validate=True)) == [], name
+    assert shipped_report.result.warnings == ()
 
 
 def test_the_drawing_check_finds_a_drawing_without_its_blocks():
@@ -166,7 +190,8 @@ def test_sections_follow_the_lab_order(tree):
     assert order[:len(present)] == present
     # a linearisation study comes before the remaining experiments, which are alphabetical
     rest = order[len(present):]
-    lin = [name for name in rest if name in ("linearisation", "linearization", "nonlinear_spring")]
+    lin = [name for name in rest if name in ("linearisation", "linearization", "network_nonlinear_spring",
+                                             "nonlinear_spring")]
     assert rest[:len(lin)] == lin and "nonlinear_spring" in lin
     others = rest[len(lin):]
     assert others == sorted(others) and "msd_inputs" in others
