@@ -26,11 +26,19 @@ def atomic_write(path: Path, data: str | bytes) -> None:
     The data goes to a temporary file in the same folder, is flushed to disk, and is renamed
     over the target; on any failure (including Ctrl-C) the temporary file is removed and the
     old file is untouched. The file gets the usual permissions (rw-r--r-- under the common
-    umask 022), not the private ones of a temporary file: results and reports are shared.
+    umask 022), not the private ones of a temporary file: results and reports are shared. The
+    folder is made if it is not there (again if, empty, another process removes it just then: the
+    store removes the experiment folders a failed run leaves empty, ``odelab.store.hidden``).
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    for attempt in range(100):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+            break
+        except FileNotFoundError:
+            if attempt == 99:
+                raise
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data.encode("utf-8") if isinstance(data, str) else data)

@@ -266,6 +266,8 @@ def _draw_events(events, out, err, *, runs, json_out: bool, table: bool) -> int:
             elif isinstance(event, rf.Notice):
                 err.print(f"[yellow]warning:[/] {_escape(event.message)}")
                 report_json.setdefault("warnings", []).append(event.message)
+            elif isinstance(event, rf.LeftoversRemoved):
+                err.print(f"note: {_escape(leftovers_line(event.removed))}")
             elif isinstance(event, rf.Fatal):
                 err.print(f"[bold red]error:[/] {_escape(event.message)}")
                 return EXIT_INPUT
@@ -320,6 +322,20 @@ class _NoProgress:
 
     def update(self, *args, **kwargs) -> None:
         return None
+
+
+def leftovers_line(removed) -> str:
+    """One line for the hidden folders of killed runs that a run removed first (odelab.store.hidden.Stale):
+    where and how much (the dead process's pid is in each name)."""
+    size = _megabytes(sum(s.size for s in removed))
+    if len(removed) == 1:
+        return f"removed {removed[0].path} ({size}), left by a killed run."
+    named = ", ".join(str(s.path) for s in removed[:2]) + (f" and {len(removed) - 2} more" if len(removed) > 2 else "")
+    return f"removed {len(removed)} folders ({size}) left by killed runs: {named}."
+
+
+def _megabytes(size: int) -> str:
+    return f"{size / 1e6:.1f} MB" if size >= 1_000_000 else f"{size / 1e3:.1f} kB"
 
 
 def _prepare_references(event, err) -> None:

@@ -25,7 +25,7 @@ if TYPE_CHECKING:
 
 __all__ = ["RunConfig", "run_files", "FileRun", "expand_paths", "error_text", "Terminated", "Event", "FileError",
            "Started", "References", "ExperimentStarted", "CaseDone", "ExperimentDone", "Notice", "Fatal",
-           "Finished"]
+           "Finished", "LeftoversRemoved"]
 
 
 class Terminated(BaseException):
@@ -113,6 +113,14 @@ class Notice(Event):
     """Something that happened to the run and did not change its results (a Dask worker lost mid-run)."""
 
     message: str
+
+
+@dataclass(eq=False)
+class LeftoversRemoved(Event):
+    """Before the run: the hidden folders that runs killed mid-write (SIGKILL, the OOM killer) left in the
+    results folder, removed (``odelab.store.hidden.Stale``: path, bytes, the dead owner's pid)."""
+
+    removed: tuple
 
 
 @dataclass(eq=False)
@@ -309,6 +317,14 @@ class FileRun:
     # --- the run ------------------------------------------------------------------------------------------
 
     def _events(self) -> Iterator[Event]:
+        runs = self.config.runs
+        made = self.config.store and not runs.exists()  # a results folder this run makes, if it stores nothing
+        if self.config.store:
+            from odelab.store.hidden import remove_stale
+
+            removed = remove_stale(runs)
+            if removed:
+                yield LeftoversRemoved(tuple(removed))
         loaded, bad = load_files(self.paths, self.config)
         for line in bad:
             yield FileError(line)
@@ -318,9 +334,12 @@ class FileRun:
         except _StoreFailed as exc:
             yield Fatal(str(exc))
         finally:  # the run's durable point: every case folder renamed in place stays after a power cut
+            from odelab.store.hidden import remove_if_empty
             from odelab.store.results import sync_folders
 
             sync_folders(self._unsynced)
+            if made:
+                remove_if_empty(runs)
 
     def _run(self, loaded, bad: list[str]) -> Iterator[Event]:
         from odelab.run.executors import CaseError, run_cases

@@ -1,14 +1,16 @@
 """The results store: ``runs/<experiment>/<case>/`` with result.json, resolved.toml, trajectory.csv.
 
 A case changes all at once or not at all. Its files are written into a hidden temporary
-sibling folder (``runs/<experiment>/.<case>.XXXX.tmp``), flushed to disk, and the folder is
+sibling folder (``runs/<experiment>/.<case>.XXXX.<pid>.tmp``), flushed to disk, and the folder is
 then swapped in place of the old case folder with renames, under an exclusive lock on the
 experiment folder; readers take the same lock shared. So a failed write (disk full, I/O error,
 a permission change, Ctrl-C) leaves the previous case whole, a reader never pairs a
 trajectory from one run with a result.json from another, and a file that the new run does
 not write (an old ``result.mat``) cannot survive next to the new ones. The commit is one
 rename per case (two when a previous run is replaced), and no lock file is left behind: the
-lock is taken on the experiment folder itself.
+lock is taken on the experiment folder itself. A process killed mid-write leaves its hidden folder,
+which the next ``odelab run`` removes (:mod:`odelab.store.hidden`: its owner's lock tells a dead
+owner's folder from a live one's); a failed write leaves nothing, not even an empty experiment folder.
 
 Flushing to disk (against a power cut or an OS crash; a killed process loses nothing the
 kernel has). Each case's files are flushed (one fsync each) before the rename that makes the
@@ -51,38 +53,16 @@ from odelab import __version__  # the one `odelab --version` prints (tests/exper
 from odelab.analysis.errors import HEADLINE_RULE, error_columns
 from odelab.fileio import atomic_write
 from odelab.experiment.naming import slug
+from odelab.store.hidden import HiddenFolder, hold, new_hidden_folder, remove_if_empty
+from odelab.store.hidden import locked as _locked
 from odelab.store.result import CaseResult
-from odelab.store.spool import new_hidden_folder, release
+from odelab.store.spool import release
 
 __all__ = ["RESULT_FORMAT", "Pace", "atomic_write", "case_dir", "json_safe", "summary", "sync_folders", "write_case",
            "read_run", "list_runs"]
 
 RESULT_FORMAT = "odelab-result/1"
 _TMP_SUFFIX = ".tmp"
-
-
-@contextlib.contextmanager
-def _locked(folder: Path, *, shared: bool = False):
-    """An advisory lock on a folder itself (no lock file): exclusive to swap a case, shared to read one.
-
-    Yields the folder's file descriptor (None where folders cannot be opened), so that the
-    caller can flush the folder's renames through it."""
-    try:
-        fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
-    except OSError:  # a folder that cannot be opened (or a platform without directory fds)
-        fd = None
-    try:
-        if fd is not None:
-            try:
-                import fcntl
-
-                fcntl.flock(fd, fcntl.LOCK_SH if shared else fcntl.LOCK_EX)
-            except (ImportError, OSError):  # pragma: no cover - non-POSIX: the renames still hold
-                pass
-        yield fd
-    finally:
-        if fd is not None:
-            os.close(fd)
 
 
 class Pace:
@@ -344,7 +324,7 @@ def _json(value, indent: str) -> str:
 
 
 def commit_folder(folder: Path, files: dict, *, durable: bool = True, unsynced: set[Path] | None = None,
-                  staged: Path | None = None, drop: tuple[str, ...] = ()) -> None:
+                  staged: HiddenFolder | None = None, drop: tuple[str, ...] = ()) -> None:
     """Replace ``folder`` by a folder holding exactly ``files``, atomically for readers.
 
     ``files`` maps each file's name to its text, its bytes, or a function that writes it to
@@ -353,9 +333,12 @@ def commit_folder(folder: Path, files: dict, *, durable: bool = True, unsynced: 
     The files go into a hidden temporary sibling folder; once all are written (and, if
     ``durable``, flushed to disk), the old folder is renamed away, the new one renamed into its
     place and the old one removed, under the exclusive lock of the parent folder. Any failure
-    before the swap removes the temporary folder and leaves the old folder untouched. If
-    ``durable``, the parent folder is then flushed too, or, given ``unsynced`` and no old folder
-    to remove, added to it for the caller to flush later (:func:`sync_folders`).
+    before the swap removes the temporary folder (and the parent folder, if that leaves it empty)
+    and leaves the old folder untouched. If ``durable``, the parent folder is then flushed too, or,
+    given ``unsynced`` and no old folder to remove, added to it for the caller to flush later
+    (:func:`sync_folders`). Both hidden folders, the new case's and the replaced one's, are held
+    (:mod:`odelab.store.hidden`) until they are renamed into place or removed: a later run removes
+    them if this process is killed meanwhile, never while it lives.
 
     ``staged``: a temporary sibling folder already made (a run's spool, :mod:`odelab.store.spool`) to write
     the files into instead of a new one; its files named in ``drop`` (the spool's raw rows, which ``files``
@@ -363,26 +346,28 @@ def commit_folder(folder: Path, files: dict, *, durable: bool = True, unsynced: 
     """
     folder = Path(folder)
     parent = folder.parent
-    parent.mkdir(parents=True, exist_ok=True)
     tmp = staged if staged is not None else new_hidden_folder(parent, folder.name)
-    old: Path | None = None
+    old: HiddenFolder | None = None
     try:
         for name, data in files.items():
-            _write_file(tmp / name, data.encode("utf-8") if isinstance(data, str) else data, durable)
+            _write_file(tmp.path / name, data.encode("utf-8") if isinstance(data, str) else data, durable)
         for name in drop:
-            os.unlink(tmp / name)
+            os.unlink(tmp.path / name)
         with _locked(parent) as parent_fd:
             if _exists(folder):
                 # a fresh hidden name (random; we hold the lock): the previous case, or whatever was there
-                old = parent / f".{folder.name}.old.{secrets.token_hex(8)}{_TMP_SUFFIX}"
-                os.rename(folder, old)
+                away = parent / f".{folder.name}.old.{secrets.token_hex(6)}.{os.getpid()}{_TMP_SUFFIX}"
+                os.rename(folder, away)
+                old = HiddenFolder(away, hold(away))  # held before the lock lets a stale-folder search look
             try:
-                os.rename(tmp, folder)
+                os.rename(tmp.path, folder)
             except BaseException:
                 if old is not None:  # put the previous case back
-                    os.rename(old, folder)
+                    os.rename(old.path, folder)
+                    old.release()
                     old = None
                 raise
+            tmp.release()
             tmp = None
             if durable and (unsynced is None or old is not None):  # the new name is durable before the old goes
                 _fsync_folder(parent, parent_fd)
@@ -391,7 +376,10 @@ def commit_folder(folder: Path, files: dict, *, durable: bool = True, unsynced: 
     finally:
         for leftover in (tmp, old):  # the replaced case (a hidden name: no reader looks for it) or a failed write
             if leftover is not None:
-                _remove(leftover)
+                _remove(leftover.path)
+                leftover.release()
+        if tmp is not None:  # nothing stored: an experiment folder made for it is not left empty
+            remove_if_empty(parent)
 
 
 def _write_file(path: Path, data, durable: bool) -> None:

@@ -7,13 +7,16 @@ fills the same block again, so a run holds one block of its rows, not its trajec
 run's ``t`` and ``x`` are read-only maps of the two files (``np.memmap``).
 
 The spool's folder is the hidden temporary sibling of the case's folder that the store writes a case
-into (``runs/<experiment>/.<case>.XXXX.tmp``, :func:`odelab.store.results.commit_folder`): the store
-writes the case's files next to the raw files, streaming ``trajectory.npz`` from them, removes them
-and renames the folder into place. So nothing half-written is ever visible, and nothing is copied.
+into (``runs/<experiment>/.<case>.XXXX.<pid>.tmp``, :func:`odelab.store.results.commit_folder`): the
+store writes the case's files next to the raw files, streaming ``trajectory.npz`` from them, removes
+them and renames the folder into place. So nothing half-written is ever visible, and nothing is copied.
 The folder is made only when the first block fills (a short run never touches the disk); a run that
-fails or is interrupted removes it (:meth:`Spool.discard`, and a finaliser when the spool is dropped
-or the process exits). A process killed outright leaves a hidden ``.<case>.XXXX.tmp`` folder, as a
-store killed while writing a case does; :func:`odelab.store.results.list_runs` never reads one.
+fails or is interrupted removes it, and its experiment folder if that is left empty
+(:meth:`Spool.discard`, and a finaliser when the spool is dropped or the process exits). A process
+killed outright (SIGKILL, the OOM killer) leaves its hidden folder, as a store killed while writing a
+case does: :func:`odelab.store.results.list_runs` never reads one, and the next ``odelab run`` into
+the same results folder removes it (the folder is held by its owner's lock until then,
+:mod:`odelab.store.hidden`).
 
 Reading a map brings its pages into the process (they count in its resident memory until they are
 unmapped), so whoever walks a whole column walks it with :func:`blocks` or gathers rows with
@@ -26,34 +29,21 @@ from __future__ import annotations
 import contextlib
 import mmap
 import os
-import secrets
-import shutil
 import weakref
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["BLOCK", "Spool", "SpoolFailed", "blocks", "new_hidden_folder", "release", "take"]
+from odelab.store.hidden import HiddenFolder, new_hidden_folder
+
+__all__ = ["BLOCK", "Spool", "SpoolFailed", "blocks", "release", "take"]
 
 #: Values of a column looked at a time by :func:`blocks` and :func:`take` (512 kB).
 BLOCK = 65536
 
-_TMP_SUFFIX = ".tmp"
-
 
 class SpoolFailed(OSError):
     """The spool's folder or files could not be made or written (a folder that cannot be written, a full disk)."""
-
-
-def new_hidden_folder(parent: Path, name: str) -> Path:
-    """A new hidden temporary folder ``parent/.name.XXXX.tmp`` with the usual permissions (the umask's)."""
-    while True:
-        path = Path(parent) / f".{name}.{secrets.token_hex(6)}{_TMP_SUFFIX}"
-        try:
-            os.mkdir(path, 0o777)  # the umask applies, as for any folder the user makes
-            return path
-        except FileExistsError:  # pragma: no cover - 48 random bits
-            continue
 
 
 class Spool:
@@ -69,6 +59,7 @@ class Spool:
     def __init__(self, folder: Path):
         self.target = Path(folder)
         self.folder: Path | None = None
+        self._held: HiddenFolder | None = None
         self.rows = 0
         self.width: int | None = None
         self._fds: list[int] = []
@@ -87,11 +78,10 @@ class Spool:
         self.rows += int(t.size)
 
     def _open(self, width: int) -> None:
-        parent = self.target.parent
-        parent.mkdir(parents=True, exist_ok=True)
-        self.folder = new_hidden_folder(parent, self.target.name)
+        self._held = new_hidden_folder(self.target.parent, self.target.name)
+        self.folder = self._held.path
         self.width = width
-        self._cleanup = weakref.finalize(self, _remove_spool, self.folder, self._fds)
+        self._cleanup = weakref.finalize(self, _remove_spool, self._held, self._fds)
         for name in (self.T_FILE, self.X_FILE):
             self._fds.append(os.open(self.folder / name, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
 
@@ -104,16 +94,16 @@ class Spool:
         x = np.memmap(self.folder / self.X_FILE, dtype=float, mode="r", shape=(self.rows, self.width))
         return t, x
 
-    def handover(self) -> Path | None:
-        """The spool's folder, for the store to write the case into (the raw files still in it): from now on
-        the store removes it if the case cannot be written. None if there is none (nothing spooled, or the
+    def handover(self) -> HiddenFolder | None:
+        """The spool's folder, held, for the store to write the case into (the raw files still in it): from now
+        on the store removes it if the case cannot be written. None if there is none (nothing spooled, or the
         folder was already handed over or discarded)."""
-        folder, self.folder = self.folder, None
+        held, self._held, self.folder = self._held, None, None
         if self._cleanup is not None:
             self._cleanup.detach()
             self._cleanup = None
         _close(self._fds)
-        return folder
+        return held
 
     def discard(self) -> None:
         """Remove the folder and what is in it (the maps already given out stay readable until dropped)."""
@@ -121,12 +111,12 @@ class Spool:
             self._cleanup()
             self._cleanup = None
         _close(self._fds)
-        self.folder = None
+        self.folder = self._held = None
 
 
-def _remove_spool(folder: Path, fds: list[int]) -> None:
+def _remove_spool(held: HiddenFolder, fds: list[int]) -> None:
     _close(fds)
-    shutil.rmtree(folder, ignore_errors=True)
+    held.remove()  # and the experiment folder, if the spool was all it held
 
 
 def _close(fds: list[int]) -> None:

@@ -97,12 +97,16 @@ def write_sweep(exp, results, runs) -> Path:
     import json
 
     from odelab.experiment.naming import slug
-    from odelab.store.results import json_safe
     from odelab.fileio import atomic_write
+    from odelab.store.hidden import remove_if_empty
+    from odelab.store.results import json_safe
 
     folder = Path(runs) / slug(exp.name)
-    folder.mkdir(parents=True, exist_ok=True)
     record = json_safe(sweep_record(exp, results))
-    atomic_write(folder / "sweep.csv", sweep_csv(record))
-    atomic_write(folder / "sweep.json", json.dumps(record, indent=1, allow_nan=False) + "\n")
+    try:  # atomic_write makes the folder (again, if another run removes it as empty meanwhile)
+        atomic_write(folder / "sweep.csv", sweep_csv(record))
+        atomic_write(folder / "sweep.json", json.dumps(record, indent=1, allow_nan=False) + "\n")
+    except BaseException:
+        remove_if_empty(folder)  # nothing stored: no empty experiment folder left behind
+        raise
     return folder
