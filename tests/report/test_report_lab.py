@@ -241,6 +241,51 @@ def test_summary_table_lists_every_case_with_its_numbers(tree):
     assert status.text() == "ok"
 
 
+def _grid_widths(table) -> list[int]:
+    """The number of columns each row of a table's body fills, counting the cells that reach down into it
+    from rows above (rowspan) and each cell's colspan."""
+    reaching: dict[int, int] = {}  # column -> rows it is still occupied for
+    widths = []
+    for tr in table.find("tbody").find_all("tr"):
+        column, filled = 0, 0
+        cells = [c for c in tr.children if not isinstance(c, str) and c.tag in ("td", "th")]
+        for cell in cells:
+            while reaching.get(column, 0) > 0:
+                column += 1
+            span, down = int(cell.attrs.get("colspan", 1)), int(cell.attrs.get("rowspan", 1))
+            for c in range(column, column + span):
+                reaching[c] = down
+            column += span
+        filled = sum(1 for v in reaching.values() if v > 0)
+        widths.append(filled)
+        reaching = {c: v - 1 for c, v in reaching.items() if v > 1}
+    return widths
+
+
+def test_every_row_of_every_table_fills_its_columns(tree, lab_report):
+    # a rowspan that counts fewer rows than the table has (the summary's experiment cell over cases with
+    # an error estimate and no reference: stiff's and bouncing_ball's second quantity moved one column
+    # left, under Experiment, until 2026-12) shifts every cell of the rows below it
+    tables = tree.find_all("table")
+    assert len(tables) > 50
+    for table in tables:
+        if table.find("thead") is None or table.find("tbody") is None:
+            continue
+        header = sum(int(th.attrs.get("colspan", 1)) for th in table.find("thead").find_all("th"))
+        widths = _grid_widths(table)
+        wrong = [i for i, w in enumerate(widths) if w != header]
+        assert not wrong, f"{table.attrs.get('class')}: rows {wrong[:5]} fill {[widths[i] for i in wrong[:5]]} of {header}"
+
+
+def test_the_experiment_cell_spans_the_rows_of_its_cases_with_estimates_only(tree):
+    # stiff.toml has no reference: its stiff cases list x and v with their estimates, two rows each
+    rows = tree.find("section", id="summary").find("tbody").find_all("tr")
+    first = next(i for i, r in enumerate(rows) if r.attrs.get("data-experiment") == "stiff")
+    after = next(i for i, r in enumerate(rows) if i > first and r.attrs.get("data-experiment") not in (None, "stiff"))
+    cell = rows[first].find("td", cls="experiment-cell")
+    assert int(cell.attrs["rowspan"]) == after - first == 1 + 2 * 5  # ode45 stopped (no estimate), five stiff solvers
+
+
 def test_error_tables_hold_the_stored_maxima(tree):
     records = {r["Case"]: r for r in table_records(section(tree, "exercise1").find("table", cls="errors"))}
     # Exercise 1's f = sin t + 2 stays in [1, 3]: the headline is the lab's pointwise maximum

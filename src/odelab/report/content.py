@@ -271,7 +271,7 @@ class Section:
     @property
     def summary_rows(self) -> int:
         """Rows of the section in the summary table: one per quantity shown (at least one per case)."""
-        return sum(max(len(c.summary_errors), 1) for c in self.cases)
+        return sum(max(len(c.summary_names), 1) for c in self.cases)
 
 
 # --- helpers ----------------------------------------------------------------------------------
