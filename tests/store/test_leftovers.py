@@ -239,6 +239,20 @@ def test_odelab_run_says_what_it_removed_in_one_line(tmp_path):
     assert _leftovers(runs)[:1] == ["exercise1"] and not (runs / "long").exists()
 
 
+def test_odelab_run_json_lists_what_it_removed(tmp_path):
+    import json
+
+    runs = tmp_path / "runs"
+    proc, name = child(SPOOLING, runs / "long" / "ode45")
+    pid = killed(proc)
+    (tmp_path / "exercise1.toml").write_text((ROOT / "experiments" / "exercise1.toml").read_text())
+    result = CliRunner().invoke(app, ["run", str(tmp_path / "exercise1.toml"), "--runs", str(runs), "--json"])
+    assert result.exit_code == 0, result.output
+    document = json.loads(result.stdout)
+    assert document["removed"] == [{"path": f"{runs}/long/{name}", "bytes": 96_000, "pid": pid}]
+    assert [e["name"] for e in document["experiments"]] == ["exercise1"]
+
+
 def test_the_line_for_several_removed_folders(tmp_path):
     from odelab.cli.app import leftovers_line
 

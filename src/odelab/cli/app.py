@@ -268,6 +268,7 @@ def _draw_events(events, out, err, *, runs, json_out: bool, table: bool) -> int:
                 report_json.setdefault("warnings", []).append(event.message)
             elif isinstance(event, rf.LeftoversRemoved):
                 err.print(f"note: {_escape(leftovers_line(event.removed))}")
+                report_json["removed"] = [{"path": str(s.path), "bytes": s.size, "pid": s.pid} for s in event.removed]
             elif isinstance(event, rf.Fatal):
                 err.print(f"[bold red]error:[/] {_escape(event.message)}")
                 return EXIT_INPUT
