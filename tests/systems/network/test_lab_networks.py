@@ -95,6 +95,23 @@ def test_every_shipped_network_runs(name):
         assert np.all(np.isfinite(r.x))
 
 
+def test_the_quarter_car_climbs_a_5_cm_bump():
+    # its comment says a 5 cm bump climbed in 0.1 s: a pulse's width is a fraction of its period (as Simulink's
+    # percentage), so 0.1 s of a 100 s period is 0.001 (until 2026-12 the file said 0.1: a 10 s climb at 0.5 m/s
+    # and a body 1.25 m up at t = 3)
+    case = load_experiment(NETWORKS / "network_quarter_car.toml").cases[0]
+    u = case.problem.system.input_fn
+    t = np.linspace(0, 3, 300_001)
+    vr = u(t)[:, 0]
+    assert vr.max() == 0.5 and np.count_nonzero(vr) * (t[1] - t[0]) == pytest.approx(0.1, abs=2e-5)
+    r = run_case(case)
+    outputs = list(case.problem.outputs)
+    body, travel = r.y[:, outputs.index("body")], r.y[:, outputs.index("travel")]
+    # the suspension (damping ratio bs / (2 sqrt(ks ms)) = 0.25) overshoots, then settles on the road's 5 cm
+    assert 0.07 < body.max() < 0.08 and body[-1] == pytest.approx(0.05, rel=0.03)
+    assert abs(travel[-1]) < 0.002
+
+
 def test_the_python_api_gives_the_system_the_toml_gives():
     from odelab.network import Damper, ForceSource, Mass, Network, Spring
 
