@@ -112,6 +112,16 @@ def test_the_quarter_car_climbs_a_5_cm_bump():
     assert abs(travel[-1]) < 0.002
 
 
+def test_the_dc_motor_is_stiff_as_its_file_says():
+    # "the electrical time constant is far shorter than the mechanical one" (why the file asks for ode15s):
+    # La/Ra = 0.5 ms against about 80 ms (until 2026-12 the file said La = 0.5 H: 500 ms, and poles -1.05 +- 4.9j)
+    model = load_experiment(NETWORKS / "network_dc_motor.toml").cases[0].problem.system.model
+    poles = np.linalg.eigvals(np.asarray(model.A, dtype=float))
+    moving = np.sort(np.abs(poles[np.abs(poles) > 1e-9]))  # the rotor's angle: a pole at 0
+    assert np.all(poles.imag == 0) and moving[-1] / moving[0] > 100
+    assert moving == pytest.approx([12.68, 1987.3], rel=1e-3)
+
+
 def test_the_python_api_gives_the_system_the_toml_gives():
     from odelab.network import Damper, ForceSource, Mass, Network, Spring
 
