@@ -103,9 +103,12 @@ def headline_basis(reference: np.ndarray) -> str:
     """"pointwise" if |f| stays at or above NEAR_ZERO of its maximum at every point, else "peak"."""
     magnitude = np.abs(np.asarray(reference, dtype=float))
     finite = magnitude[np.isfinite(magnitude)]
-    if finite.size == 0 or not finite.max() > 0:
-        return "peak"
-    return "pointwise" if finite.min() >= NEAR_ZERO * finite.max() else "peak"
+    return _basis(float(finite.min()), float(finite.max())) if finite.size else "peak"
+
+
+def _basis(low: float, high: float) -> str:
+    """The rule of :func:`headline_basis` on the smallest and largest finite |f| (low > high: none)."""
+    return "pointwise" if high >= low and high > 0 and low >= NEAR_ZERO * high else "peak"
 
 
 #: Points summarize() looks at at once: its temporaries stay a few MB for any length of run.
@@ -149,7 +152,7 @@ def summarize(name: str, t: np.ndarray, values: np.ndarray, reference: np.ndarra
         i = 0
     max_abs = float(np.abs(reference[i] - values[i]))
     scale = high if high >= low else math.nan
-    basis = "pointwise" if high >= low and high > 0 and low >= NEAR_ZERO * high else "peak"
+    basis = _basis(low, high)
     if j is None:
         return ErrorSummary(name, max_abs, float(t[i]), None, None, undefined, scale, None, basis)
     return ErrorSummary(name, max_abs, float(t[i]), float(best_rel), float(t[j]), undefined, scale,
